@@ -678,13 +678,25 @@ def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b,
     rows, L = rows[keep], L[rows][keep]
     if not len(rows):
         return
+    _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org_ns, org_p,
+                    link_prim, lamp_w, clamping, tp, chain, s, acc, target, pix, ftp, feat)
+
+
+def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org_ns, org_p,
+                    link_prim, lamp_w, clamping, tp, chain, s, acc, target, pix, ftp, feat):
+    """The light L (K,3) of lamp li that the rays at rows met (at tl along o, d) into the
+    accumulator: weighted by MIS against the BSDF rays' pdf_b when `mis` (the light tree's
+    choice in the receiver sets of link_prim), by the shade the path left (lamp_w),
+    clamped, and into the data passes."""
     if mis:
         om, tm = o[rows], tl[rows]
         if passages is not None:
             om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
         L = L * _mis_weight(ctx, li, light, om, d[rows], tm, pdf_b[rows], org_ns[rows],
                             org_p[rows], _link_sets(ctx, link_prim, rows))[:, None]
-    if lamp_w is not None:
+    if lamp_w is not None and len(rows):
+        # Its light through the shade the path left: shared with the shade samples of
+        # the glossy hit before (shadelight.shade_bsdf_weights).
         L = L * lamp_w[rows, li][:, None]
     if clamping:
         L = sampleclamp.clamp(L, tp, rows, sampleclamp.bounce_limits(
@@ -2549,24 +2561,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     L = L * np.where((m_rows >= 0)[:, None],
                                      np.exp(-np.take(sigma, np.maximum(m_rows, 0), axis=0)
                                             * seg[:, None]), 1.0)
-                if bounce > 0 and modes[li] == MODE_MIS and len(rows):
-                    # The rays that met the light only (with the light tree each takes
-                    # a walk down the tree per light for its choice probability).
-                    om, tm = o[rows], tl[rows]
-                    if passages is not None:
-                        om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
-                    L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
-                                        pdf_b[rows], org_ns[rows], org_p[rows],
-                                        _link_sets(ctx, link_prim, rows))[:, None]
-                if lamp_w is not None and len(rows):
-                    # Its light through the shade the path left: shared with the shade
-                    # samples of the glossy hit before (shadelight.shade_bsdf_weights).
-                    L = L * lamp_w[rows, li][:, None]
-                if clamping:
-                    L = sampleclamp.clamp(L, tp, rows, sampleclamp.bounce_limits(
-                        s, np.take(chain[:, 0], rows) - 1))
-                acc.add(target, pix, L, tp, rows)
-                datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
+                # (MIS for the rays that met the light only: with the light tree each
+                # takes a walk down the tree per light for its choice probability)
+                _add_lamp_light(ctx, li, light, rows, L, o, d, tl,
+                                bounce > 0 and modes[li] == MODE_MIS and len(rows) > 0,
+                                passages, pdf_b, org_ns, org_p, link_prim, lamp_w, clamping,
+                                tp, chain, s, acc, target, pix, ftp, feat)
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
