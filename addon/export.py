@@ -18,6 +18,7 @@ import numpy as np
 from .materials import (CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, object_attribute_key,
                         output_node)
 from .normals import shading_normals
+from .particlehair import particle_strands
 from .world import export_world, sky_sun_lights, world_medium, world_mist
 
 
@@ -288,6 +289,47 @@ def extract_hair_geometry(pm, obj) -> LocalGeometry | None:
         radius = _foreach(rad.data, "value", n_points, 1, np.float32)
     else:
         radius = np.full(n_points, pm.hair.DEFAULT_RADIUS)
+    mi = attrs.get("material_index")
+    slot = None
+    if mi is not None and mi.domain == "CURVE" and mi.data_type == "INT":
+        slot = _foreach(mi.data, "value", n_curves, 1, np.int32)
+    return hair_tubes(pm, obj, points, radius, offsets, slot)
+
+
+def extract_particle_hair(pm, obj, background: bool = True,
+                          should_cancel=None) -> LocalGeometry | None:
+    """The strands of an object's particle hair systems (addon/particlehair.py, read as
+    Cycles does) as triangle tubes in its local space, each system's strands in its
+    Render > Material slot; None when it has none to render. Raises ExportCancelled when
+    should_cancel() turns True while the keys are read."""
+    cancelled = []
+
+    def stop():
+        if should_cancel is not None and should_cancel():
+            cancelled.append(True)
+            return True
+        return False
+
+    strands = particle_strands(obj, background, stop)
+    if cancelled:
+        raise ExportCancelled()
+    if strands is None:
+        return None
+    geo = hair_tubes(pm, obj, strands.points, strands.radius, strands.offsets,
+                     strands.slot, strands.uv)
+    if geo is not None and geo.uvs is not None:  # (the emitter's render UV map)
+        geo.uv_name = next((layer.name for layer in obj.data.uv_layers if layer.active_render),
+                           obj.data.uv_layers[0].name)
+    return geo
+
+
+def hair_tubes(pm, obj, points, radius, offsets, slot=None,
+               strand_uv=None) -> LocalGeometry | None:
+    """Hair strands (points (P,3) and radius (P,) in object space, offsets (C+1,), slot
+    (C,) material slot or None: the first; strand_uv (C,2) each strand's UV, on every
+    corner of its tubes, or None: no UVs) as smooth-shaded triangle tubes
+    (engine/hair.tube_mesh), with Curves Info's attributes when a material of obj reads
+    them. None when no strand has 2 points."""
     # Curves Info, and the Principled Hair BSDF's Random Color / Random Roughness (the
     # strand's Random when its Random input is unlinked), read these attributes.
     info = any(node.type in ("HAIR_INFO", "BSDF_HAIR_PRINCIPLED")
@@ -296,14 +338,15 @@ def extract_hair_geometry(pm, obj) -> LocalGeometry | None:
                                                                  params=info)
     if len(faces) == 0:
         return None
-    mi = attrs.get("material_index")
-    mat_index = np.zeros(len(faces), np.int32)
-    if mi is not None and mi.domain == "CURVE" and mi.data_type == "INT":
-        mat_index = _foreach(mi.data, "value", n_curves, 1, np.int32)[curve]
+    mat_index = np.zeros(len(faces), np.int32) if slot is None else \
+        np.asarray(slot, np.int32)[curve]
     lo, hi = verts.min(axis=0), verts.max(axis=0)
     texspace = ((lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-6))  # Blender's auto space
     attributes = curves_info(points, offsets, faces, curve, *per_vertex) if info else None
-    return LocalGeometry(verts, faces, normals, None, mat_index, texspace=texspace,
+    uvs = None
+    if strand_uv is not None:
+        uvs = np.repeat(np.asarray(strand_uv, np.float64)[curve][:, None, :], 3, axis=1)
+    return LocalGeometry(verts, faces, normals, uvs, mat_index, texspace=texspace,
                          attributes=attributes)
 
 
@@ -565,7 +608,7 @@ def ray_visibility(obj, inst, view_layer) -> dict:
 
 def warn_unsupported_object_options(obj, warnings: list):
     """Object options this engine cannot honour, once per object: the last Subdivision
-    modifier's Adaptive Subdivision, particle hair, Light / Shadow Linking."""
+    modifier's Adaptive Subdivision, Light / Shadow Linking."""
     mods = getattr(obj, "modifiers", None) or ()
     last = mods[-1] if len(mods) else None
     if (last is not None and getattr(last, "type", "") == "SUBSURF"
@@ -576,24 +619,7 @@ def warn_unsupported_object_options(obj, warnings: list):
         warnings.append(f"object '{obj.name}': Adaptive Subdivision is not made; the "
                         f"Subdivision modifier's render levels ({last.render_levels}) are "
                         "used, so true displacement is only as fine as those")
-    for psys in getattr(obj, "particle_systems", None) or ():
-        settings = psys.settings
-        if settings.type == "HAIR" and settings.render_type == "PATH" and \
-                _particle_modifier_renders(obj, psys):
-            # Curves objects (Blender's hair since 3.5) render; the old particle hair
-            # would need its strands computed per particle in Python.
-            warnings.append(f"object '{obj.name}': particle hair '{psys.name}' is not "
-                            "rendered; convert it to a Curves object (Object > Convert > "
-                            "Curves) to render it")
     warn_light_linking(obj, warnings)
-
-
-def _particle_modifier_renders(obj, psys) -> bool:
-    """Whether the Particle System modifier holding psys is on in renders."""
-    for mod in getattr(obj, "modifiers", None) or ():
-        if mod.type == "PARTICLE_SYSTEM" and mod.particle_system == psys:
-            return bool(mod.show_render)
-    return True
 
 
 def warn_light_linking(obj, warnings: list, who=None):
@@ -1204,6 +1230,33 @@ def _instance_name(inst, obj, info) -> str:
     return name
 
 
+def particle_hair_mesh(pm, inst, obj, geo: LocalGeometry, converter, materials: dict,
+                       info: dict, view_layer):
+    """The engine Mesh of an object's particle hair (extract_particle_hair's local
+    geometry) at the instance's matrix, named '<object>/particle hair': the emitter's
+    material slots, ray visibility, Object Info and Cryptomatte names (Cycles renders the
+    strands as part of the emitter object), its Light Linking too (info["owners"])."""
+    names = []
+    for mat in [slot.material for slot in obj.material_slots] or [None]:
+        m = converter.convert(mat)
+        drop_holdout_warning(mat, m)
+        materials[m.name] = m
+        names.append(m.name)
+    base = _instance_name(inst, obj, info)
+    name = f"{base}/particle hair"
+    info["owners"][name] = info["owners"][base]
+    matrix = np.array(inst.matrix_world, dtype=np.float64)
+    verts, faces, normals, uvs = transform_geometry(geo, matrix)
+    coords = corner_attributes(geo, matrix, any(converter.needs_coordinates(n) for n in names),
+                               any(_radial(converter, n) for n in names),
+                               _uv_slots(converter, names))
+    return pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals, uvs=uvs,
+                   materials=names, material_ids=np.clip(geo.material_index, 0, len(names) - 1),
+                   coordinates=coords, pass_index=pass_index(obj),
+                   **object_info(obj, inst, converter.object_attribute_names),
+                   **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
+
+
 def _prototype(pm, name, geo: LocalGeometry, mids):
     """The engine Prototype of local geometry: object-space vertices, faces, normals,
     UVs and material slots, written once however often it is placed."""
@@ -1533,6 +1586,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     view_layer = getattr(depsgraph, "view_layer", None)
     enabled = (render_enabled_objects(view_layer) if render_visibility and view_layer
                is not None else None)
+    # A final render's particle hair (its children and Render Steps), or the viewport's.
+    hair_background = render_visibility or getattr(depsgraph, "mode", "RENDER") == "RENDER"
     for i, inst in enumerate(depsgraph.object_instances):
         now = time.perf_counter()
         if should_cancel is not None and now - last_poll > 0.2:
@@ -1543,9 +1598,22 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             progress(i + 1, total)
         obj = inst.object
         otype = obj.type
-        if not inst.is_instance and not getattr(inst, "show_self", True):
-            continue
         if enabled is not None and render_hidden(inst, enabled):
+            continue
+        if otype == "MESH" and getattr(inst, "show_particles", True) and \
+                len(getattr(obj, "particle_systems", ()) or ()):
+            # Particle hair: strands of the emitter's own, shown also when the emitter
+            # itself is not (Object > Visibility > Show Instancer: Renders off).
+            hkey = ("particle hair",) + _geometry_key(obj)
+            if hkey not in cache:
+                cache[hkey] = extract_particle_hair(pm, obj, hair_background,
+                                                    should_cancel)
+            if cache[hkey] is not None:
+                mesh = particle_hair_mesh(pm, inst, obj, cache[hkey], converter, materials,
+                                          info, view_layer)
+                meshes.append(mesh)
+                info["triangles"] += len(mesh.faces)
+        if not inst.is_instance and not getattr(inst, "show_self", True):
             continue
         if otype == "LIGHT":
             matrix = np.array(inst.matrix_world, dtype=np.float64)
@@ -1749,6 +1817,19 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     converted_before = set(converter.cache)
     for inst in depsgraph.object_instances:
         obj = inst.object
+        if obj.type == "MESH" and getattr(inst, "show_particles", True) and \
+                len(getattr(obj, "particle_systems", ()) or ()):
+            hkey = ("particle hair",) + _geometry_key(obj)  # (export_scene's)
+            if obj.name in updates.geometry or hkey not in cache.geometry:
+                if hkey not in seen:
+                    cache.geometry[hkey] = extract_particle_hair(
+                        pm, obj, getattr(depsgraph, "mode", "VIEWPORT") == "RENDER")
+            seen.add(hkey)
+            if cache.geometry[hkey] is not None:
+                mesh = particle_hair_mesh(pm, inst, obj, cache.geometry[hkey], converter,
+                                          materials, info, view_layer)
+                meshes.append(mesh)
+                info["triangles"] += len(mesh.faces)
         if not inst.is_instance and not getattr(inst, "show_self", True):
             continue
         if obj.type == "LIGHT":

@@ -1,5 +1,6 @@
 """Hair: a Curves object (Blender's hair) renders as Cycles renders it (engine/hair.py,
-addon/export.py extract_hair_geometry), against live Cycles; old particle hair is warned.
+addon/export.py extract_hair_geometry), against live Cycles (particle hair:
+test_particle_hair_cycles.py).
 
 A tuft of 400 strands (5 keys each, radius 0.012 m at the root to 0.004 m at the tip, a
 Principled BSDF) on a grey Principled floor under a sun and a dim world, Cycles' default
@@ -76,29 +77,6 @@ def test_a_tuft_of_hair_matches_cycles(bpy_addon, tmp_path, shape):
     # The hair is there: its blocks differ from the bare floor's (the tuft's middle).
     assert ref[24:48, 24:72].mean() > 1.3 * ref[60:, :12].mean() or \
         ref[24:48, 24:72].mean() < 0.77 * ref[60:, :12].mean()
-
-
-def test_particle_hair_is_warned_naming_the_object(fresh_scene, bpy_addon):
-    """Old particle hair (a Particle System of type Hair) is not rendered: one warning
-    names the object and the system and says how to render it (it was dropped
-    silently)."""
-    bpy = bpy_addon
-    from blender_helpers import export_warnings
-    mesh = bpy.data.meshes.new("Scalp")
-    mesh.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
-    scalp = bpy.data.objects.new("Scalp", mesh)
-    bpy.context.scene.collection.objects.link(scalp)
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.location = (0, -4, 2)
-    bpy.context.scene.collection.objects.link(cam)
-    bpy.context.scene.camera = cam
-    assert not [w for w in export_warnings(bpy) if "particle" in w]
-    mod = scalp.modifiers.new("Fur", "PARTICLE_SYSTEM")
-    mod.particle_system.settings.type = "HAIR"
-    hits = [w for w in export_warnings(bpy) if "particle hair" in w]
-    assert len(hits) == 1 and "'Scalp'" in hits[0] and "Convert" in hits[0], hits
-    mod.show_render = False  # off in renders: nothing to say
-    assert not [w for w in export_warnings(bpy) if "particle hair" in w]
 
 
 def test_hair_exports_for_renders_and_the_viewport(bpy_addon):
