@@ -2066,6 +2066,32 @@ def geometry_hair_curves():
 
 
 @case("geometry")
+def geometry_particle_hair():
+    """Particle hair: a small plane emitting 150 hair particles (0.9 m, Interpolated
+    children x 4, Diameter Root 2 / Tip 0.5 x Radius Scale 0.02, Render > Material slot
+    2) on the floor under a sun: the strands read by co_hair as Cycles reads them
+    (addon/particlehair.py), tubes as a Curves object's."""
+    _stage()
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, 0.0, 0.001))
+    emitter = bpy.context.active_object
+    emitter.data.materials.append(_red())
+    emitter.data.materials.append(
+        mb.material("hair", "principled", (0.8, 0.35, 0.1), roughness=0.6))
+    part = emitter.modifiers.new("Fur", "PARTICLE_SYSTEM").particle_system.settings
+    part.type = "HAIR"
+    part.count = 150
+    part.hair_length = 0.9
+    part.material = 2
+    part.root_radius, part.tip_radius, part.radius_scale = 2.0, 0.5, 0.02
+    part.use_close_tip = False
+    part.use_advanced_hair = True
+    part.brownian_factor = 0.15
+    part.child_type = "INTERPOLATED"
+    part.rendered_child_count = part.child_percent = 4
+    _sun()
+
+
+@case("geometry")
 def geometry_motion_blur():
     """Render > Motion Blur: a red cube moving 2.4 m in x over two frames (linear keys),
     rendered at frame 1 with Shutter 0.5 centred on it (it sweeps 0.6 m while the shutter
