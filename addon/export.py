@@ -350,6 +350,84 @@ def hair_tubes(pm, obj, points, radius, offsets, slot=None,
                          attributes=attributes)
 
 
+# Object types whose own data is rendered geometry (the depsgraph yields curves, text,
+# metaballs and surfaces as MESH instances).
+GEOMETRY_TYPES = ("MESH", "CURVES", "POINTCLOUD")
+
+
+def extract_object_geometry(pm, obj) -> LocalGeometry | None:
+    """An evaluated object's local geometry by its type (GEOMETRY_TYPES): a mesh's
+    triangles, a Curves object's strand tubes, a point cloud's spheres."""
+    if obj.type == "CURVES":
+        return extract_hair_geometry(pm, obj)
+    if obj.type == "POINTCLOUD":
+        return extract_pointcloud_geometry(pm, obj)
+    return extract_geometry(obj)
+
+
+def extract_pointcloud_geometry(pm, obj) -> LocalGeometry | None:
+    """A Point Cloud's points (Geometry Nodes points: Mesh to Points, Distribute Points
+    on Faces, Points) as the spheres Cycles renders, each of its point attribute
+    "radius" (Cycles' 0.01 m without it), all in the first material slot, as Cycles
+    (engine/pointcloud.py: icospheres of the sphere's surface area, smooth-shaded); None
+    without a point of positive radius."""
+    cloud = obj.data
+    n = len(cloud.points)
+    if n == 0:
+        return None
+    attrs = cloud.attributes
+    centres = _foreach(attrs["position"].data, "vector", n, 3, np.float32)
+    rad = attrs.get("radius")
+    if rad is not None and rad.domain == "POINT" and rad.data_type == "FLOAT":
+        radius = _foreach(rad.data, "value", n, 1, np.float32)
+    else:
+        radius = np.full(n, pm.pointcloud.DEFAULT_RADIUS)
+    verts, faces, normals, point = pm.pointcloud.sphere_mesh(centres, radius)
+    if len(faces) == 0:
+        return None
+    # Every point in the first slot: Cycles' export_pointcloud fills its shaders with 0
+    # (a "material_index" attribute is not read there either).
+    mat_index = np.zeros(len(faces), np.int32)
+    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    texspace = ((lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-6))  # Blender's auto space
+    attributes = None
+    if any(node.type == "POINT_INFO" for node in _material_nodes(obj)):
+        attributes = point_info(centres, radius, faces, point)
+    return LocalGeometry(verts, faces, normals, None, mat_index, texspace=texspace,
+                         attributes=attributes)
+
+
+def point_info(centres, radius, faces, point) -> dict:
+    """The Point Info node's outputs per corner of a point cloud's spheres, as
+    LocalGeometry attributes (read by addon/materials.py, POINT_INFO): 'point_position' the
+    point's centre (object space here; corner_attributes takes it to world space, as
+    Cycles' point_position), 'point_info' = (Radius, Random, 0) with Random
+    hash_uint2_to_float(point index, 0) (Cycles' ATTR_STD_POINT_RANDOM) and the radius in
+    object space (corner_attributes scales it as Cycles' point_radius). centres (N,3),
+    radius (N,), faces (F,3), point (F,) each face's point."""
+    random = (hash_uint2(np.arange(len(radius), dtype=np.int64), 0).astype(np.float32)
+              / np.float32(4294967295.0)).astype(np.float64)
+    ones = np.ones(faces.shape)
+    position = np.repeat(np.asarray(centres, np.float64)[point][:, None, :], 3, axis=1)
+    info = np.zeros(faces.shape + (3,))
+    info[..., 0] = np.asarray(radius, np.float64)[point][:, None]
+    info[..., 1] = random[point][:, None]
+    return {"point_position": (position, position[..., 0], ones),
+            "point_info": (info, info[..., 0], ones)}
+
+
+def warn_unrendered_object(inst, obj, warnings: list) -> None:
+    """A Volume object (OpenVDB grids, Mesh to Volume) renders nothing here: said once,
+    naming it (it was skipped silently)."""
+    if obj.type == "VOLUME":
+        owner = inst.parent.name if inst.is_instance and inst.parent is not None else obj.name
+        text = (f"object '{owner}': volume objects (OpenVDB grids, Mesh to Volume) are not "
+                "rendered; a mesh with a Principled Volume material renders a homogeneous "
+                "medium")
+        if text not in warnings:
+            warnings.append(text)
+
+
 def warn_empty_hair(obj, warnings: list) -> None:
     """A Curves object with curves but nothing to render (every strand of radius 0, or of
     fewer than 2 points): said, naming it (its radius-0 triangles read "mesh ...: dropped
@@ -474,6 +552,12 @@ def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool,
     uv_tangent_warnings). Corners in the exported order. None when there are none."""
     flipped = np.linalg.det(matrix[:3, :3]) < 0
     out = texture_coordinates(g, flipped) if coordinates else {}
+    if "attr:point_position" in out:  # Point Info (point_info): world space, as Cycles'
+        out["attr:point_position"] = out["attr:point_position"] @ matrix[:3, :3].T \
+            + matrix[:3, 3]
+        info = out["attr:point_info"].copy()  # point_radius: average(R (r, r, r))
+        info[..., 0] *= float(matrix[:3, :3].sum(axis=1).mean())
+        out["attr:point_info"] = info
     if radial:
         t = radial_tangents(g, matrix)
         named = getattr(g, "named_tangents", None) or {}
@@ -1578,7 +1662,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     total = 0
     for inst in depsgraph.object_instances:
         total += 1
-        if inst.object.type in ("MESH", "CURVES"):
+        if inst.object.type in GEOMETRY_TYPES:
             key = _geometry_key(inst.object)
             uses[key] = uses.get(key, 0) + 1
     prototypes: dict = {}
@@ -1623,16 +1707,16 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             if light is not None:
                 lights.append(light)
             continue
-        if otype != "MESH" and otype != "CURVES":
+        if otype not in GEOMETRY_TYPES:
             # Curve, surface, text and metaball objects: the depsgraph also yields their
             # evaluated geometry as MESH instances (parent = the object). Like Cycles
             # (blender/object.cpp, object_is_geometry: only Mesh data is geometry), the
             # object itself is skipped, or its geometry would be exported twice.
+            warn_unrendered_object(inst, obj, warnings)
             continue
         key = _geometry_key(obj)
         if key not in cache:
-            cache[key] = (extract_hair_geometry(pm, obj) if otype == "CURVES"
-                          else extract_geometry(obj))
+            cache[key] = extract_object_geometry(pm, obj)
             if cache[key] is None and otype == "CURVES":
                 warn_empty_hair(obj, warnings)
         geo = cache[key]
@@ -1840,15 +1924,16 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             if light is not None:
                 lights.append(light)
             continue
-        if obj.type not in ("MESH", "CURVES"):
-            continue  # the depsgraph yields other geometry as MESH instances (export_scene)
+        if obj.type not in GEOMETRY_TYPES:
+            # (the depsgraph yields other geometry as MESH instances: export_scene)
+            warn_unrendered_object(inst, obj, warnings)
+            continue
         data = getattr(obj, "data", None)
         gkey = (obj.name, data.as_pointer() if data is not None else 0)
         if (obj.name in updates.geometry or (data is not None and data.name in updates.data)
                 or gkey not in cache.geometry):
             if gkey not in seen:
-                cache.geometry[gkey] = (extract_hair_geometry(pm, obj) if obj.type == "CURVES"
-                                        else extract_geometry(obj))
+                cache.geometry[gkey] = extract_object_geometry(pm, obj)
                 info["geometry_read"].append(obj.name)
         seen.add(gkey)
         geo = cache.geometry[gkey]

@@ -1599,6 +1599,19 @@ class MaterialConverter:
                            f"'{n.name}' is not supported; reads 0")
                 return np.zeros(3)
             return sn.SeparateChannel(self._coordinates(f"attr:{where[0]}"), where[1])
+        if t == "POINT_INFO":
+            # Point Info: per corner on point clouds (addon/export.py
+            # extract_pointcloud_geometry: 'point_position' the point's centre, in world
+            # space; 'point_info' = Radius, Random); elsewhere 0, as Cycles'
+            # svm_node_point_info off a point.
+            if oname == "Position":
+                return self._coordinates("attr:point_position")
+            where = {"Radius": 0, "Random": 1}.get(oname)
+            if where is None:
+                self._warn(f"material '{self._mat.name}': output '{oname}' of Point Info "
+                           f"'{n.name}' is not supported; reads 0")
+                return np.zeros(3)
+            return sn.SeparateChannel(self._coordinates("attr:point_info"), where)
         if t == "ATTRIBUTE":
             kind = getattr(n, "attribute_type", "GEOMETRY")
             if kind in ("OBJECT", "INSTANCER"):
