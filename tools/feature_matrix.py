@@ -2092,6 +2092,29 @@ def geometry_particle_hair():
 
 
 @case("geometry")
+def geometry_pointcloud():
+    """A point cloud: the 42 vertices of an icosphere made points of radius 0.1 m
+    (Geometry Nodes Mesh to Points, Set Material) over the floor under a sun: each point
+    Cycles' sphere (engine/pointcloud.py: icospheres of the sphere's area)."""
+    _stage()
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=2, radius=0.7, location=(0, 0, 0.85))
+    dots = bpy.context.active_object
+    ng = bpy.data.node_groups.new("ToPoints", "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    gin, gout = ng.nodes.new("NodeGroupInput"), ng.nodes.new("NodeGroupOutput")
+    to_points = ng.nodes.new("GeometryNodeMeshToPoints")
+    to_points.inputs["Radius"].default_value = 0.1
+    set_material = ng.nodes.new("GeometryNodeSetMaterial")
+    set_material.inputs["Material"].default_value = _red()
+    ng.links.new(gin.outputs[0], to_points.inputs["Mesh"])
+    ng.links.new(to_points.outputs[0], set_material.inputs[0])
+    ng.links.new(set_material.outputs[0], gout.inputs[0])
+    dots.modifiers.new("Points", "NODES").node_group = ng
+    _sun()
+
+
+@case("geometry")
 def geometry_motion_blur():
     """Render > Motion Blur: a red cube moving 2.4 m in x over two frames (linear keys),
     rendered at frame 1 with Shutter 0.5 centred on it (it sweeps 0.6 m while the shutter
