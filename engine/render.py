@@ -39,6 +39,7 @@ from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, conca
 from .resources import check_resources
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
+from .stagespans import StageSpans
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
 from .visualimportance import indirect_share
@@ -242,7 +243,8 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     camera looks (engine/visualimportance.py), but every view's estimates stay unbiased.
     on_plan({"photons": n}) is told, before the first photon is traced, how many photons
     the pass will emit over all its shots (global, glow, caustic: the effect analysis
-    decides which), so a progress bar can size the photon stage (None: nobody)."""
+    decides which; 0 when it leaves the photon pass out), so a progress bar can size
+    the photon stage (None: nobody)."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     ctx.regather_maps = ctx.regather_secondary = ()
     ctx.gather_counts = None
@@ -251,6 +253,8 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     shot = ()
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
         shot = _photon_pass(ctx, stats, progress, should_cancel, on_warning, on_plan)
+    elif on_plan is not None:  # no photon pass after all: the bar's span goes to pixels
+        on_plan({"photons": 0})
     if ctx.gather_map is None and _sample_every_side(ctx.lights):
         # No final gathering (off, indirect light off, or no photon to gather): no
         # gather ray brings the unsampled sides' direct light to a diffuse surface.
@@ -283,6 +287,8 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
     stats["time_compile"] = ensure_compiled(progress)
     try:
         shots = ()
+        if ctx.catcher_alone is not None and on_plan is not None:
+            on_plan({"catcher_pass": True})  # (its span on the bar: stagespans)
         if shoot:
             shots = shoot_photons(ctx, stats, progress, should_cancel, on_warning, on_plan)
         # The photon-hit pass, always: with several workers on its own thread, started
@@ -340,13 +346,20 @@ def _render_alone(ctx: Context, region, film: Film, progress, should_cancel) -> 
         alone.plan = analyse(alone.scene, alone.geo, alone.table, alone.lights, alone.accel,
                              alone.settings)
 
-    def told(_stage, fraction, text):
-        # (A stage of its own: the progress bars' photon and render spans are the main
-        # pass', which this one would run back over.)
-        if progress is not None:
-            progress("shadow catcher", fraction, f"Shadow catcher: {text}")
+    # (A stage of its own: the progress bars' photon and render spans are the main
+    # pass', which this one would run back over; its own stages placed within it.)
+    x0, y0, x1, y1 = region
+    inner = StageSpans(alone.settings.uses_photon_maps,
+                       alone.settings.photons + alone.settings.caustic_photons,
+                       max((x1 - x0) * (y1 - y0), 1) * alone.settings.spp)
 
-    one = _render_pass(alone, region, told, should_cancel, True, None)
+    def told(stage, fraction, text):
+        if progress is not None:
+            whole = inner.whole(stage, fraction)
+            progress("shadow catcher", fraction if whole is None else whole,
+                     f"Shadow catcher: {text}")
+
+    one = _render_pass(alone, region, told, should_cancel, True, None, inner.plan)
     if one.stats.get("cancelled"):
         raise Cancelled()
     shadowcatcher.add_alone(film, one)

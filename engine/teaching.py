@@ -121,16 +121,23 @@ def _photons_stored(stats) -> int:
 
 def _render_timed(scene, settings, progress, should_cancel, prefix, part=(0, 1)):
     """Render; the time without the kernel compile. part = (index, count) of this render
-    in its series: progress reports the fraction of the whole series."""
+    in its series: progress reports the fraction of the whole series (each render's
+    stages placed within its share by engine/stagespans.py: a stage's own fraction read
+    as the render's sent the bar back at every stage, polish38)."""
     from .parallel import Cancelled
     from .render import render
+    from .stagespans import StageSpans
+    spans = StageSpans(settings.uses_photon_maps, settings.photons + settings.caustic_photons,
+                       max(scene.width * scene.height, 1) * settings.spp)
 
     def step(stage, fraction, text):
         if progress is not None:
-            progress(stage, (part[0] + fraction) / part[1], f"{prefix}: {text}")
+            whole = spans.whole(stage, fraction)  # None: the kernel compile, before it
+            progress(stage, (part[0] + (whole or 0.0)) / part[1], f"{prefix}: {text}")
 
     t0 = time.perf_counter()
-    film = render(scene, settings, progress=step, should_cancel=should_cancel)
+    film = render(scene, settings, progress=step, should_cancel=should_cancel,
+                  on_plan=spans.plan)
     # Without the one-off kernel compile of a machine's first render (engine/jit.py).
     seconds = time.perf_counter() - t0 - float(film.stats.get("time_compile") or 0.0)
     if film.stats.get("cancelled"):

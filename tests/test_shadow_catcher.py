@@ -291,3 +291,35 @@ def test_viewport_edits_rebuild_the_catchers_alone_only_when_it_changes():
         np.testing.assert_array_equal(session.frame.rgba, reference(scene))
     finally:
         session.stop()
+
+
+def test_the_catcher_pass_has_its_own_span_of_the_progress_bar():
+    """A scene with a catcher tells on_plan of its catcher-only pass; stagespans gives that
+    pass the bar's last CATCHER_SHARE, and its own photon and camera stages move through
+    that span in order (the bar sat near 100 % while it ran: polish38)."""
+    from engine import render
+    from engine.stagespans import CATCHER_SHARE, StageSpans, stage_spans
+    spans = stage_spans(True, 1000, 1000, start=0.1, catcher=True)
+    assert spans["shadow catcher"] == pytest.approx((1.0 - 0.9 * CATCHER_SHARE,
+                                                     0.9 * CATCHER_SHARE))
+    main_end = spans["render"][0] + spans["render"][1]
+    assert main_end == pytest.approx(spans["shadow catcher"][0])
+    settings = _settings(chunk_size=256)  # (several chunks: the bar moves through them)
+    bar = StageSpans(True, settings.photons, 24 * 24 * settings.spp)
+    seen, plans = [], []
+
+    def plan(work):
+        plans.append(dict(work))
+        bar.plan(work)
+
+    def progress(stage, fraction, _text):
+        seen.append((stage, bar.whole(stage, fraction)))
+
+    render(_scene(cube=True), settings, progress=progress, on_plan=plan)
+    assert {"catcher_pass": True} in plans
+    catcher = [w for stage, w in seen if stage == "shadow catcher"]
+    main = [w for stage, w in seen if stage in ("photons", "photon_map", "render")]
+    start = 1.0 - CATCHER_SHARE
+    assert catcher and min(catcher) >= start - 1e-9 and max(main) <= start + 1e-9
+    assert catcher == sorted(catcher) and catcher[-1] == pytest.approx(1.0)
+    assert catcher[0] < start + 0.5 * CATCHER_SHARE  # it starts low in its span

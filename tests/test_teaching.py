@@ -163,6 +163,19 @@ def test_compare_grid_has_four_labelled_tiles():
     _check_grid(img, tiles, 2)
 
 
+def test_the_series_progress_never_goes_back():
+    """A sweep's progress is the fraction of the whole series: it rises through each
+    render's photon, map and pixel stages and through the tiles, never back (each
+    stage's own fraction was sent as the render's: polish38)."""
+    seen = []
+    settings = RenderSettings(**{**FAST, "chunk_size": 512})
+    teaching.sweep(teaching.preview_scene(figure3(320, 240), 64), settings,
+                   {"photons": [2_000, 8_000]},
+                   progress=lambda stage, fraction, text: seen.append(fraction))
+    assert len(seen) > 6 and seen == sorted(seen), seen
+    assert 0.0 <= seen[0] < 0.5 and seen[-1] == pytest.approx(1.0)
+
+
 def box(width=48, height=36):
     from engine.api import cornell_box
     return cornell_box(width, height, glass_sphere=False)
