@@ -24,7 +24,7 @@ faces stretch with it: the mesh stays closed). The surface is then strictly insi
 medium: rays in the fog meet it first, and the rays leaving it (shadow rays, bounces,
 photons) start inside the fog, past nothing. SEAT is far above the rounding of a hit
 distance or a ray origin (~1e-7 of the coordinates) and far below what an image shows
-(0.2 mm on a 10 m stage). Partners are surfaces with no medium of their own (a floor, a
+(0.1 mm on a 10 m stage). Partners are surfaces with no medium of their own (a floor, a
 wall, clear glass), not other volumes. Not handled: placements without a world-space copy
 (two-level instances) on either side; a box floating higher than CONTACT above the floor
 is a real gap (the floor outside the fog, lit through it: engine/shadowtransmittance.py).
@@ -36,9 +36,10 @@ from dataclasses import replace
 import numpy as np
 
 # Contact: a volume face's corners within this share of the size S (the touching meshes'
-# largest coordinate plus their boxes' diagonal) of another surface's plane. 100x the ray
-# offsets' ~1e-7 (engine/rayoffset.py G32_PLANE), as engine/coincident.py's TOUCH_PAD.
-CONTACT = 1e-5
+# largest coordinates plus their boxes' diagonals) of another surface's plane: 10x the ray
+# offsets' ~1e-7 (engine/rayoffset.py G32_PLANE), ~40 float32 steps of Blender's vertex
+# coordinates on a 10 m stage (S ~ 20 m: 20 micrometres).
+CONTACT = 1e-6
 # The move outward, a share of S: four contacts, so a face that touched from the outside
 # side (up to CONTACT above the floor) ends at least 3 contacts past it.
 SEAT = 4 * CONTACT
@@ -133,12 +134,13 @@ def seat_volume_faces(meshes, materials) -> tuple[list, list]:
         vc, vn, vok = _faces(mesh, mask)
         lo, hi = vc.reshape(-1, 3).min(axis=0), vc.reshape(-1, 3).max(axis=0)
         touch = np.zeros(len(vc), bool)
-        size = float(np.abs(vc).max()) + float(np.linalg.norm(hi - lo))
+        own = float(np.abs(vc).max()) + float(np.linalg.norm(hi - lo))
+        size = 0.0  # S: the largest over the partners it touches
         for j, (pc, pn, pok) in part_faces.items():
             if j == i:
                 continue
             plo, phi = pc.reshape(-1, 3).min(axis=0), pc.reshape(-1, 3).max(axis=0)
-            s = size + float(np.abs(pc).max()) + float(np.linalg.norm(phi - plo))
+            s = own + float(np.abs(pc).max()) + float(np.linalg.norm(phi - plo))
             pad = CONTACT * s
             if np.any(phi < lo - pad) or np.any(plo > hi + pad):
                 continue
