@@ -62,22 +62,35 @@ def _medium_free(materials, name) -> bool:
     return True
 
 
-def _face_materials(mesh) -> np.ndarray:
-    """(F,) object array: each face's material name."""
-    names = np.asarray(list(mesh.materials), dtype=object)
-    if not len(names):
-        return np.full(len(mesh.faces), "default", dtype=object)
+def _slot_flags(mesh, test) -> np.ndarray:
+    """(F,) bool: test(material name) for each face of mesh, evaluated once per slot."""
+    names = list(mesh.materials) or ["default"]
+    flags = np.array([bool(test(n)) for n in names], bool)
     if mesh.material_ids is None:
-        return np.full(len(mesh.faces), names[0], dtype=object)
-    return names[np.clip(np.asarray(mesh.material_ids, np.int64), 0, len(names) - 1)]
+        return np.full(len(mesh.faces), flags[0], bool)
+    return flags[np.clip(np.asarray(mesh.material_ids, np.int64), 0, len(names) - 1)]
 
 
-def _faces(mesh, mask):
-    """Corners (K,3,3) float64 and unit winding normals (K,3) of mesh's faces where mask."""
-    c = np.asarray(mesh.vertices, np.float64)[np.asarray(mesh.faces, np.int64)[mask]]
+def _faces(mesh, rows):
+    """Corners (K,3,3) float64 and unit winding normals (K,3) of mesh's faces rows (K,),
+    and (K,) bool which are not degenerate."""
+    c = np.asarray(mesh.vertices, np.float64)[np.asarray(mesh.faces, np.int64)[rows]]
     n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
     length = np.linalg.norm(n, axis=1)
     return c, n / np.maximum(length, 1e-300)[:, None], length > 0
+
+
+def _faces_in_box(mesh, rows, lo, hi) -> np.ndarray:
+    """The rows (of mesh's faces) whose bounding boxes meet the box lo..hi (3,): one axis
+    at a time, so a large mesh far from the box costs one gather of one coordinate."""
+    v = np.asarray(mesh.vertices, np.float64)
+    f = np.asarray(mesh.faces, np.int64)
+    for c in range(3):
+        if not len(rows):
+            break
+        x = v[:, c][f[rows]]
+        rows = rows[(x.max(axis=1) >= lo[c]) & (x.min(axis=1) <= hi[c])]
+    return rows
 
 
 def touching_faces(vol_c, vol_n, part_c, part_n, pad) -> np.ndarray:
@@ -118,46 +131,49 @@ def seat_volume_faces(meshes, materials) -> tuple[list, list]:
     plain = [i for i, m in enumerate(meshes) if len(m.faces) and not m.copyless]
     vols, parts = {}, {}
     for i in plain:
-        names = _face_materials(meshes[i])
-        is_vol = np.isin(names, list(vol_names))
+        is_vol = _slot_flags(meshes[i], lambda n: n in vol_names)
         if is_vol.any():
-            vols[i] = is_vol
-        rest = np.array([_medium_free(materials, n) for n in names], bool) & ~is_vol
+            vols[i] = np.nonzero(is_vol)[0]
+        rest = _slot_flags(meshes[i], lambda n: _medium_free(materials, n)) & ~is_vol
         if rest.any():
-            parts[i] = rest
+            parts[i] = np.nonzero(rest)[0]
     if not vols or not parts:
         return meshes, []
     out, seated = list(meshes), []
-    part_faces = {j: _faces(meshes[j], mask) for j, mask in parts.items()}
-    for i, mask in vols.items():
+    # Each partner's bounds (all its vertices: a cost filter and the size S).
+    bounds = {j: (np.asarray(meshes[j].vertices, np.float64).min(axis=0),
+                  np.asarray(meshes[j].vertices, np.float64).max(axis=0)) for j in parts}
+    for i, vrows in vols.items():
         mesh = meshes[i]
-        vc, vn, vok = _faces(mesh, mask)
+        vc, vn, vok = _faces(mesh, vrows)
         lo, hi = vc.reshape(-1, 3).min(axis=0), vc.reshape(-1, 3).max(axis=0)
         touch = np.zeros(len(vc), bool)
         own = float(np.abs(vc).max()) + float(np.linalg.norm(hi - lo))
         size = 0.0  # S: the largest over the partners it touches
-        for j, (pc, pn, pok) in part_faces.items():
+        for j, prows in parts.items():
             if j == i:
                 continue
-            plo, phi = pc.reshape(-1, 3).min(axis=0), pc.reshape(-1, 3).max(axis=0)
-            s = own + float(np.abs(pc).max()) + float(np.linalg.norm(phi - plo))
+            plo, phi = bounds[j]
+            s = own + float(max(np.abs(plo).max(), np.abs(phi).max())) + float(
+                np.linalg.norm(phi - plo))
             pad = CONTACT * s
             if np.any(phi < lo - pad) or np.any(plo > hi + pad):
                 continue
-            near = pok & np.all((pc.max(axis=1) >= lo - pad) & (pc.min(axis=1) <= hi + pad),
-                                axis=1)
-            if near.any():
-                hit = touching_faces(vc, vn, pc[near], pn[near], pad)
-                touch |= hit & vok
-                if hit.any():
-                    size = max(size, s)
+            near = _faces_in_box(meshes[j], prows, lo - pad, hi + pad)
+            if not len(near):
+                continue
+            pc, pn, pok = _faces(meshes[j], near)
+            hit = touching_faces(vc, vn, pc[pok], pn[pok], pad) & vok
+            if hit.any():
+                touch |= hit
+                size = max(size, s)
         if not touch.any():
             continue
         verts = np.asarray(mesh.vertices, np.float64)
         # Vertices at one place move together (a mesh split at its seams stays closed).
         _, group = np.unique(verts, axis=0, return_inverse=True)
         group = group.reshape(-1)
-        faces = np.asarray(mesh.faces, np.int64)[np.nonzero(mask)[0][touch]]
+        faces = np.asarray(mesh.faces, np.int64)[vrows[touch]]
         normals = vn[touch]
         # Each distinct plane a vertex touches moves it once (a box's bottom corner on the
         # floor and against a wall moves down and out; the quad's two triangles once).
