@@ -539,7 +539,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     meshes = displace_meshes(scene.meshes, scene.materials, should_cancel)
     # A fog box standing on the floor: its face in the floor's plane moves just below it,
     # so that the floor lies inside the fog (engine/volumecontact.py).
-    meshes, _ = seat_volume_faces(meshes, scene.materials)
+    meshes, seated = seat_volume_faces(meshes, scene.materials)
     names = [mesh.name for mesh in meshes]
 
     # Bounds of the corners (vertices no face uses do not count).
@@ -703,6 +703,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         shared=rows if shared else None,
     )
     set_camera_view(geo, scene)
+    geo.seated_volumes = seated  # for the effect report (engine/effects.py)
     # Texture-driven scalar inputs: one value per material for the effect analysis.
     from .textures import scalar_ranges
     scalar_ranges(table, geo)

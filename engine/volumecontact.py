@@ -123,8 +123,8 @@ def seat_volume_faces(meshes, materials) -> tuple[list, list]:
     """(meshes, seated): `meshes` (engine.scene.Mesh list) with the faces of volume-only
     materials that lie on another surface moved outward by SEAT x S (module docstring;
     new Mesh objects, the caller's unchanged, without their instance record: the copy
-    no longer matches its prototype), and the names of the meshes moved ([] and the list
-    itself when none)."""
+    no longer matches its prototype), and for each mesh moved (volume mesh name, [names
+    of the meshes it rests on], the move in m) ([] and the list itself when none)."""
     vol_names = {n for n, m in materials.items() if getattr(m, "volume_only", False)}
     if not vol_names:
         return meshes, []
@@ -150,6 +150,7 @@ def seat_volume_faces(meshes, materials) -> tuple[list, list]:
         touch = np.zeros(len(vc), bool)
         own = float(np.abs(vc).max()) + float(np.linalg.norm(hi - lo))
         size = 0.0  # S: the largest over the partners it touches
+        partners = []
         for j, prows in parts.items():
             if j == i:
                 continue
@@ -167,6 +168,7 @@ def seat_volume_faces(meshes, materials) -> tuple[list, list]:
             if hit.any():
                 touch |= hit
                 size = max(size, s)
+                partners.append(meshes[j].name)
         if not touch.any():
             continue
         verts = np.asarray(mesh.vertices, np.float64)
@@ -185,5 +187,5 @@ def seat_volume_faces(meshes, materials) -> tuple[list, list]:
         np.add.at(move, pairs[:, 0], np.repeat(normals, 3, axis=0)[first])
         out[i] = replace(mesh, vertices=verts + SEAT * size * move[group], prototype=None,
                          matrix=None)
-        seated.append(mesh.name)
+        seated.append((mesh.name, partners, SEAT * size))
     return out, seated

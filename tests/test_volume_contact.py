@@ -105,7 +105,8 @@ def test_seating_moves_touching_faces_outward_and_keeps_the_box_closed():
     wall = Mesh("wall", wv, np.array([[0, 2, 1], [0, 3, 2]]), materials=["wall"])
     mats = {"fog": FOG, "wall": WALL}
     out, seated = seat_volume_faces([box, floor, wall], mats)
-    assert seated == ["box"] and out[1] is floor and out[2] is wall
+    assert [(name, on) for name, on, _ in seated] == [("box", ["floor", "wall"])]
+    assert out[1] is floor and out[2] is wall
     np.testing.assert_array_equal(box.vertices, v)  # the caller's copy untouched
     moved = out[0].vertices - v
     step = np.abs(moved).max()
@@ -113,7 +114,7 @@ def test_seating_moves_touching_faces_outward_and_keeps_the_box_closed():
     # Size: the box's and the floor's largest coordinates and box diagonals (the larger
     # of its two partners' sums).
     size = 1.0 + math.sqrt(3.0) + 5.0 + math.sqrt(200.0 + 0.01)
-    assert step == pytest.approx(SEAT * size, rel=1e-12)
+    assert step == pytest.approx(SEAT * size, rel=1e-12) == seated[0][2]
     for p, d in zip(v, moved):
         expect = np.array([step if p[0] == 1.0 else 0.0, 0.0, -step if p[2] == 0.0 else 0.0])
         np.testing.assert_allclose(d, expect, atol=1e-15)
@@ -142,3 +143,15 @@ def test_prepare_seats_the_box_below_the_floor():
     assert z.min() < 0 and z.min() > -1e-3
     assert z32.min() < 0
     assert z.max() == pytest.approx(H, abs=1e-12)
+
+
+def test_effect_report_names_the_seated_box_and_what_it_rests_on():
+    """The "volume contact" line names the box and the floor (Cycles renders the contact
+    with a hole: a user comparing needs to know); a sunk box gets none."""
+    def lines(lift):
+        film = render(_scene(0.45, lift), RenderSettings(workers=1, spp=1,
+                                                         photon_mapping=False, seed=1))
+        return [x for x in film.stats["effects"] if x.startswith("volume contact")]
+    got = lines(0.0)
+    assert len(got) == 1 and "'fog' on 'floor'" in got[0] and "sink" in got[0], got
+    assert lines(-1e-3) == []
