@@ -25,9 +25,10 @@ medium: rays in the fog meet it first, and the rays leaving it (shadow rays, bou
 photons) start inside the fog, past nothing. SEAT is far above the rounding of a hit
 distance or a ray origin (~1e-7 of the coordinates) and far below what an image shows
 (0.13 mm for a 4 m box on a 12 m floor). Partners are surfaces with no medium of their
-own (a floor, a wall, clear glass), not other volumes. Not handled: placements without a world-space copy
-(two-level instances) on either side; a box floating higher than CONTACT above the floor
-is a real gap (the floor outside the fog, lit through it: engine/shadowtransmittance.py).
+own (a floor, a wall, clear glass), not other volumes. Not handled: placements without
+a world-space copy (two-level instances) on either side; a box floating higher than
+CONTACT above the floor is a real gap (the floor outside the fog, lit through it:
+engine/shadowtransmittance.py).
 """
 from __future__ import annotations
 
