@@ -21,6 +21,7 @@ from .scene import Material, Scene, emission_sides
 from .resources import two_level_instances
 from .worldmedium import table_materials
 from .displacement import displace_meshes
+from .volumecontact import seat_volume_faces
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
 CAMERA, DIFFUSE, GLOSSY, TRANSMISSION, SHADOW = 1, 2, 4, 8, 16
@@ -536,6 +537,9 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     # Cycles' true displacement ("Displacement Only" / "Displacement and Bump") moves
     # the vertices before anything is merged (engine/displacement.py).
     meshes = displace_meshes(scene.meshes, scene.materials, should_cancel)
+    # A fog box standing on the floor: its face in the floor's plane moves just below it,
+    # so that the floor lies inside the fog (engine/volumecontact.py).
+    meshes, seated = seat_volume_faces(meshes, scene.materials)
     names = [mesh.name for mesh in meshes]
 
     # Bounds of the corners (vertices no face uses do not count).
@@ -699,6 +703,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         shared=rows if shared else None,
     )
     set_camera_view(geo, scene)
+    geo.seated_volumes = seated  # for the effect report (engine/effects.py)
     # Texture-driven scalar inputs: one value per material for the effect analysis.
     from .textures import scalar_ranges
     scalar_ranges(table, geo)

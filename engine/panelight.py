@@ -467,6 +467,7 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
     from .lights.packing import pack_lights
     codes, params, _ = ctx.packed_lights or pack_lights(ctx.lights)
     shadow = getattr(ctx, "shadow", None)
+    links = getattr(ctx, "links", None)
     rays = 0
     scale = max(float(ctx.geo.extent), 1e-9)
     p, ns, ng, offset = (np.ascontiguousarray(a, np.float64) for a in (p, ns, ng, offset))
@@ -489,6 +490,13 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
                                float(q[lpk.COS_HALF]), w)
             rgb = np.ascontiguousarray(q[lpk.RGB:lpk.RGB + 3], np.float64)
             for k, pane in enumerate(panes.panes):
+                if links is not None and not links.lights_hit(li, ctx.geo, pane.rows[:1])[0]:
+                    # Light Linking: the sun's light through a pane is the pane's (Cycles
+                    # counts a sun met through the glass only if it lights the object the
+                    # path last bounced from, the pane: light_link_receiver_forward), so
+                    # a sun that does not light the pane gives nothing through it, and one
+                    # that does lights every receiver behind it.
+                    continue
                 keep, trans, n_rays = _through(ctx, panes, k, pane, p, ns, ng, offset, w, w,
                                                not_inside, no_k, shadow, scale, buf)
                 rays += n_rays

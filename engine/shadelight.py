@@ -561,6 +561,7 @@ def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
     packed = ctx.packed_lights or pack_lights(ctx.lights)
     geo, accel = ctx.geo, ctx.accel
     shadow = getattr(ctx, "shadow", None)
+    links = getattr(ctx, "links", None)
     scale = max(float(geo.extent), 1e-9)
     rays = 0
     c = np.ascontiguousarray
@@ -587,6 +588,12 @@ def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
         rays += len(idx)
         good = (prim >= 0) & (np.take(shades.code, np.maximum(prim, 0)) < -1)
         good &= np.isfinite(t_l) & (t_l > 0.0)
+        if links is not None:
+            # Light Linking: the light through the shade is the shade's (Cycles lights y
+            # by next-event estimation with the shade object's set; x receives it as
+            # indirect light, which is not linked): none where the lamp does not light
+            # the shade, whatever x's set.
+            good &= links.lights_hit(li, geo, prim)
         idx, wl, pdf_w, t_l, prim, hu, hv = (a_[good] for a_ in
                                              (idx, wl, pdf_w, t_l, prim, hu, hv))
         if not len(idx):

@@ -255,3 +255,25 @@ def test_a_lamp_beside_the_sun_keeps_its_aimed_caustic_photons():
     assert film.stats["caustic_photons"] > 20_000
     want = _expected_radiance()
     assert float(film.direct.astype(np.float64).mean()) == pytest.approx(want, rel=0.02)
+
+
+@pytest.mark.parametrize("receivers", [["floor"], ["floor", "pane"], ["pane"]])
+def test_light_linking_through_a_pane_follows_the_pane(receivers):
+    """Light Linking (docs/compatibility.md fogfloor39): Cycles counts a sun met through
+    the glass only if it lights the object the path last bounced from, the pane
+    (light_link_receiver_forward), so the pane's link decides, not the floor's: the sun
+    linked to the floor alone gives no direct light under the pane (its photons end at
+    the pane too; before, the Direct pass read the full light; what remains is the
+    indirect light of the floor lit beyond the pane, reflected by the pane: 0.0415 of
+    the unlinked 0.0745), linked to the pane (with or without the floor) the floor's
+    direct light as without links."""
+    s = _floor_under_pane()
+    s.lights[0].receivers = receivers
+    film = s.render(RenderSettings(spp=4, photons=50_000, caustic_photons=50_000, seed=2))
+    direct = film.direct.astype(np.float64).mean()
+    if "pane" in receivers:
+        assert direct == pytest.approx(_expected_radiance(), rel=0.02)
+    else:
+        assert direct == 0.0
+        assert film.caustic.astype(np.float64).mean() == 0.0
+        assert film.combined.astype(np.float64).mean() < 0.3 * _expected_radiance()

@@ -169,3 +169,27 @@ def test_effect_report_says_each_lamp_reaches_through_its_shade_on_a_line_of_its
                and "by shadow rays" in x for x in shade_lines)
     caustics = next(x for x in lines if x.startswith("caustics"))
     assert "by shadow rays, sampled" not in caustics
+
+
+def test_light_linking_through_a_shade_follows_the_shade():
+    """Light Linking (docs/compatibility.md fogfloor39): the light a shade passes on is the
+    shade's next-event estimate in Cycles (its own light set), indirect light for the
+    floor beyond. Each lamp linked to the floor only: the shades it does not light pass
+    nothing on (the floor black but for 0.2 % of bounced light, as in Cycles; before,
+    the full light through them); linked to
+    its shade only: the floor as without links (within noise of the unlinked render:
+    the same seed)."""
+    def render(receivers):
+        s = _scene()
+        for light in s.lights:
+            if receivers is not None:
+                sx = 1 if light.position[0] > 0 else -1
+                light.receivers = [n.replace("*", str(sx)) for n in receivers]
+        film = s.render(RenderSettings(spp=4, seed=1))
+        return film.combined.astype(np.float64).reshape(-1, 3).mean(axis=0)
+
+    free = render(None)
+    assert free.min() > 0.01
+    # (what remains: the light through the tubes' open ends, bounced: 0.2 %)
+    assert np.all(render(["floor"]) < 0.005 * free)
+    np.testing.assert_allclose(render(["shade*"]), free, rtol=0.03)
