@@ -19,7 +19,7 @@ from .materials import (CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, object_at
                         output_node)
 from .normals import shading_normals
 from .particlehair import particle_strands
-from .world import export_world, sky_sun_lights, world_medium, world_mist
+from .world import export_worlds, sky_sun_lights, world_medium, world_mist
 
 
 
@@ -426,6 +426,15 @@ def warn_unrendered_object(inst, obj, warnings: list) -> None:
                 "medium")
         if text not in warnings:
             warnings.append(text)
+
+
+def camera_world(seen) -> dict:
+    """Scene keywords for the world camera rays see (export_worlds' second: None when
+    they see the scene's light)."""
+    if seen is None:
+        return {}
+    background, environment = seen
+    return {"camera_background": background, "camera_environment": environment}
 
 
 def warn_empty_hair(obj, warnings: list) -> None:
@@ -1776,15 +1785,16 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         cam_obj = cam_obj.evaluated_get(depsgraph)
     camera_out = convert_camera(pm, cam_obj, width, height, render, warnings,
                                 scene_eval.objects)
-    background, environment = export_world(pm, scene_eval.world, warnings)
+    (background, environment), seen = export_worlds(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
     resolve_light_links(lights, meshes, info.pop("owners", {}))
-    lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
+    lights = lights + sky_sun_lights(pm, environment, seen)  # a Sky Texture's sun disc
     fog = world_medium(pm, scene_eval.world, warnings)
     volume_bounces_warning(scene_eval, materials, warnings, fog)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
                      background_is_light=True, environment=environment,
+                     **camera_world(seen),
                      mist=world_mist(pm, scene_eval.world), portals=portals,
                      world_medium=fog)
     scene.warnings.extend(warnings)
@@ -1995,13 +2005,14 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     for gkey in [k for k in cache.geometry if k not in seen]:
         del cache.geometry[gkey]
         cache.prototypes.pop(gkey, None)
-    background, environment = export_world(pm, scene_eval.world, warnings)
+    (background, environment), seen = export_worlds(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
     resolve_light_links(lights, meshes, info.pop("owners", {}))
-    lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
+    lights = lights + sky_sun_lights(pm, environment, seen)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
                      background_is_light=True, environment=environment,
+                     **camera_world(seen),
                      mist=world_mist(pm, scene_eval.world), portals=portals,
                      world_medium=world_medium(pm, scene_eval.world, warnings))
     scene.warnings.extend(warnings)

@@ -11,6 +11,9 @@ Nishita; Multiple Scattering, 5.0's default; Preetham; Hosek / Wilkie), behind t
 Mapping: the engine computes the sky as Cycles does (engine/lights/sky.py), bakes it into
 an environment map and adds its sun disc as a sun light (`sky_sun_lights`). A sky type
 the engine does not know warns and uses the world's viewport colour x strength.
+Backgrounds (or Emission shaders) joined by Mix Shader and Add Shader nodes are summed, a
+Mix factor from Light Path's Is Camera Ray giving camera rays a world of their own
+(`export_worlds`; docs/compatibility.md world39).
 """
 from __future__ import annotations
 
@@ -69,55 +72,214 @@ def world_medium(pm, world, warnings: list):
 
 
 def export_world(pm, world, warnings: list):
-    """(background RGB (3,), engine Environment or None) for a Blender world; warnings
-    get one line per unsupported node (each naming the world and the node)."""
+    """(background RGB (3,), engine Environment or None) for a Blender world, as the
+    scene's light and its reflections see it (export_worlds' first)."""
+    return export_worlds(pm, world, warnings)[0]
+
+
+# Light Path outputs a world's Mix Shader factor may read: each ray kind's value. Cycles'
+# camera rays (and those passed on through transparent surfaces) are none of the others;
+# the rest of the world's uses (lighting, reflections, refractions, shadow rays) differ
+# among themselves, so only Is Camera Ray splits them exactly (world_fac).
+LIGHT_PATH_CAMERA = {"Is Camera Ray": 1.0, "Is Shadow Ray": 0.0, "Is Diffuse Ray": 0.0,
+                     "Is Glossy Ray": 0.0, "Is Singular Ray": 0.0, "Is Reflection Ray": 0.0,
+                     "Is Transmission Ray": 0.0, "Is Volume Scatter Ray": 0.0}
+
+
+def export_worlds(pm, world, warnings: list) -> tuple:
+    """((background, environment) the scene's light: what every ray but the camera's
+    sees, (background, environment) what camera rays see, or None when the same) for a
+    Blender world; warnings get one line per unsupported node (each naming the world and
+    the node).
+
+    The World Output's Surface is a tree of Background (or Emission) shaders joined by
+    Mix Shader and Add Shader nodes, as Cycles sums their closures: each Background's
+    Color x Strength weighted by the Mix factors on its way. A Mix factor is a constant or
+    a Light Path output (through Math and Invert nodes): Is Camera Ray is 1 for camera
+    rays and 0 for the rest, so "light the scene with the HDRI, show a colour behind"
+    (Mix by Is Camera Ray) renders as in Cycles. Several environment maps (or a map and a
+    colour) in one sum are baked into one map on the first map's texels."""
     if world is None:
-        return np.zeros(3), None
+        return (np.zeros(3), None), None
     viewport = np.asarray(tuple(world.color)[:3], dtype=np.float64)
     use_nodes = bpy.app.version >= (5, 0, 0) or getattr(world, "use_nodes", True)
     nt = world.node_tree if use_nodes else None
     if nt is None:
-        return viewport, None
+        return (viewport, None), None
     out = output_node(nt, "OUTPUT_WORLD")
     who = f"world '{world.name}'"
     # (the World Output's Volume: world_medium; with one the engine switches the world's
     # light off, as Cycles does)
     if out is None or not out.inputs["Surface"].is_linked:
-        return np.zeros(3), None
+        return (np.zeros(3), None), None
     node = _from(out.inputs["Surface"])
-    if node is None or node.type != "BACKGROUND":
+    memo: dict = {}
+    light = _shader_terms(pm, world, node, "light", warnings, memo)
+    camera = _shader_terms(pm, world, node, "camera", [], memo)  # (warned once, above)
+    if light is None:
         what = f"'{node.name}' ({node.type})" if node is not None else "(none)"
-        warnings.append(f"{who}: surface node {what} is not supported; using the world "
-                        "viewport colour as background")
-        return viewport, None
+        warnings.append(f"{who}: surface node {what} is not supported (Background and "
+                        "Emission, joined by Mix and Add Shader nodes, are); using the "
+                        "world viewport colour as background")
+        return (viewport, None), None
+    if len(camera) == len(light) and all(
+            wc == wl and tc is tl for (wc, tc), (wl, tl) in zip(camera, light)):
+        return _resolve_terms(pm, light), None
+    return _resolve_terms(pm, light), _resolve_terms(pm, camera)
+
+
+def _shader_terms(pm, world, node, ray, warnings, memo):
+    """[(weight, term)] of the shader tree at node as ray ("light" or "camera") sees it,
+    term an RGB (3,) or an engine Environment; None for a node that is not a Background,
+    Emission, Mix Shader or Add Shader (or nothing: [])."""
+    if node is None:
+        return []
+    if node.type in ("BACKGROUND", "EMISSION"):
+        term = _background_term(pm, world, node, warnings, memo)
+        return [(1.0, term)]
+    if node.type == "ADD_SHADER":
+        parts = [_shader_terms(pm, world, _from(sock), ray, warnings, memo)
+                 for sock in node.inputs if sock.type == "SHADER"]
+        return None if any(p is None for p in parts) else [t for p in parts for t in p]
+    if node.type == "MIX_SHADER":
+        fac = min(max(world_fac(world, node.inputs[0], ray, warnings), 0.0), 1.0)
+        shaders = [sock for sock in node.inputs if sock.type == "SHADER"]
+        first = _shader_terms(pm, world, _from(shaders[0]), ray, warnings, memo)
+        second = _shader_terms(pm, world, _from(shaders[1]), ray, warnings, memo)
+        if first is None or second is None:
+            return None
+        return ([((1.0 - fac) * w, t) for w, t in first if fac < 1.0]
+                + [(fac * w, t) for w, t in second if fac > 0.0])
+    return None
+
+
+def world_fac(world, socket, ray, warnings) -> float:
+    """The value of a world Mix Shader's factor socket for ray ("light" or "camera"): its
+    constant, or a Light Path output (LIGHT_PATH_CAMERA for camera rays; for the rest Is
+    Camera Ray is 0 and the other ray kinds are warned and read as 0), through Math
+    (one operand a constant) and Invert nodes. Anything else: warned, its constant."""
+    who = f"world '{world.name}'"
+    if not socket.is_linked:
+        return float(socket.default_value)
+    link = socket.links[0]
+    node, out = link.from_node, link.from_socket.name
+    while node.type == "REROUTE" and node.inputs[0].is_linked:
+        link = node.inputs[0].links[0]
+        node, out = link.from_node, link.from_socket.name
+    if node.type == "LIGHT_PATH" and out in LIGHT_PATH_CAMERA:
+        if ray == "camera":
+            return LIGHT_PATH_CAMERA[out]
+        if out != "Is Camera Ray":
+            msg = (f"{who}: Light Path '{node.name}' output '{out}' in the world is read "
+                   "as 0 for every ray but the camera's (only Is Camera Ray splits them "
+                   "as Cycles does)")
+            if msg not in warnings:
+                warnings.append(msg)
+        return 0.0
+    if node.type == "MATH":
+        values = [world_fac(world, sock, ray, warnings) for sock in node.inputs[:2]]
+        result = _math(node.operation, *values)
+        if result is not None:
+            return min(max(result, 0.0), 1.0) if node.use_clamp else result
+    if node.type == "INVERT":
+        fac = world_fac(world, node.inputs["Fac"], ray, warnings)
+        x = world_fac(world, node.inputs["Color"], ray, warnings)
+        return fac * (1.0 - x) + (1.0 - fac) * x
+    value = float(getattr(socket, "default_value", 0.0))
+    msg = (f"{who}: node '{node.name}' ({node.type}) driving a Mix Shader factor is not "
+           f"supported (a constant, Light Path, Math and Invert are); using {value:g}")
+    if msg not in warnings:
+        warnings.append(msg)
+    return value
+
+
+def _math(op, a, b):
+    """Cycles' Math node on two floats for the operations a world factor uses; None for
+    another operation."""
+    ops = {"ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
+           "DIVIDE": lambda: a / b if b != 0.0 else 0.0, "MINIMUM": lambda: min(a, b),
+           "MAXIMUM": lambda: max(a, b), "LESS_THAN": lambda: float(a < b),
+           "GREATER_THAN": lambda: float(a > b),
+           "POWER": lambda: a ** b if a >= 0.0 else 0.0}
+    f = ops.get(op)
+    return None if f is None else float(f())
+
+
+def _background_term(pm, world, node, warnings, memo):
+    """A Background (or Emission) node's Color x Strength: RGB (3,) or an engine
+    Environment (an Environment Texture or a Sky Texture; each node read once: memo)."""
+    if node.name in memo:
+        return memo[node.name]
+    who = f"world '{world.name}'"
     strength_socket = node.inputs["Strength"]
     strength = float(strength_socket.default_value)
     if strength_socket.is_linked:
-        warnings.append(f"{who}: a node plugged into the Background strength is not "
+        warnings.append(f"{who}: a node plugged into the {node.name} strength is not "
                         f"supported; using {strength:g}")
     strength = max(strength, 0.0)
     col_socket = node.inputs["Color"]
     color = np.asarray(tuple(col_socket.default_value)[:3], dtype=np.float64)
     src = _from(col_socket)
+    term = None
     if src is None:
-        return np.clip(color * strength, 0.0, None), None
-    if src.type == "RGB":
+        term = np.clip(color * strength, 0.0, None)
+    elif src.type == "RGB":
         color = np.asarray(tuple(src.outputs[0].default_value)[:3], dtype=np.float64)
-        return np.clip(color * strength, 0.0, None), None
-    if src.type == "TEX_ENVIRONMENT":
-        env = _environment(pm, world, src, strength, warnings)
-        if env is not None:
-            return env.average(), env
-        return np.clip(color * strength, 0.0, None), None
-    if src.type == "TEX_SKY":
-        env = _sky(pm, world, src, strength, warnings)
-        if env is not None:
-            return env.average(), env
-        return np.clip(viewport * strength, 0.0, None), None
-    warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the Background "
-                    "colour is not supported (a colour, an RGB node or an Environment "
-                    f"Texture are); using the colour {color.round(3).tolist()}")
-    return np.clip(color * strength, 0.0, None), None
+        term = np.clip(color * strength, 0.0, None)
+    elif src.type == "TEX_ENVIRONMENT":
+        term = _environment(pm, world, src, strength, warnings)
+        if term is None:
+            term = np.clip(color * strength, 0.0, None)
+    elif src.type == "TEX_SKY":
+        term = _sky(pm, world, src, strength, warnings)
+        if term is None:
+            viewport = np.asarray(tuple(world.color)[:3], dtype=np.float64)
+            term = np.clip(viewport * strength, 0.0, None)
+    else:
+        warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the Background "
+                        "colour is not supported (a colour, an RGB node or an Environment "
+                        f"Texture are); using the colour {color.round(3).tolist()}")
+        term = np.clip(color * strength, 0.0, None)
+    memo[node.name] = term
+    return term
+
+
+def _resolve_terms(pm, terms) -> tuple:
+    """(background RGB (3,), Environment or None) of [(weight, term)]: the colours
+    summed; one map alone kept as it is; a map with colours or other maps baked into one
+    map on the first map's texels (the others looked up at those texels' directions, the
+    colours added), its sky's sun disc (sun_light) scaled by the sky's weight."""
+    const = np.zeros(3)
+    maps = []
+    for w, term in terms:
+        if w <= 0.0:
+            continue
+        if isinstance(term, np.ndarray):
+            const = const + w * term
+        else:
+            maps.append((w, term))
+    if not maps:
+        return np.clip(const, 0.0, None), None
+    w0, first = maps[0]
+    if len(maps) == 1 and w0 == 1.0 and not np.any(const > 0):
+        return first.average(), first
+    height, width = first.pixels.shape[:2]
+    theta = (np.arange(height) + 0.5)[:, None] / height * np.pi
+    u = (np.arange(width) + 0.5)[None, :] / width
+    phi = 2.0 * np.pi * (0.5 - u)
+    st = np.sin(theta)
+    texture_dirs = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi),
+                                                np.cos(theta)), -1).reshape(-1, 3)
+    world_dirs = texture_dirs @ first.rotation  # (R: world -> texture; R^T d per row)
+    pixels = w0 * first.pixels.astype(np.float64) + const
+    for w, other in maps[1:]:
+        pixels += w * other.radiance(world_dirs).reshape(height, width, 3)
+    env = pm.Environment(pixels.astype(np.float32), 1.0, first.rotation, first.interpolation,
+                         name=first.name)
+    sun = getattr(first, "sun_light", None)
+    if sun is not None:
+        env.sun_light = dict(sun, color=np.asarray(sun["color"], np.float64) * w0)
+    return env.average(), env
 
 
 def _environment(pm, world, node, strength, warnings):
@@ -266,7 +428,13 @@ def _sky(pm, world, node, strength, warnings):
 _SKY_CACHE: dict = {}  # key of the node's settings -> baked Environment (insertion order)
 
 
-def sky_sun_lights(pm, environment) -> list:
-    """The engine Light of a baked sky's sun disc ([] for any other environment)."""
+def sky_sun_lights(pm, environment, seen=None) -> list:
+    """The engine Light of a baked sky's sun disc ([] for any other environment). seen:
+    the (background, environment) camera rays see (export_worlds), None the same: the
+    disc shows to the camera only where that world holds the sky too."""
     params = getattr(environment, "sun_light", None)
-    return [] if params is None else [pm.Light(**params)]
+    if params is None:
+        return []
+    if seen is not None and getattr(seen[1], "sun_light", None) is None:
+        params = dict(params, visible_camera=False)
+    return [pm.Light(**params)]

@@ -1908,7 +1908,7 @@ def _split_catcher_paths(ctx, acc, caught, miss, o, d, tmax, tp, pix, rng, count
         seen = np.nonzero(caught | miss)[0]
         if len(seen):
             acc.add("catcher_background", pix, worldmedium.background(
-                ctx.scene, np.take(d, seen, axis=0)), tp, seen)
+                ctx.scene, np.take(d, seen, axis=0), np.ones(len(seen), bool)), tp, seen)
     if not len(rows):
         return
     acc.add_scalar(sums["coverage"], np.take(pix, rows), np.ones(len(rows)))
@@ -2621,8 +2621,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 # (The rows by np.take: a boolean mask gathers (N,3) rows ~2x slower.)
                 missed = np.nonzero(drawn)[0]
                 d_miss = np.take(d, missed, axis=0)
-                # (black beyond a world volume: engine/worldmedium.py)
-                radiance = worldmedium.background(ctx.scene, d_miss)
+                # (black beyond a world volume: engine/worldmedium.py; camera rays see
+                # the camera world where the world has one: Is Camera Ray)
+                radiance = worldmedium.background(
+                    ctx.scene, d_miss, np.take(np.broadcast_to(ray_cls, (len(o),)), missed)
+                    == CAMERA)
                 if bounce > 0 and world:
                     li = world[0]
                     radiance = radiance * _mis_weight(ctx, li, ctx.lights[li],

@@ -1306,6 +1306,13 @@ class Scene:
     # An equirectangular environment map (engine/lights/environment.py Environment); when
     # set it replaces `background` as the world's radiance.
     environment: object | None = None
+    # What camera rays (and those passed on through transparent surfaces) see of the
+    # world when it differs from what lights the scene: a world that mixes its shaders by
+    # Light Path's Is Camera Ray (Cycles). None: `background` / `environment`, as every
+    # other ray. camera_background (3,) RGB radiance; camera_environment an Environment
+    # that replaces it (engine/worldmedium.background).
+    camera_background: tuple | np.ndarray | None = None
+    camera_environment: object | None = None
     # Blender's World > Mist Pass as Cycles' film reads it: (start m, depth m, falloff
     # exponent: 2 quadratic, 1 linear, 0.5 inverse quadratic); the default is Cycles'
     # Film's (a scene without a world), Blender's world default is (5, 25, 2).
@@ -1399,11 +1406,18 @@ class Scene:
                         self.materials["default"] = Material("default")
                     else:
                         raise SceneError(f"mesh '{mesh.name}': unknown material '{name}'")
-        if self.environment is not None:
-            from .lights.environment import Environment
-            if not isinstance(self.environment, Environment):
-                raise SceneError(f"environment: expected an engine Environment, got "
-                                 f"{type(self.environment).__name__}")
+        for name in ("environment", "camera_environment"):
+            env = getattr(self, name)
+            if env is not None:
+                from .lights.environment import Environment
+                if not isinstance(env, Environment):
+                    raise SceneError(f"{name}: expected an engine Environment, got "
+                                     f"{type(env).__name__}")
+        if self.camera_background is not None:
+            self.camera_background = _vec3(self.camera_background, "camera_background")
+            if np.any(self.camera_background < 0):
+                raise SceneError("camera_background: radiance must be >= 0, got "
+                                 f"{self.camera_background.tolist()}")
         if self.world_medium is not None:
             if not isinstance(self.world_medium, WorldMedium):
                 raise SceneError(f"world_medium: expected an engine WorldMedium, got "

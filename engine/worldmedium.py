@@ -75,13 +75,32 @@ def table_materials(scene) -> list:
     return mats if row is None else mats + [row]
 
 
-def background(scene, d) -> np.ndarray:
+def background(scene, d, camera=None) -> np.ndarray:
     """(N,3) the world's radiance along escaping rays d (N,3) as the camera sees it:
-    lights.world.background_radiance, or black beyond a world volume (active)."""
+    lights.world.background_radiance, or black beyond a world volume (active). camera
+    (N,) bool: the rays that are camera rays (or passed on through transparent surfaces:
+    Cycles' Is Camera Ray), which see the scene's camera world where it has one
+    (Scene.camera_background / camera_environment); None: none is."""
     if active(scene):
         return np.zeros((len(d), 3))
     from .lights.world import background_radiance
-    return background_radiance(scene, d)
+    out = background_radiance(scene, d)
+    if camera is None or not has_camera_world(scene):
+        return out
+    rows = np.flatnonzero(camera)
+    if len(rows):
+        out = np.array(out, np.float64)
+        env = getattr(scene, "camera_environment", None)
+        out[rows] = (env.radiance(np.take(d, rows, axis=0)) if env is not None
+                     else np.asarray(scene.camera_background, np.float64))
+    return out
+
+
+def has_camera_world(scene) -> bool:
+    """The scene's camera rays see a world of their own (Scene.camera_background or
+    camera_environment set)."""
+    return (getattr(scene, "camera_environment", None) is not None
+            or getattr(scene, "camera_background", None) is not None)
 
 
 def medium_row(ctx) -> int:

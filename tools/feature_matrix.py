@@ -2178,6 +2178,46 @@ def world_hdri_rotated():
                                                      math.radians(100.0)))
 
 
+def _mix_world_background(fac=None, rgb=(0.15, 0.25, 0.6), strength=1.0):
+    """The world's Background (as set_world_hdri made it) mixed with a second Background
+    of colour rgb x strength by a Mix Shader: its factor a constant fac, or (None) Light
+    Path's Is Camera Ray (the camera sees the colour, everything else the first)."""
+    nt = bpy.context.scene.world.node_tree
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    first = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    second = nt.nodes.new("ShaderNodeBackground")
+    second.inputs["Color"].default_value = (*rgb, 1.0)
+    second.inputs["Strength"].default_value = strength
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    if fac is None:
+        path = nt.nodes.new("ShaderNodeLightPath")
+        nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    else:
+        mix.inputs["Fac"].default_value = fac
+    nt.links.new(first.outputs[0], mix.inputs[1])
+    nt.links.new(second.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+
+
+@case("world", ours=dict(spp=64))
+def world_camera_ray_mix():
+    """The HDRI lights the scene while the camera sees a plain blue behind it: a Mix
+    Shader of the HDRI's Background and a blue one by Light Path's Is Camera Ray (the
+    common "light with the HDRI, show a colour" world)."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.0)
+    _mix_world_background()
+
+
+@case("world", ours=dict(spp=64))
+def world_mix_constant():
+    """The HDRI at 0.6 plus a warm colour at 0.4 (a Mix Shader of two Backgrounds with a
+    constant factor): the engine bakes them into one map."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.0)
+    _mix_world_background(0.4, rgb=(0.9, 0.6, 0.3), strength=0.8)
+
+
 # The sun texel in rough metal. Measured (128 spp unless said): with the matrix's 100k +
 # 50k photons block error 0.28 (0.23 at 512 spp), the worst blocks 10-18 % dark under the
 # blue ball (its underside, lit by the rough metal floor, and that seen in the floor: the

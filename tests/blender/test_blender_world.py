@@ -75,6 +75,104 @@ def test_unsupported_world_nodes_warn_once_naming_the_node(mb, bpy_addon):
     assert len([w for w in scene.all_warnings() if "Clouds" in w]) == 1
 
 
+def _mix(bpy, fac=None, rgb=(0.1, 0.2, 0.7), strength=1.0, output="Is Camera Ray",
+         swap=False):
+    """Mix the world's Background (the HDRI) with a colour Background by a Mix Shader:
+    factor a constant or a Light Path output; swap puts the colour first."""
+    nt = bpy.context.scene.world.node_tree
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    hdri = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    plain = nt.nodes.new("ShaderNodeBackground")
+    plain.inputs["Color"].default_value = (*rgb, 1.0)
+    plain.inputs["Strength"].default_value = strength
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    if fac is None:
+        path = nt.nodes.new("ShaderNodeLightPath")
+        nt.links.new(path.outputs[output], mix.inputs["Fac"])
+    else:
+        mix.inputs["Fac"].default_value = fac
+    first, second = (plain, hdri) if swap else (hdri, plain)
+    nt.links.new(first.outputs[0], mix.inputs[1])
+    nt.links.new(second.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return nt, mix
+
+
+def test_is_camera_ray_splits_the_camera_world_from_the_light(mb, bpy_addon):
+    """Mix by Light Path's Is Camera Ray: the HDRI lights the scene, the camera sees the
+    colour (and the other way round with the shaders swapped); no warning."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(32, 16)
+    mb.set_world_hdri(sky, 1.5)
+    _mix(bpy, strength=2.0)
+    scene = _export(bpy)
+    np.testing.assert_allclose(scene.environment.pixels, sky * 1.5, rtol=1e-5)
+    assert scene.camera_environment is None
+    np.testing.assert_allclose(scene.camera_background, (0.2, 0.4, 1.4), rtol=1e-6)
+    assert not [w for w in scene.all_warnings() if "world" in w]
+    from engine import worldmedium
+    d = np.array([[0.0, 0.3, 1.0], [1.0, 0.0, 0.2]])
+    seen = worldmedium.background(scene, d, np.array([True, False]))
+    np.testing.assert_allclose(seen[0], (0.2, 0.4, 1.4), rtol=1e-6)
+    np.testing.assert_allclose(seen[1], scene.environment.radiance(d[1:])[0])
+    mb.set_world_hdri(sky, 1.5)
+    _mix(bpy, strength=2.0, swap=True)
+    scene = _export(bpy)
+    assert scene.environment is None and scene.camera_background is not None
+    np.testing.assert_allclose(scene.background, (0.2, 0.4, 1.4), rtol=1e-6)
+    np.testing.assert_allclose(scene.camera_environment.pixels, sky * 1.5, rtol=1e-5)
+
+
+def test_constant_mixes_and_adds_are_summed_into_one_world(mb, bpy_addon):
+    """A constant Mix of the HDRI and a colour bakes one map (0.6 x HDRI + 0.4 x colour);
+    an Add Shader of two colours sums them; the camera sees the same (no camera world)."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(32, 16)
+    mb.set_world_hdri(sky, 1.0)
+    _mix(bpy, fac=0.4, rgb=(0.5, 0.25, 0.1), strength=2.0)
+    scene = _export(bpy)
+    np.testing.assert_allclose(scene.environment.pixels,
+                               0.6 * sky + 0.4 * np.array([1.0, 0.5, 0.2]), rtol=1e-5,
+                               atol=1e-6)
+    assert scene.camera_environment is None and scene.camera_background is None
+    nt = bpy.context.scene.world.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputWorld")
+    first = nt.nodes.new("ShaderNodeBackground")
+    first.inputs["Color"].default_value = (0.2, 0.2, 0.2, 1.0)
+    second = nt.nodes.new("ShaderNodeBackground")
+    second.inputs["Color"].default_value = (0.1, 0.3, 0.0, 1.0)
+    add = nt.nodes.new("ShaderNodeAddShader")
+    nt.links.new(first.outputs[0], add.inputs[0])
+    nt.links.new(second.outputs[0], add.inputs[1])
+    nt.links.new(add.outputs[0], out.inputs["Surface"])
+    scene = _export(bpy)
+    np.testing.assert_allclose(scene.background, (0.3, 0.5, 0.2), rtol=1e-6)
+    assert scene.environment is None and not [w for w in scene.all_warnings()
+                                              if "world" in w]
+
+
+def test_other_light_path_outputs_and_shaders_in_the_world_are_warned(mb, bpy_addon):
+    """Is Glossy Ray (reflections differ from the light: not split) reads 0 for every ray
+    but the camera's, with one warning naming the node; a Diffuse BSDF in the world tree
+    is not a world shader: warned, the viewport colour as before."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(16, 8)
+    mb.set_world_hdri(sky, 1.0)
+    _nt, mix = _mix(bpy, output="Is Glossy Ray")
+    scene = _export(bpy)
+    hits = [w for w in scene.all_warnings() if "Is Glossy Ray" in w]
+    assert len(hits) == 1, scene.all_warnings()
+    np.testing.assert_allclose(scene.environment.pixels, sky, rtol=1e-5)
+    assert scene.camera_environment is None  # (0 for the camera too: the same world)
+    nt = bpy.context.scene.world.node_tree
+    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(diffuse.outputs[0], mix.inputs[2])
+    scene = _export(bpy)
+    hits = [w for w in scene.all_warnings() if "not supported" in w and "surface" in w]
+    assert len(hits) == 1 and scene.environment is None
+
+
 def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
     bpy = bpy_addon
     mb.set_world_hdri(mb.sky_hdri(16, 8), 1.0, rotation=(0.0, 0.0, 0.5))
