@@ -301,6 +301,7 @@ def scene_schema() -> dict:
         "objects": _sections("objects"), "lights": _sections("lights"),
         "instances": _sections("instances"),
         "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA,
+        "camera_background": _vec3(nonneg=True),
         "sky": SKY_SCHEMA, "mist": MIST_SCHEMA,
         "world_medium": WORLD_MEDIUM_SCHEMA})
 
@@ -509,6 +510,8 @@ def _build(data: dict, base: str):
     scene = PaperScene(width=width, height=height, background=background)
     if "environment" in data:
         scene.environment = _environment(data["environment"], base)
+    if "camera_background" in data:  # what camera rays see of the world (Scene)
+        scene.camera_background = _vec(data["camera_background"])
     if "world_medium" in data:
         w = data["world_medium"]
         scene.world_medium = WorldMedium(absorption=_vec(w.get("absorption", (0.0, 0.0, 0.0))),

@@ -85,3 +85,16 @@ def test_bad_camera_worlds_are_refused_by_name():
     film = s.render(_settings(spp=1))
     img = film.combined
     assert np.sum(np.all(np.abs(img - 0.25) < 1e-5, axis=2)) > 20
+
+
+def test_scene_file_camera_background(tmp_path):
+    from engine.scenefile import load_scene
+    path = tmp_path / "s.toml"
+    path.write_text("background = [1, 1, 1]\ncamera_background = [0.1, 0.2, 0.3]\n"
+                    "[camera]\nposition = [0, -3, 1.2]\nlook_at = [0, 0, 0.6]\n")
+    scene, _settings_kw = load_scene(str(path))
+    np.testing.assert_allclose(scene.camera_background, SHOWN)
+    path.write_text("camera_background = [0.1, -1, 0.3]\n[camera]\nposition = [0, -3, 1]\n"
+                    "look_at = [0, 0, 0]\n")
+    with pytest.raises(Exception, match="camera_background"):
+        load_scene(str(path))
