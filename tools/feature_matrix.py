@@ -2218,6 +2218,26 @@ def world_mix_constant():
     _mix_world_background(0.4, rgb=(0.9, 0.6, 0.3), strength=0.8)
 
 
+@case("world", ours=dict(spp=64))
+def world_hdri_color_nodes():
+    """The HDRI graded in the world tree (Hue/Saturation: hue 0.45, saturation 1.6, then
+    Bright/Contrast: contrast 0.2) before its Background, whose Strength is 1.2: the
+    colour nodes baked into the map's texels."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.2)
+    nt = bpy.context.scene.world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    env = next(n for n in nt.nodes if n.type == "TEX_ENVIRONMENT")
+    hue = nt.nodes.new("ShaderNodeHueSaturation")
+    hue.inputs["Hue"].default_value = 0.45
+    hue.inputs["Saturation"].default_value = 1.6
+    bc = nt.nodes.new("ShaderNodeBrightContrast")
+    bc.inputs["Contrast"].default_value = 0.2
+    nt.links.new(env.outputs["Color"], hue.inputs["Color"])
+    nt.links.new(hue.outputs[0], bc.inputs["Color"])
+    nt.links.new(bc.outputs[0], bg.inputs["Color"])
+
+
 # The sun texel in rough metal. Measured (128 spp unless said): with the matrix's 100k +
 # 50k photons block error 0.28 (0.23 at 512 spp), the worst blocks 10-18 % dark under the
 # blue ball (its underside, lit by the rough metal floor, and that seen in the floor: the

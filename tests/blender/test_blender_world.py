@@ -173,6 +173,40 @@ def test_other_light_path_outputs_and_shaders_in_the_world_are_warned(mb, bpy_ad
     assert len(hits) == 1 and scene.environment is None
 
 
+def test_colour_nodes_over_the_hdri_are_baked_into_the_map(mb, bpy_addon):
+    """Gamma and Multiply (a Mix node) between the Environment Texture and the Background
+    are evaluated on the map's texels (engine/shadernodes: the material nodes' own code);
+    a Strength from Light Path's Is Camera Ray (Math) gives the camera its own strength."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(32, 16)
+    mb.set_world_hdri(sky, 1.0)
+    nt = bpy.context.scene.world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    env = next(n for n in nt.nodes if n.type == "TEX_ENVIRONMENT")
+    gamma = nt.nodes.new("ShaderNodeGamma")
+    gamma.inputs["Gamma"].default_value = 2.0
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Factor"].default_value = 1.0
+    mix.inputs[7].default_value = (1.0, 0.5, 0.25, 1.0)
+    nt.links.new(env.outputs["Color"], gamma.inputs["Color"])
+    nt.links.new(gamma.outputs[0], mix.inputs[6])
+    nt.links.new(mix.outputs[2], bg.inputs["Color"])
+    path = nt.nodes.new("ShaderNodeLightPath")
+    strength = nt.nodes.new("ShaderNodeMath")
+    strength.operation = "ADD"
+    strength.inputs[1].default_value = 2.0
+    nt.links.new(path.outputs["Is Camera Ray"], strength.inputs[0])
+    nt.links.new(strength.outputs[0], bg.inputs["Strength"])
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "world" in w], scene.all_warnings()
+    want = sky ** 2 * np.array([1.0, 0.5, 0.25])
+    np.testing.assert_allclose(scene.environment.pixels, 2.0 * want, rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(scene.camera_environment.pixels, 3.0 * want, rtol=1e-4,
+                               atol=1e-6)
+
+
 def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
     bpy = bpy_addon
     mb.set_world_hdri(mb.sky_hdri(16, 8), 1.0, rotation=(0.0, 0.0, 0.5))
