@@ -771,6 +771,29 @@ def closure_metal_f82():
 
 
 @case("closures")
+def closure_metallic_bsdf():
+    """The Metallic BSDF node (Blender 4.3+) in its default F82 mode: a warm base and a
+    blue Edge Tint, roughness 0.35 (Cycles' F82-tint conductor: the Principled metal lobe)."""
+    _point_ball_scene(lambda: _shader("metallic", "ShaderNodeBsdfMetallic", **{
+        "Base Color": (0.95, 0.65, 0.35), "Edge Tint": (0.4, 0.7, 1.0), "Roughness": 0.35}))
+
+
+@case("closures")
+def closure_metallic_conductor():
+    """The Metallic BSDF as a Physical Conductor (gold's n = (0.18, 0.42, 1.37),
+    k = (3.42, 2.35, 1.77)), roughness 0.25: approximated by the F82-tint Fresnel matching
+    the conductor's at 0 and ~82 degrees."""
+    def make():
+        m = _shader("gold", "ShaderNodeBsdfMetallic", Roughness=0.25)
+        node = next(n for n in m.node_tree.nodes if n.type == "BSDF_METALLIC")
+        node.fresnel_type = "PHYSICAL_CONDUCTOR"
+        node.inputs["IOR"].default_value = (0.18, 0.42, 1.37)
+        node.inputs["Extinction"].default_value = (3.42, 2.35, 1.77)
+        return m
+    _point_ball_scene(make)
+
+
+@case("closures")
 def closure_glossy_ggx():
     """Glossy BSDF with the GGX distribution (no multiple-scattering compensation)."""
     def make():
