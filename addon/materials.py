@@ -36,7 +36,7 @@ import numpy as np
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
                      "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN",
-                     "BSDF_METALLIC")
+                     "BSDF_METALLIC", "SUBSURFACE_SCATTERING")
 MAX_NODE_DEPTH = 32
 
 
@@ -881,6 +881,22 @@ class MaterialConverter:
             return c
         if t == "BSDF_METALLIC":
             return self._metallic(node)
+        if t == "SUBSURFACE_SCATTERING":
+            # Cycles' node is the BSSRDF alone (albedo = Color, no specular closure):
+            # the Principled subsurface stand-in at weight 1 (engine/subsurface.py).
+            base, tex = self._color(node, "Color")
+            ss = self.pm.subsurface
+            if tex is None:
+                base = ss.diffuse_color(base, 1.0)
+            else:
+                tex, base = ss.SubsurfaceColor(tex, 1.0), np.ones(3)
+            self._warn(f"material '{self._mat.name}': Subsurface Scattering '{node.name}' "
+                       "is approximated: rendered as a diffuse surface of the albedo "
+                       "Cycles' random-walk subsurface scattering gives a thick object of "
+                       "its Color (no light spreads beneath the surface or through thin "
+                       "parts; Scale and Radius are not used)")
+            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
+                           normal_map=self._normal(node))
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
             sc = {}
