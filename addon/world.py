@@ -122,10 +122,32 @@ def export_worlds(pm, world, warnings: list) -> tuple:
                         "Emission, joined by Mix and Add Shader nodes, are); using the "
                         "world viewport colour as background")
         return (viewport, None), None
+    seen_by_camera = _ray_visibility(world, warnings)
+    if not seen_by_camera:  # World > Settings > Ray Visibility > Camera off: black there
+        return _resolve_terms(pm, light), (np.zeros(3), None)
     if len(camera) == len(light) and all(
             wc == wl and tc is tl for (wc, tc), (wl, tl) in zip(camera, light)):
         return _resolve_terms(pm, light), None
     return _resolve_terms(pm, light), _resolve_terms(pm, camera)
+
+
+def _ray_visibility(world, warnings) -> bool:
+    """World > Settings > Ray Visibility (Cycles' world visibility flags): whether camera
+    rays see the world (off: they see black, as Cycles evaluates no background for them;
+    with Film > Transparent nothing). Diffuse, Glossy, Transmission and Volume Scatter off
+    are warned (the engine's world lookups do not tell those rays apart); Shadow off
+    changes only Cycles' sampling of the world, not the image: nothing to do."""
+    vis = getattr(world, "cycles_visibility", None)
+    if vis is None:
+        return True
+    off = [label for attr, label in (("diffuse", "Diffuse"), ("glossy", "Glossy"),
+                                     ("transmission", "Transmission"),
+                                     ("scatter", "Volume Scatter"))
+           if not getattr(vis, attr, True)]
+    if off:
+        warnings.append(f"world '{world.name}': Ray Visibility {', '.join(off)} off is not "
+                        "simulated; those rays see the world")
+    return bool(getattr(vis, "camera", True))
 
 
 def _shader_terms(pm, world, node, ray, warnings, memo):

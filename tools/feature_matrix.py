@@ -2241,6 +2241,15 @@ def world_camera_ray_mix():
 
 
 @case("world", ours=dict(spp=64))
+def world_camera_invisible():
+    """World > Settings > Ray Visibility > Camera off: the HDRI lights the scene, the
+    camera sees black behind it."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.0)
+    bpy.context.scene.world.cycles_visibility.camera = False
+
+
+@case("world", ours=dict(spp=64))
 def world_mix_constant():
     """The HDRI at 0.6 plus a warm colour at 0.4 (a Mix Shader of two Backgrounds with a
     constant factor): the engine bakes them into one map."""

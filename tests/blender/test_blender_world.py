@@ -207,6 +207,26 @@ def test_colour_nodes_over_the_hdri_are_baked_into_the_map(mb, bpy_addon):
                                atol=1e-6)
 
 
+def test_ray_visibility_camera_off_shows_black_and_lights_as_before(mb, bpy_addon):
+    """World > Settings > Ray Visibility > Camera off: camera rays see black (Cycles
+    evaluates no background for them), the HDRI still lights; Glossy off is warned."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(16, 8)
+    mb.set_world_hdri(sky, 1.0)
+    vis = bpy.context.scene.world.cycles_visibility
+    vis.camera = False
+    scene = _export(bpy)
+    np.testing.assert_allclose(scene.environment.pixels, sky, rtol=1e-5)
+    assert scene.camera_environment is None
+    np.testing.assert_array_equal(scene.camera_background, np.zeros(3))
+    assert not [w for w in scene.all_warnings() if "Ray Visibility" in w]
+    vis.camera, vis.glossy = True, False
+    scene = _export(bpy)
+    assert scene.camera_background is None
+    hits = [w for w in scene.all_warnings() if "Ray Visibility" in w]
+    assert len(hits) == 1 and "Glossy" in hits[0]
+
+
 def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
     bpy = bpy_addon
     mb.set_world_hdri(mb.sky_hdri(16, 8), 1.0, rotation=(0.0, 0.0, 0.5))
