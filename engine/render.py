@@ -39,6 +39,7 @@ from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, conca
 from .resources import check_resources
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
+from .heterogeneous import HeterogeneousMedia
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
 from .visualimportance import indirect_share
@@ -102,6 +103,8 @@ class Context:
     # Light Linking (engine/lightlinking.py): which light lights which object (None: every
     # light lights every object).
     links: object = None
+    # Heterogeneous media (engine/heterogeneous.py: density textures; None: none).
+    hetero: object = None
 
 
     def serial(self) -> "Context":
@@ -138,6 +141,9 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     pieces of the geometry preparation and the BVH build: raises Cancelled."""
     scene.validate()
     geo, table = prepare(scene, should_cancel)
+    # Density textures (engine/heterogeneous.py): the table's rows become the mean
+    # density's stand-in before anything reads them.
+    hetero = HeterogeneousMedia.for_scene(geo, table, settings.seed)
     # One BVH per distinct set of triangles a ray class sees (usually one in all).
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
                             threads=settings.threads, should_cancel=should_cancel,
@@ -155,6 +161,9 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     ctx = Context(scene, settings, geo, table, accel, lights,
                   packed_lights=packed_lights_for(lights, settings), shadow=shadow)
     ctx.links = links
+    ctx.hetero = hetero
+    if shadow is not None and hetero is not None and hetero.fields:
+        shadow.hetero = hetero  # (its shadow rays' transmittance: transmittance())
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
     if geo.instances is not None:  # which way instancing went (engine/resources.py)
         from .resources import instance_choice
@@ -281,6 +290,8 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
     # Compiled kernels: compiled on the first render on this machine (the progress text
     # says so), loaded from the on-disk cache by later processes, once per process.
     stats["time_compile"] = ensure_compiled(progress)
+    if ctx.hetero is not None:
+        stats.setdefault("warnings", []).extend(ctx.hetero.limits())
     try:
         shots = ()
         if shoot:
