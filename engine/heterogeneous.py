@@ -175,6 +175,8 @@ class HeterogeneousMedia:
         from .accel import Accel
         self.accel = Accel(verts.astype(np.float32),
                            np.arange(len(verts), dtype=np.int32).reshape(-1, 3))
+        # Commit the BVH on this thread: the camera pass's workers then only read it.
+        self.accel.intersect(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))
         # The homogeneous stand-in: the table's rows at the mean density.
         for m, f in fields.items():
             table.absorption[m] = f.f_mean * (f.sigma_t_unit - f.sigma_s_unit)

@@ -97,9 +97,11 @@ def test_the_export_of_a_textured_density(bpy_addon):
 
 @pytest.mark.slow
 def test_cloud_cube_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path):
-    """4 x 4 block means of the bright blocks (the cloud lit by the spot, the floor in
-    its patchy shadow) within 5 %, the image's sum within 3 % (ours 512 spp, Cycles
-    2048; docs/compatibility.md hetvol39 has the measured numbers)."""
+    """8 x 8 block means (8 x 6 pixels each) of the bright blocks (the cloud's puffs lit
+    by the spot, the floor in its patchy shadow) within 4 %, the image's sum within 2 %
+    (ours 512 spp, Cycles 2048). Measured: blocks 0.991-1.010, sum 0.9997; the mean
+    density's homogeneous stand-in alone 0.32-2.18 and 0.864, the Density socket's own
+    value (before) 0.43-2.25 (docs/compatibility.md hetvol39)."""
     bpy = bpy_addon
     from addon import engine
     scene = _scene(bpy)
@@ -107,11 +109,11 @@ def test_cloud_cube_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path):
     warnings = engine.last_render.get("warnings", [])
     assert any("density texture" in w and "'cloud'" in w for w in warnings), warnings
     ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 2048)
-    a, b = _blocks(ours), _blocks(ref)
+    a, b = _blocks(ours, 8), _blocks(ref, 8)
     lum = b @ np.array([0.2126, 0.7152, 0.0722])
     bright = lum > 0.2 * lum.max()
     print("block ratios", (a / np.maximum(b, 1e-9))[bright].round(3).tolist())
-    np.testing.assert_allclose(a[bright], b[bright], rtol=0.05)
+    np.testing.assert_allclose(a[bright], b[bright], rtol=0.04)
     ratio = ours.reshape(-1, 3).sum(axis=0) / ref.reshape(-1, 3).sum(axis=0)
     print("image sum ratio", ratio.round(4))
-    np.testing.assert_allclose(ratio, 1.0, rtol=0.03)
+    np.testing.assert_allclose(ratio, 1.0, rtol=0.02)
