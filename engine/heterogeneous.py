@@ -45,11 +45,15 @@ Random numbers: the tracking steps draw from a counter-based hash of the render'
 and the ray itself (its origin and direction bits, splitmix64): the same seed gives the
 same image for any worker count, and no stream's draws shift.
 
-Not heterogeneous yet (the stand-in at the mean density, warned once per render:
-`limits`): photons' attenuation and scattering in the medium (engine/photons.py,
-photonmedium.py), volume bounces (the walk), the medium's emission, points of surfaces
-inside the medium lit by direct light (directlight's in-medium dimming), the World
-Volume, and objects with shared instances.
+- photons (engine/photons.py, at Volume bounces 0): their power x correction over each
+  segment.
+- the direct light of surfaces inside the medium (directlight._dim_in_medium): their
+  shadow rays that meet no surface x correction.
+
+Not heterogeneous yet (the stand-in at the mean density, warned: `limits`): Volume
+bounces above 0 (the camera walks, the photons' free flights in photonmedium.py), the
+medium's emission; the World Volume and objects with shared instances keep a constant
+density (warned).
 """
 from __future__ import annotations
 
@@ -201,9 +205,8 @@ class HeterogeneousMedia:
             for m in fields:
                 table.density_textures[m] = None
             return _Warned([f"material '{table.names[m]}': a density texture on objects "
-                            "with shared instances is not supported; its Density "
-                            "socket's mean over the program's range is not known, "
-                            "rendered at density 1" for m in fields])
+                            "with shared instances (instanced copies) is not supported; "
+                            "rendered as a homogeneous medium of density 1" for m in fields])
         used = set(np.unique(np.asarray(geo.material)).tolist())
         fields = {m: f for m, f in fields.items() if m in used}
         if not fields:
@@ -416,15 +419,25 @@ class HeterogeneousMedia:
         prim = np.asarray(prim, np.int64)
         return np.where(prim >= 0, self.object[np.maximum(prim, 0)], -1)
 
-    def limits(self) -> list[str]:
-        """What renders at the stand-in's mean density: one warning per material."""
+    def limits(self, settings=None) -> list[str]:
+        """Warnings for what renders at the stand-in's mean density in this render: Volume
+        bounces above 0 (the camera walks and the photons' free flights), an emitting
+        medium (its emission integral); one per material, naming it."""
         out = list(self.warnings)
+        bounces = int(getattr(settings, "volume_bounces", 0) or 0)
+        emit = getattr(self.table, "volume_emission", None)
         for m, f in self.fields.items():
-            out.append(f"material '{self.table.names[m]}': its density texture is "
-                       "rendered heterogeneous for camera rays, single scattering and "
-                       "shadow rays; photons, volume bounces and the direct light of "
-                       f"surfaces inside it see its mean density ({f.f_mean:.4g}; majorant "
-                       f"{f.f_max:.4g})")
+            what = []
+            if bounces > 0:
+                what.append(f"Volume bounces ({bounces}: the scatters after the first and "
+                            "the photons scattering in it)")
+            if emit is not None and np.any(np.asarray(emit[m]) > 0):
+                what.append("its emission")
+            if what:
+                out.append(f"material '{self.table.names[m]}': its density texture is "
+                           "followed by camera rays, single scattering, shadow rays and "
+                           f"photons, but {' and '.join(what)} see its mean density "
+                           f"{f.f_mean:.4g} (a homogeneous medium)")
         return out
 
 
@@ -437,7 +450,7 @@ class _Warned:
     def __init__(self, warnings):
         self.warnings = warnings
 
-    def limits(self):
+    def limits(self, settings=None):
         return list(self.warnings)
 
 

@@ -291,7 +291,7 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
     # says so), loaded from the on-disk cache by later processes, once per process.
     stats["time_compile"] = ensure_compiled(progress)
     if ctx.hetero is not None:
-        stats.setdefault("warnings", []).extend(ctx.hetero.limits())
+        stats.setdefault("warnings", []).extend(ctx.hetero.limits(settings))
     try:
         shots = ()
         if shoot:

@@ -2232,16 +2232,15 @@ def volume_fog_spot():
              spot_size=math.radians(35.0), spot_blend=0.2, shadow_soft_size=0.0)
 
 
-@case("volumes", status="approximated", ours=dict(spp=256), cycles=dict(volume_bounces=0),
-      how="a texture on the Density (engine/heterogeneous.py): camera rays, single "
-      "scattering and shadow rays see the field (residual ratio tracking); photons see the "
-      "cloud's mean density", warning="density texture")
+@case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))
 def volume_cloud():
     """A cloud cube: Principled Volume (Color 0.8) whose Density is 4 x a Color Ramp
     (black below 0.45, white above 0.62) of a Noise Texture (Scale 2.5, Detail 2,
     Generated coordinates); the Surface unlinked; floating over the floor, a spot light
-    above it: its puffs lit by the spot, its patchy shadow (docs/compatibility.md,
-    hetvol39). (It was warned: the Density socket's own value, a homogeneous box.)"""
+    above it: its puffs lit by the spot, its patchy shadow, the walls lit by the floor's
+    photons that passed it (engine/heterogeneous.py, docs/compatibility.md hetvol39), at
+    Cycles' default Volume bounces 0. (It was warned: the Density socket's own value, a
+    homogeneous box.)"""
     _stage()
     m, nt, out = _nodes_material("cloud")
     tc = nt.nodes.new("ShaderNodeTexCoord")

@@ -106,8 +106,9 @@ def test_cloud_cube_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path):
     from addon import engine
     scene = _scene(bpy)
     ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 512)
+    # (Volume bounces 0, no emission: nothing renders at the mean density, no warning)
     warnings = engine.last_render.get("warnings", [])
-    assert any("density texture" in w and "'cloud'" in w for w in warnings), warnings
+    assert not any("density texture" in w for w in warnings), warnings
     ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 2048)
     a, b = _blocks(ours, 8), _blocks(ref, 8)
     lum = b @ np.array([0.2126, 0.7152, 0.0722])
