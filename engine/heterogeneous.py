@@ -419,6 +419,15 @@ class HeterogeneousMedia:
         prim = np.asarray(prim, np.int64)
         return np.where(prim >= 0, self.object[np.maximum(prim, 0)], -1)
 
+    def describe(self) -> str:
+        """The effect report's line: each textured medium's density range."""
+        return "; ".join(
+            f"density texture of '{self.table.names[m]}': mean {f.f_mean:.3g}, largest "
+            f"{f.f_max / MAJORANT_MARGIN:.3g} over its objects' bounds (the homogeneous "
+            "stand-in at the mean, corrected by residual ratio tracking along camera "
+            "segments, shadow rays and photons; single scattering at the field's value)"
+            for m, f in self.fields.items())
+
     def limits(self, settings=None) -> list[str]:
         """Warnings for what renders at the stand-in's mean density in this render: Volume
         bounces above 0 (the camera walks and the photons' free flights), an emitting

@@ -165,6 +165,8 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     if shadow is not None and hetero is not None and hetero.fields:
         shadow.hetero = hetero  # (its shadow rays' transmittance: transmittance())
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    if hetero is not None and hetero.fields:
+        ctx.plan.add("heterogeneous media", True, hetero.describe())
     if geo.instances is not None:  # which way instancing went (engine/resources.py)
         from .resources import instance_choice
         ins = geo.instances
