@@ -45,14 +45,16 @@ Random numbers: the tracking steps draw from a counter-based hash of the render'
 and the ray itself (its origin and direction bits, splitmix64): the same seed gives the
 same image for any worker count, and no stream's draws shift.
 
-- photons (engine/photons.py, at Volume bounces 0): their power x correction over each
-  segment.
+- Volume bounces: the camera walks' scatter weights as single scattering's
+  (volumescatter.CameraScattering.walk) and their surface term's T(S) x correction
+  (volumewalk); the photons' free flights (photonmedium.PhotonScattering.flights): a
+  scatter's weight as single scattering's, a passing photon's power x correction.
+- photons (engine/photons.py): their power x correction over each segment.
 - the direct light of surfaces inside the medium (directlight._dim_in_medium): their
   shadow rays that meet no surface x correction.
 
-Not heterogeneous yet (the stand-in at the mean density, warned: `limits`): Volume
-bounces above 0 (the camera walks, the photons' free flights in photonmedium.py), the
-medium's emission; the World Volume and objects with shared instances keep a constant
+Not heterogeneous yet (the stand-in at the mean density, warned: `limits`): the medium's
+emission integral; the World Volume and objects with shared instances keep a constant
 density (warned).
 """
 from __future__ import annotations
@@ -429,24 +431,16 @@ class HeterogeneousMedia:
             for m, f in self.fields.items())
 
     def limits(self, settings=None) -> list[str]:
-        """Warnings for what renders at the stand-in's mean density in this render: Volume
-        bounces above 0 (the camera walks and the photons' free flights), an emitting
-        medium (its emission integral); one per material, naming it."""
+        """Warnings for what renders at the stand-in's mean density in this render: an
+        emitting medium's emission integral; one per material, naming it."""
         out = list(self.warnings)
-        bounces = int(getattr(settings, "volume_bounces", 0) or 0)
         emit = getattr(self.table, "volume_emission", None)
         for m, f in self.fields.items():
-            what = []
-            if bounces > 0:
-                what.append(f"Volume bounces ({bounces}: the scatters after the first and "
-                            "the photons scattering in it)")
             if emit is not None and np.any(np.asarray(emit[m]) > 0):
-                what.append("its emission")
-            if what:
                 out.append(f"material '{self.table.names[m]}': its density texture is "
-                           "followed by camera rays, single scattering, shadow rays and "
-                           f"photons, but {' and '.join(what)} see its mean density "
-                           f"{f.f_mean:.4g} (a homogeneous medium)")
+                           "followed by camera rays, scattering, shadow rays and photons, "
+                           "but its emission is integrated at its mean density "
+                           f"{f.f_mean:.4g} (a homogeneous glow)")
         return out
 
 

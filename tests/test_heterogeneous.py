@@ -259,3 +259,20 @@ def test_photons_through_a_ramped_box():
     b, _ = power(_ramped_box_under_sun((0.0, 0.0, 0.0), None))
     assert n > 500 and b.min() > 0
     np.testing.assert_allclose(a / b, np.exp(-SIGMA_A * (1.4 ** 2 - 1.0) / 2), rtol=0.03)
+
+
+def test_volume_bounces_and_photons_are_seeded_and_finite():
+    """Volume bounces 2 with photon mapping (the camera walks and the photons' free
+    flights through the ramped slab, a white floor under it): the same image for 1 and 2
+    workers, finite, and brighter than single scattering alone."""
+    def scene():
+        s = _slab(_ramp(), scattering=SIGMA_S, floor=None, light=LIGHT)
+        s.add_plane((0, 0, -0.2), (0, 0, 1), 30.0, "white_diffuse", name="ground")
+        return s
+    kw = dict(spp=4, seed=3, photon_mapping=True, photons=20_000, volume_bounces=2)
+    a = _image(scene(), **kw)
+    b = _image(scene(), workers=2, **kw)
+    np.testing.assert_array_equal(a, b)
+    assert np.isfinite(a).all()
+    single = _image(scene(), **{**kw, "volume_bounces": 0})
+    assert a.mean() > single.mean()
