@@ -16,46 +16,41 @@ squares fit over the triangles of each object, exact for an affine map: PointGeo
 The homogeneous machinery (engine/media.py, volumescatter.py, photons) keeps working on
 a homogeneous stand-in: the material table's rows are set to the field's mean
 (f_mean x sigma_unit, f_mean from FIELD_SAMPLES points in the objects' bounds). Where
-the light's transport is made heterogeneous, the stand-in's factor is replaced by an
-unbiased estimate of the true one (Cycles 5.0 renders heterogeneous volumes by null
-scattering against a majorant, volume_integrate_heterogeneous /
-volume_shadow_heterogeneous in kernel/integrator/shade_volume.h; so do pbrt-v4's
-VolPathIntegrator and this module):
+light crosses the medium, the stand-in's factor is turned into an unbiased estimate of
+the true one (Cycles 5.0 renders heterogeneous volumes unbiased too: null scattering
+and Kettunen et al. 2021's unbiased ray-marching transmittance against octree
+majorants, volume_integrate_heterogeneous in kernel/integrator/shade_volume.h):
 
-- transmittance along a segment [a, b] inside the medium: ratio tracking (Novak et al.
-  2014, "Residual ratio tracking for estimating attenuation in participating media"):
-  tentative collisions at the rate of the majorant mu = f_max x max_c sigma_t_unit,c,
-  T_c = prod_i (1 - f(x_i) sigma_t_unit,c / mu), unbiased for any mu > 0 (weights stay
-  in [0, 1] when mu bounds the field). The stand-in's exp(-sigma_t_mean (b - a)) is
-  divided out (correction()).
-- camera segments (integrator._trace_paths, gather rays): the throughput x correction.
-- shadow rays (engine/shadowtransmittance.py transmittance, and the lamp-inside-the-fog
-  rays of volumescatter.in_scattered): x correction over the parts inside the medium.
-- single scattering (volumescatter.CameraScattering.radiance): the distance is drawn as
-  for the stand-in (its exponential / equiangular mixture, any pdf is unbiased) and the
-  weight T(s) sigma_s(s) / pdf(s) takes the ratio-tracked T(s) and the field at the
-  point: w x correction(0, s) x f(p) / f_mean.
+- transmittance along a part [a, b] of a ray inside the medium: residual ratio tracking
+  about the mean (Novak et al. 2014, "Residual ratio tracking for estimating attenuation
+  in participating media"): tentative collisions x_i at the rate
+  mu = max|f - f_mean| x max_c sigma_t_unit,c, and correction_c = prod_i (1 - (f(x_i) -
+  f_mean) sigma_t_unit,c / mu), whose expectation is exp(-int (sigma_t - sigma_t_mean)),
+  T_true / T_stand-in itself (correction(); RESIDUAL False: plain ratio tracking against
+  the majorant f_max, the stand-in's exponential divided out).
+- camera segments and final-gather rays (integrator, through attenuated()), shadow rays
+  (shadowtransmittance.ShadowTransmittance.transmittance, volumescatter.in_scattered's
+  rays to a lamp inside the fog, directlight._dim_in_medium's rays of a surface inside
+  the medium), photons (photons._bounces) and the camera walks' surface term
+  (volumewalk): x correction over the parts inside such a medium.
+- scattering (volumescatter.CameraScattering.radiance and walk, photonmedium's free
+  flights): the distance is drawn as for the stand-in (any pdf is unbiased) and the
+  weight T(s) sigma_s(s) / pdf(s) takes the field: w x correction(0, s) x f(p) / f_mean
+  (scatter_weights).
 
-The majorant f_max: the field's largest value over FIELD_SAMPLES points (a jittered
-grid) in the bounds of the objects that carry the material, x MAJORANT_MARGIN. A field
-that exceeds it somewhere (a peak between the samples) stays unbiased (a weight below
-0 there) but noisier.
+The bound: the field's largest and smallest values and its mean over FIELD_SAMPLES points
+(a jittered grid) in the bounds of the objects that carry the material, the range x
+MAJORANT_MARGIN. A field beyond it somewhere (a peak between the samples) stays unbiased
+(a factor below 0 there) but noisier.
 
 Random numbers: the tracking steps draw from a counter-based hash of the render's seed
-and the ray itself (its origin and direction bits, splitmix64): the same seed gives the
-same image for any worker count, and no stream's draws shift.
+and the ray itself (its origin and direction bits and the part's start, splitmix64):
+the same seed gives the same image for any worker count, and no stream's draws shift
+(a scene without a density texture renders exactly as before).
 
-- Volume bounces: the camera walks' scatter weights as single scattering's
-  (volumescatter.CameraScattering.walk) and their surface term's T(S) x correction
-  (volumewalk); the photons' free flights (photonmedium.PhotonScattering.flights): a
-  scatter's weight as single scattering's, a passing photon's power x correction.
-- photons (engine/photons.py): their power x correction over each segment.
-- the direct light of surfaces inside the medium (directlight._dim_in_medium): their
-  shadow rays that meet no surface x correction.
-
-Not heterogeneous yet (the stand-in at the mean density, warned: `limits`): the medium's
-emission integral; the World Volume and objects with shared instances keep a constant
-density (warned).
+Not heterogeneous (the stand-in at the mean density, warned: `limits`): an emitting
+medium's emission integral (engine/volumeemission.py). The World Volume and objects with
+shared instances keep a constant density (warned).
 """
 from __future__ import annotations
 
@@ -213,7 +208,25 @@ class HeterogeneousMedia:
         fields = {m: f for m, f in fields.items() if m in used}
         if not fields:
             return None
-        return cls(geo, table, fields, seed)
+        # A tree that reads what a point inside a volume does not have (a surface's
+        # normal, a camera's view...): warned, the medium homogeneous at density 1.
+        warnings = []
+        for m in list(fields):
+            try:
+                probe = PointGeometry(np.zeros((2, 3)), np.zeros(2, np.int64), {},
+                                      np.asarray(geo.offset, np.float64))
+                _field_values(fields[m].node, probe, 2)
+            except Exception as exc:  # noqa: BLE001 - any node's failure, reported
+                warnings.append(f"material '{table.names[m]}': its density texture cannot "
+                                f"be evaluated inside the volume ({type(exc).__name__}: "
+                                f"{exc}); rendered as a homogeneous medium of density 1")
+                table.density_textures[m] = None
+                del fields[m]
+        if not fields:
+            return _Warned(warnings)
+        het = cls(geo, table, fields, seed)
+        het.warnings[:0] = warnings
+        return het
 
     # -- setup ---------------------------------------------------------------------
     def _fit_maps(self, corners):
@@ -276,15 +289,11 @@ class HeterogeneousMedia:
 
     def _density(self, f: Field, points, obj) -> np.ndarray:
         """(n,) the field f at points (n,3) (re-centred world) of objects obj (n,)."""
-        from .shadernodes import _eval
         n = len(points)
         if n == 0:
             return np.zeros(0)
         pg = PointGeometry(points, obj, self.maps, np.asarray(self.geo.offset, np.float64))
-        prim = np.arange(n, dtype=np.int64)
-        z = np.zeros(n)
-        val = _eval(f.node, pg, prim, z, z, 1)
-        return np.maximum(np.nan_to_num(np.asarray(val, np.float64), nan=0.0), 0.0)
+        return _field_values(f.node, pg, n)
 
     def density(self, m: int, points, obj) -> np.ndarray:
         """(n,) material m's density field at points (n,3) inside objects obj (n,)."""
@@ -442,6 +451,16 @@ class HeterogeneousMedia:
                            "but its emission is integrated at its mean density "
                            f"{f.f_mean:.4g} (a homogeneous glow)")
         return out
+
+
+def _field_values(node, pg, n) -> np.ndarray:
+    """(n,) max(node's value, 0) at the n points of PointGeometry pg (a colour: its
+    luminance, shadernodes._eval's conversion into a value; NaN read as 0)."""
+    from .shadernodes import _eval
+    prim = np.arange(n, dtype=np.int64)
+    z = np.zeros(n)
+    val = _eval(node, pg, prim, z, z, 1)
+    return np.maximum(np.nan_to_num(np.asarray(val, np.float64), nan=0.0), 0.0)
 
 
 class _Warned:

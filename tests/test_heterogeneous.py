@@ -276,3 +276,20 @@ def test_volume_bounces_and_photons_are_seeded_and_finite():
     assert np.isfinite(a).all()
     single = _image(scene(), **{**kw, "volume_bounces": 0})
     assert a.mean() > single.mean()
+
+
+def test_a_tree_that_cannot_be_read_inside_a_volume_is_warned():
+    """A density tree reading a surface's normal (ObjectNormal: a PointGeometry has no
+    normals): warned, naming the material, and rendered homogeneous at density 1."""
+    from engine.shadernodes import Coordinates, ObjectNormal
+    node = SeparateChannel(ObjectNormal(Coordinates("normal")), 2)
+    scene = _slab(node, floor=0.25)
+    ctx = prepare_context(scene, RenderSettings(workers=1))
+    assert not ctx.hetero.fields
+    assert any("'fog'" in w and "density texture" in w for w in ctx.hetero.limits())
+    film = render(_slab(node, floor=0.25), RenderSettings(workers=1, spp=1,
+                                                          photon_mapping=False))
+    img = np.asarray(film.combined, np.float64)[..., :3]
+    np.testing.assert_allclose(img, np.broadcast_to(np.exp(-SIGMA_A * 0.25), img.shape),
+                               rtol=1e-6)
+    assert any("density texture" in w for w in film.stats["warnings"])

@@ -130,3 +130,30 @@ def test_cloud_cube_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path, coordinate
     ratio = ours.reshape(-1, 3).sum(axis=0) / ref.reshape(-1, 3).sum(axis=0)
     print("image sum ratio", ratio.round(4))
     np.testing.assert_allclose(ratio, 1.0, rtol=0.02)
+
+
+@pytest.mark.slow
+def test_cloud_cube_with_volume_bounces_matches_cycles(bpy_addon, tmp_path):
+    """The Generated cloud with full transport: Max Bounces 8, Volume bounces 4 for both
+    (ours: the camera walks and the photons' free flights through the field, 200,000
+    photons, 256 spp; Cycles 1024): 4 x 4 bright blocks within 6 %, the image's sum
+    within 3 %. Measured: blocks 0.975-1.038, sum 1.011."""
+    bpy = bpy_addon
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    scene = _scene(bpy)
+    imgs = {}
+    for engine, spp in (("PHOTONMAP", 256), ("CYCLES", 1024)):
+        scene.render.engine = engine
+        c = cycles_plain(scene, spp, 8)
+        c.volume_bounces = 4
+        if engine != "CYCLES":
+            cheap(scene, spp=spp, photons=200_000)
+        imgs[engine] = read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"{engine}.exr"))[..., :3]
+    a, b = _blocks(imgs["PHOTONMAP"]), _blocks(imgs["CYCLES"])
+    lum = b @ np.array([0.2126, 0.7152, 0.0722])
+    bright = lum > 0.2 * lum.max()
+    print("block ratios", (a / np.maximum(b, 1e-9))[bright][:, 1].round(3).tolist())
+    np.testing.assert_allclose(a[bright], b[bright], rtol=0.06)
+    ratio = imgs["PHOTONMAP"].sum(axis=(0, 1)) / imgs["CYCLES"].sum(axis=(0, 1))
+    print("image sum ratio", ratio.round(4))
+    np.testing.assert_allclose(ratio, 1.0, rtol=0.03)
