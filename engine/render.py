@@ -197,6 +197,8 @@ def close_context(ctx: Context) -> None:
         ctx.links.close()
     if ctx.catcher_alone is not None:
         ctx.catcher_alone.accel.close()
+    if getattr(ctx.hetero, "accel", None) is not None:
+        ctx.hetero.accel.close()  # (the textured media's boundaries: heterogeneous.py)
 
 
 def _sample_every_side(lights) -> bool:
