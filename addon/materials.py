@@ -425,6 +425,7 @@ class MaterialConverter:
         warnings: list[str] = []
         # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
         self._medium = (np.zeros(3), False, np.zeros(3), 0.0, np.zeros(3))
+        self._density_field = None  # a texture on the medium's Density (_medium_of)
         self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
             closure = Closure()
@@ -482,6 +483,9 @@ class MaterialConverter:
             absorption=self._medium[0], volume_only=self._medium[1],
             scattering=self._medium[2], anisotropy=self._medium[3],
             volume_emission=self._medium[4],
+            # a texture on the Density: a heterogeneous medium (engine/heterogeneous.py;
+            # the coefficients above are then at density 1)
+            density_texture=self._density_field,
             # true displacement (Displacement Only / and Bump): vertices moved at prepare
             displacement=self._displace[0], displacement_method=self._displace[1])
         m.warnings[:0] = warnings
@@ -531,7 +535,7 @@ class MaterialConverter:
         if volume is not None and volume.is_linked:
             # The medium inside the object: its absorption (engine/media.py); a material
             # without a surface lets every ray through to it (Material.volume_only).
-            sigma, scatter, g, emit = self._medium_of(volume)
+            sigma, scatter, g, emit = self._medium_of(volume, fields=True)
             only = out.inputs.get("Surface") is None or not out.inputs["Surface"].is_linked
             self._medium = (sigma, only, scatter, g, emit)
         surface = out.inputs.get("Surface")
@@ -655,11 +659,11 @@ class MaterialConverter:
         t = node.type
         if t == "VOLUME_ABSORPTION":
             color = self._volume_color(node, "Color")
-            return (max(self._float(node, "Density", 1.0), 0.0) * (1.0 - color), np.zeros(3),
+            return (self._density(node) * (1.0 - color), np.zeros(3),
                     np.zeros(3), np.zeros(3))
         if t == "PRINCIPLED_VOLUME":
             color = np.clip(self._volume_color(node, "Color"), 0.0, None)
-            density = max(self._float(node, "Density", 1.0), 0.0)
+            density = self._density(node)
             absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
             g = self._anisotropy_g(node)
             emit = np.zeros(3)
@@ -686,7 +690,7 @@ class MaterialConverter:
                            f"of Volume Scatter '{node.name}' is not supported; rendered "
                            "with the Henyey-Greenstein phase of its Anisotropy")
             color = np.clip(self._volume_color(node, "Color"), 0.0, None)
-            scatter = max(self._float(node, "Density", 1.0), 0.0) * color
+            scatter = self._density(node) * color
             return np.zeros(3), scatter, scatter * self._anisotropy_g(node), np.zeros(3)
         if t == "EMISSION":
             # Cycles' emission closure in a volume shader: radiance per metre of ray
@@ -725,16 +729,54 @@ class MaterialConverter:
                         for w in self._warnings)
         return medium
 
-    def _medium_of(self, socket):
+    def _medium_of(self, socket, fields=False):
         """(sigma_a (3,), sigma_s (3,), g, emission (3,)) of the volume tree feeding
         `socket` (_volume; 1/m, the emission W/m^2/sr per m), the coefficients clipped at
         0; one phase function for the medium: the scattering-weighted mean of its
-        Henyey-Greenstein g (a single scatter node: its own g), within +-G_LIMIT."""
+        Henyey-Greenstein g (a single scatter node: its own g), within +-G_LIMIT.
+
+        fields: a texture on a volume node's Density may make the medium heterogeneous
+        (a material's, not the world's): when the tree has one volume node and its
+        Density is driven by a node tree (_density), the coefficients are those at
+        density 1 and self._density_field is that tree (engine Material.density_texture:
+        sigma(p) = max(tree(p), 0) x them, engine/heterogeneous.py). Several volume
+        nodes with a textured Density among them are warned and read at each socket's
+        own value (a homogeneous medium)."""
+        self._fields, self._volume_nodes = ([] if fields else None), 0
         absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
+        if self._fields:
+            if len(self._fields) == 1 and self._volume_nodes == 1:
+                self._density_field = self._fields[0][1]
+            else:
+                node = self._fields[0][0]
+                self._warn(f"material '{self._mat.name}': a texture on the Density of "
+                           f"'{node.name}' mixed with other volume shaders is not "
+                           "supported (one volume node per heterogeneous medium); each "
+                           "Density read at its socket's own value")
+                self._fields = None
+                self._volume_nodes = 0
+                absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
+        self._fields = None
         scatter = np.clip(scatter, 0.0, None)
         g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
         return (np.clip(absorb, 0.0, None), scatter, min(max(g, -G_LIMIT), G_LIMIT),
                 np.clip(emit, 0.0, None))
+
+    def _density(self, node) -> float:
+        """A volume node's Density (at least 0). A node tree on it, when _medium_of
+        allows fields (self._fields a list): recorded there as (node, tree) and 1.0
+        returned (the coefficients at density 1); else one constant (_float: a per-point
+        tree warned, its socket's own value used)."""
+        self._volume_nodes += 1
+        s = node.inputs.get("Density")
+        if (self._fields is not None and s is not None
+                and self._source(s) is not None):
+            val = self._input(node, s, 0)
+            if hasattr(val, "evaluate"):
+                self._fields.append((node, val))
+                return 1.0
+            return max(float(val) if np.ndim(val) == 0 else float(np.mean(val)), 0.0)
+        return max(self._float(node, "Density", 1.0), 0.0)
 
     def _anisotropy_g(self, node) -> float:
         """A volume node's Anisotropy as the Henyey-Greenstein g Cycles uses: clamped to

@@ -2381,6 +2381,39 @@ def volume_fog_spot():
              spot_size=math.radians(35.0), spot_blend=0.2, shadow_soft_size=0.0)
 
 
+@case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))
+def volume_cloud():
+    """A cloud cube: Principled Volume (Color 0.8) whose Density is 4 x a Color Ramp
+    (black below 0.45, white above 0.62) of a Noise Texture (Scale 2.5, Detail 2,
+    Generated coordinates); the Surface unlinked; floating over the floor, a spot light
+    above it: its puffs lit by the spot, its patchy shadow, the walls lit by the floor's
+    photons that passed it (engine/heterogeneous.py, docs/compatibility.md hetvol39), at
+    Cycles' default Volume bounces 0. (It was warned: the Density socket's own value, a
+    homogeneous box.)"""
+    _stage()
+    m, nt, out = _nodes_material("cloud")
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    noise.inputs["Detail"].default_value = 2.0
+    nt.links.new(tc.outputs["Generated"], noise.inputs["Vector"])
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = 0.45
+    ramp.color_ramp.elements[1].position = 0.62
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    mul = nt.nodes.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    mul.inputs[1].default_value = 4.0
+    nt.links.new(ramp.outputs["Color"], mul.inputs[0])
+    v = nt.nodes.new("ShaderNodeVolumePrincipled")
+    v.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    nt.links.new(mul.outputs[0], v.inputs["Density"])
+    nt.links.new(v.outputs[0], out.inputs["Volume"])
+    mb.box("Cloud", 1.6, 1.6, 1.2, m, (0.0, 0.0, 1.0))
+    mb.light("Spot", "SPOT", (0.2, 0.0, 3.4), 600.0, look_at=(0, 0, 0),
+             spot_size=math.radians(40.0), spot_blend=0.2, shadow_soft_size=0.0)
+
+
 # (No Sky Texture case: every sky type is simulated and checked against Cycles 5.0.1 by
 # tests/test_sky.py and tests/blender/test_sky_cycles.py; the warned Hosek / Wilkie case
 # that stood here went with its warning.)
