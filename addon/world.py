@@ -313,12 +313,41 @@ def _background_color(pm, world, node, warnings, memo):
     return term
 
 
+# A baked world map (colour nodes over a map, maps and colours summed) is sampled from its
+# sources' own lookups on a grid this many times finer than the first map's texels in
+# each direction, as long as it holds at most BAKE_TEXELS texels: the bake's linear
+# interpolation then follows the sources' lookups between their texels, where the
+# colour nodes' nonlinearity, and an sRGB-stored map's interpolation of encoded values
+# (Cycles' and ours), make "interpolate, then the nodes" differ from "the nodes at the
+# texels, then interpolate" (newuser39: a 64 x 32 sRGB-tagged map with a 200 sun texel lit
+# the floor 1.26-1.35x Cycles when baked at its own texels; an 8-bit JPG panorama is
+# sRGB-stored too).
+BAKE_UPSAMPLE = (4, 2, 1)
+BAKE_TEXELS = 2 ** 21
+
+
+def bake_grid(env) -> tuple:
+    """(height, width, (height x width, 3) world directions) of the bake grid over env:
+    its texel grid refined by the first of BAKE_UPSAMPLE that keeps it within
+    BAKE_TEXELS texels, the directions at the grid's texel centres (rows top first: the
+    zenith; equirectangular, env's rotation)."""
+    h0, w0 = env.pixels.shape[:2]
+    k = next((k for k in BAKE_UPSAMPLE if h0 * w0 * k * k <= BAKE_TEXELS), 1)
+    height, width = h0 * k, w0 * k
+    theta = (np.arange(height) + 0.5)[:, None] / height * np.pi
+    u = (np.arange(width) + 0.5)[None, :] / width
+    phi = 2.0 * np.pi * (0.5 - u)
+    st = np.sin(theta)
+    texture_dirs = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi),
+                                                np.cos(theta)), -1).reshape(-1, 3)
+    return height, width, texture_dirs @ env.rotation  # (rotation: world -> texture)
+
+
 def _bake_colours(pm, world, val, leaves, warnings):
-    """EnvTerm of a colour graph over environment maps (leaves): evaluated on the first
-    map's texels (the others at those texels' directions), negatives clamped."""
+    """EnvTerm of a colour graph over environment maps (leaves): evaluated on the bake
+    grid of the first map (bake_grid; every map looked up there), negatives clamped."""
     first = leaves[0].env
-    height, width = first.pixels.shape[:2]
-    dirs = _texel_directions(first)
+    height, width, dirs = bake_grid(first)
     for leaf in leaves:
         leaf.dirs = dirs
     n = height * width
@@ -328,8 +357,7 @@ def _bake_colours(pm, world, val, leaves, warnings):
     except Exception as exc:  # noqa: BLE001 - a node that needs a surface
         warnings.append(f"world '{world.name}': the Background colour's nodes cannot be "
                         f"evaluated over the environment map ({exc}); using the map alone")
-        return EnvTerm(lambda strength: first if strength == 1.0 else pm.Environment(
-            first.pixels, strength, first.rotation, first.interpolation, name=first.name))
+        return EnvTerm(leaves[0].make, first)
     if rgb.ndim == 1:
         rgb = np.repeat(rgb[:, None], 3, axis=1)
     pixels = np.nan_to_num(np.maximum(rgb, 0.0), nan=0.0, posinf=0.0).reshape(
@@ -338,25 +366,12 @@ def _bake_colours(pm, world, val, leaves, warnings):
                                                    first.interpolation, name=first.name))
 
 
-def _texel_directions(env) -> np.ndarray:
-    """(H x W, 3) world directions of an environment map's texel centres (rows top
-    first: the zenith), as its lookup maps them (equirectangular, its rotation)."""
-    height, width = env.pixels.shape[:2]
-    theta = (np.arange(height) + 0.5)[:, None] / height * np.pi
-    u = (np.arange(width) + 0.5)[None, :] / width
-    phi = 2.0 * np.pi * (0.5 - u)
-    st = np.sin(theta)
-    texture_dirs = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi),
-                                                np.cos(theta)), -1).reshape(-1, 3)
-    return texture_dirs @ env.rotation  # (rotation: world -> texture; R^T d per row)
-
-
 def _resolve_terms(pm, terms) -> tuple:
     """(background RGB (3,), Environment or None) of [(weight, term)], term an RGB (3,) or
     an EnvTerm: the colours summed; one map alone made at its weight; a map with colours
-    or other maps baked into one map on the first map's texels (the others looked up at
-    those texels' directions, the colours added), its sky sun disc (sun_light) scaled by
-    the sky's weight."""
+    or other maps baked into one map on the first map's bake grid (bake_grid: every map
+    looked up there, the colours added), its sky sun disc (sun_light) scaled by the sky's
+    weight."""
     const = np.zeros(3)
     maps = []
     for w, term in terms:
@@ -371,13 +386,12 @@ def _resolve_terms(pm, terms) -> tuple:
     w0, first = maps[0][0], maps[0][1].make(maps[0][0])
     if len(maps) == 1 and not np.any(const > 0):
         return first.average(), first
-    height, width = first.pixels.shape[:2]
-    dirs = _texel_directions(first)
-    pixels = first.pixels.astype(np.float64) + const
-    for w, other in maps[1:]:
-        pixels += w * other.unit.radiance(dirs).reshape(height, width, 3)
-    env = pm.Environment(pixels.astype(np.float32), 1.0, first.rotation, first.interpolation,
-                         name=first.name)
+    height, width, dirs = bake_grid(first)
+    pixels = np.broadcast_to(const, (height * width, 3)).copy()
+    for w, term in maps:
+        pixels += w * term.unit.radiance(dirs)
+    env = pm.Environment(pixels.reshape(height, width, 3).astype(np.float32), 1.0,
+                         first.rotation, first.interpolation, name=first.name)
     sun = getattr(maps[0][1].unit, "sun_light", None)
     if sun is not None:
         env.sun_light = dict(sun, color=np.asarray(sun["color"], np.float64) * w0)

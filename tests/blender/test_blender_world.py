@@ -75,6 +75,12 @@ def test_unsupported_world_nodes_warn_once_naming_the_node(mb, bpy_addon):
     assert len([w for w in scene.all_warnings() if "Clouds" in w]) == 1
 
 
+def pm_environment(pixels):
+    """The engine Environment of a linear map as set_world_hdri packs it (strength 1)."""
+    from addon.core import load_engine
+    return load_engine().Environment(pixels, 1.0)
+
+
 def _mix(bpy, fac=None, rgb=(0.1, 0.2, 0.7), strength=1.0, output="Is Camera Ray",
          swap=False):
     """Mix the world's Background (the HDRI) with a colour Background by a Mix Shader:
@@ -131,9 +137,14 @@ def test_constant_mixes_and_adds_are_summed_into_one_world(mb, bpy_addon):
     mb.set_world_hdri(sky, 1.0)
     _mix(bpy, fac=0.4, rgb=(0.5, 0.25, 0.1), strength=2.0)
     scene = _export(bpy)
-    np.testing.assert_allclose(scene.environment.pixels,
-                               0.6 * sky + 0.4 * np.array([1.0, 0.5, 0.2]), rtol=1e-5,
-                               atol=1e-6)
+    # (baked on the map's grid refined 4x: each baked texel the map's own lookup there)
+    from addon.world import bake_grid
+    plain = pm_environment(sky)
+    h, w, dirs = bake_grid(plain)
+    assert (h, w) == (64, 128)
+    np.testing.assert_allclose(scene.environment.pixels.reshape(-1, 3),
+                               0.6 * plain.radiance(dirs) + 0.4 * np.array([1.0, 0.5, 0.2]),
+                               rtol=1e-5, atol=1e-6)
     assert scene.camera_environment is None and scene.camera_background is None
     nt = bpy.context.scene.world.node_tree
     nt.nodes.clear()
@@ -201,9 +212,13 @@ def test_colour_nodes_over_the_hdri_are_baked_into_the_map(mb, bpy_addon):
     nt.links.new(strength.outputs[0], bg.inputs["Strength"])
     scene = _export(bpy)
     assert not [w for w in scene.all_warnings() if "world" in w], scene.all_warnings()
-    want = sky ** 2 * np.array([1.0, 0.5, 0.25])
-    np.testing.assert_allclose(scene.environment.pixels, 2.0 * want, rtol=1e-4, atol=1e-6)
-    np.testing.assert_allclose(scene.camera_environment.pixels, 3.0 * want, rtol=1e-4,
+    from addon.world import bake_grid
+    plain = pm_environment(sky)
+    want = plain.radiance(bake_grid(plain)[2]) ** 2 * np.array([1.0, 0.5, 0.25])
+    np.testing.assert_allclose(scene.environment.pixels.reshape(-1, 3), 2.0 * want,
+                               rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(scene.camera_environment.pixels.reshape(-1, 3), 3.0 * want,
+                               rtol=1e-4,
                                atol=1e-6)
 
 
