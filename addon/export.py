@@ -1736,6 +1736,10 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             cache[key] = extract_object_geometry(pm, obj)
             if cache[key] is None and otype == "CURVES":
                 warn_empty_hair(obj, warnings)
+            elif cache[key] is None and otype == "POINTCLOUD" and len(obj.data.points):
+                owner = inst.parent.name if inst.is_instance and inst.parent else obj.name
+                warnings.append(f"object '{owner}': its points have radius 0 (or are not "
+                                "finite): nothing to render, as in Cycles")
         geo = cache[key]
         if geo is None:
             continue

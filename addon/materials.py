@@ -1085,12 +1085,13 @@ class MaterialConverter:
         inp = node.inputs
         sc = {}
         if getattr(node, "fresnel_type", "F82") == "PHYSICAL_CONDUCTOR":
-            for name in ("IOR", "Extinction"):
-                if inp[name].is_linked:
-                    self._warn(f"material '{self._mat.name}': a node plugged into '{name}' of "
-                               f"'{node.name}' is not supported; using its value")
             n = np.asarray(tuple(inp["IOR"].default_value)[:3], np.float64)
             k = np.asarray(tuple(inp["Extinction"].default_value)[:3], np.float64)
+            for name, value in (("IOR", n), ("Extinction", k)):
+                if inp[name].is_linked:
+                    self._warn(f"material '{self._mat.name}': a node plugged into '{name}' of "
+                               f"'{node.name}' is not supported; using its value "
+                               f"{_value_text(value)}")
             base, tint = conductor_f82_tint(n, k)
             tex = None
         else:

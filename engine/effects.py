@@ -206,8 +206,7 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names) -> None:
              f"bounce (to GGX alpha {lo:.2f}-{hi:.2f}, roughness {math.sqrt(lo):.2f}-"
              f"{math.sqrt(hi):.2f}), which spreads and dims the light "
              + _quoted(names, most=REPORT_NAMES_MAX) + " throw"
-             + ("" if len(names) > 1 else "s") + " onto diffuse surfaces (beside a "
-             "roughness 0.4 metal block Cycles' floor reads up to 18 % darker); ours does "
+             + ("" if len(names) > 1 else "s") + " onto diffuse surfaces; ours does "
              "not blur, so it matches Cycles with Filter Glossy 0: set that to compare")
 
 
@@ -658,8 +657,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                        f"environment map '{env.name}' ({env.width}x{env.height}) lights "
                        "the scene (shadow rays importance-sample the map)")
             if worldmedium.has_camera_world(scene):
-                how += ("; the camera sees a world of its own behind the scene (the "
-                        "world's Light Path Is Camera Ray), which lights nothing")
+                how += ("; the camera sees a world of its own behind the scene (a Light "
+                        "Path Is Camera Ray mix, or Ray Visibility > Camera off), which "
+                        "lights nothing")
             plan.add("world light", True, how)
             leak = _portal_leak_note(li)
             if leak:
@@ -786,6 +786,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if tree_members(lights):
         _summarise_many_lights(plan, lights, s)
     if nothing_occludes and lights:
+        # (each light's samples still integrate its area: no shadow, soft or hard, to make)
+        for i, d in enumerate(plan.decisions):
+            if d.effect.startswith("soft shadows '") and d.enabled:
+                plan.decisions[i] = Decision(d.effect, False, "nothing can cast a shadow; "
+                                             "its samples light the surface unshadowed")
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
     # Per material first: the (T,3) radiance of every triangle cost ~60 B a triangle.
     if has_tris and np.any((luminance(table.emission) > 0)[mat]):

@@ -99,6 +99,18 @@ def test_points_export_as_spheres_of_their_radius(bpy_addon):
         *pm.pointcloud.icosphere(level)), rel=1e-4)
 
 
+def test_points_of_radius_0_render_nothing_and_say_so(bpy_addon):
+    bpy = bpy_addon
+    _sc, dots = _scene(bpy, radius=0.0)
+    from addon import export
+    from addon.core import load_engine
+    scene, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                   width=16, height=12)
+    assert not [m for m in scene.meshes if m.name.startswith("Dots/")]
+    hits = [w for w in scene.all_warnings() if "'Dots'" in w]
+    assert len(hits) == 1 and "radius 0" in hits[0], hits
+
+
 def test_a_volume_object_is_warned_naming_it(bpy_addon):
     bpy = bpy_addon
     _scene(bpy)
