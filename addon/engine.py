@@ -73,6 +73,41 @@ def _surface_passes():
                  for sw, name, *rest in SURFACE_PASSES)
 
 
+# Cycles' light passes (engine/lightpasses.py): (view layer switch, Blender 5's pass name,
+# Film.data key), in Cycles' add-on's order; Blender 4 named them DiffDir, ... Emit, Env.
+# Blender shows Direct / Indirect divided by their Color pass (lightpasses.shown).
+LIGHT_PASSES = (("use_pass_diffuse_direct", "Diffuse Direct", "diffuse_direct"),
+                ("use_pass_diffuse_indirect", "Diffuse Indirect", "diffuse_indirect"),
+                ("use_pass_glossy_direct", "Glossy Direct", "glossy_direct"),
+                ("use_pass_glossy_indirect", "Glossy Indirect", "glossy_indirect"),
+                ("use_pass_transmission_direct", "Transmission Direct", "transmission_direct"),
+                ("use_pass_transmission_indirect", "Transmission Indirect",
+                 "transmission_indirect"),
+                ("use_pass_emit", "Emission", "emission"),
+                ("use_pass_environment", "Environment", "environment"))
+_OLD_LIGHT_NAMES = {"Diffuse Direct": "DiffDir", "Diffuse Indirect": "DiffInd",
+                    "Glossy Direct": "GlossDir", "Glossy Indirect": "GlossInd",
+                    "Transmission Direct": "TransDir", "Transmission Indirect": "TransInd",
+                    "Emission": "Emit", "Environment": "Env"}
+
+
+def _light_passes(view_layer=None):
+    """LIGHT_PASSES with this Blender's pass names (those view_layer asks for: all when
+    None)."""
+    new = bpy.app.version >= (5, 0, 0)
+    return tuple((sw, name if new else _OLD_LIGHT_NAMES[name], key)
+                 for sw, name, key in LIGHT_PASSES
+                 if view_layer is None or getattr(view_layer, sw, False))
+
+
+def _effect_passes(view_layer):
+    """EFFECT_PASSES the view layer gets: in Blender 5 Cycles' Emission pass (use_pass_emit)
+    takes the name "Emission", so our Emission effect pass gives way to it."""
+    if bpy.app.version >= (5, 0, 0) and getattr(view_layer, "use_pass_emit", False):
+        return tuple(p for p in EFFECT_PASSES if p[0] != "Emission")
+    return EFFECT_PASSES
+
+
 def _color_passes():
     """COLOR_PASSES with this Blender's pass names."""
     if bpy.app.version >= (5, 0, 0):
@@ -83,14 +118,6 @@ def _color_passes():
 UNMADE_PASSES = (
     ("", "use_pass_vector", "Vector"), ("", "use_pass_shadow", "Shadow"),
     ("", "use_pass_ambient_occlusion", "Ambient Occlusion"),
-    ("", "use_pass_emit", "Emission (Cycles'; the Photon Mapping Emission effect pass is ours)"),
-    ("", "use_pass_environment", "Environment"),
-    ("", "use_pass_diffuse_direct", "Diffuse Direct"),
-    ("", "use_pass_diffuse_indirect", "Diffuse Indirect"),
-    ("", "use_pass_glossy_direct", "Glossy Direct"),
-    ("", "use_pass_glossy_indirect", "Glossy Indirect"),
-    ("", "use_pass_transmission_direct", "Transmission Direct"),
-    ("", "use_pass_transmission_indirect", "Transmission Indirect"),
     ("", "use_pass_subsurface_direct", "Subsurface Direct"),
     ("", "use_pass_subsurface_indirect", "Subsurface Indirect"),
     ("", "use_pass_subsurface_color", "Subsurface Color"),
@@ -137,6 +164,8 @@ def data_passes(view_layer) -> tuple:
         out.append("denoising")
     if any(getattr(view_layer, switch, False) for switch, _, _ in COLOR_PASSES):
         out.append("color")
+    if any(getattr(view_layer, switch, False) for switch, _, _ in LIGHT_PASSES):
+        out.append("light")  # (brings "color": Blender divides by it)
     out += [key for switch, _, key, *_ in SURFACE_PASSES if getattr(view_layer, switch, False)]
     return tuple(out)
 
@@ -371,7 +400,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         effects = settings is None or settings.use_pass_effects
         hits = settings is None or settings.use_pass_photon_hits
         if effects:
-            for name, _ in EFFECT_PASSES:
+            for name, _ in _effect_passes(renderlayer):
                 self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         if hits:
             self.register_pass(scene, renderlayer, PHOTON_PASS[0], 3, "RGB", "COLOR")
@@ -385,6 +414,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
+        for _, name, _ in _light_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         for switch, name, _, channels, chan_id, kind in _surface_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
@@ -739,7 +770,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         layer = view_layer.name
         settings = getattr(view_layer, "photonmap", None)
         if settings is None or settings.use_pass_effects:
-            for name, _ in EFFECT_PASSES:
+            for name, _ in _effect_passes(view_layer):
                 self.add_pass(name, 3, "RGB", layer=layer)
         if settings is None or settings.use_pass_photon_hits:
             self.add_pass(PHOTON_PASS[0], 3, "RGB", layer=layer)
@@ -753,6 +784,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, 3, "RGB", layer=layer)
+        for _, name, _ in _light_passes(view_layer):
+            self.add_pass(name, 3, "RGB", layer=layer)
         for switch, name, _, channels, chan_id, _ in _surface_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, channels, chan_id, layer=layer)
@@ -784,7 +817,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             buffers = {"Combined": rgba}
             if with_pass:
                 buffers[SHADOW_CATCHER_PASS] = catcher.shadow_catcher_pass(film, transparent)
-            for name, attr in EFFECT_PASSES + (PHOTON_PASS,):
+            for name, attr in _effect_passes(view_layer) + (PHOTON_PASS,):
                 buffers[name] = getattr(film, attr)
             depth = np.where(np.isfinite(film.depth), film.depth, BACKGROUND_DEPTH)
             buffers["Depth"] = depth[:, :, None]
@@ -795,6 +828,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                               + [(p[1], p[2]) for p in _surface_passes()]):
                 if key in data:
                     buffers[name] = data[key] if data[key].ndim == 3 else data[key][:, :, None]
+            # The light passes as Blender shows them (Direct / Indirect / Color).
+            shown = _engine_module("lightpasses").shown(data)
+            for _, name, key in _light_passes(view_layer):
+                if key in shown:
+                    buffers[name] = shown[key]
             if film.sample_count is not None:  # the share of Samples each pixel took
                 spp = float(film.stats.get("adaptive_spp") or film.sample_count.max() or 1.0)
                 buffers[SAMPLE_COUNT_PASS] = (film.sample_count / spp)[:, :, None]

@@ -1,0 +1,131 @@
+"""Cycles' light passes through the add-on (issue 14, engine/lightpasses.py): Diffuse /
+Glossy / Transmission Direct and Indirect, Emission and Environment against live Cycles
+5.0's same passes on a small scene (a diffuse floor and wall, a rough metal ball, a clear
+glass ball, an emitting ball, a world colour, an area light); Blender's recombination
+(Dir + Ind) x Col + Emission + Environment = Combined in our render result.
+"""
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from blender_helpers import ROOT, cheap, cycles_plain, read_layers, render_exr
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
+W, H = 64, 48
+CYCLES_SPP, OUR_SPP = 256, 64
+KINDS = ("Diffuse", "Glossy", "Transmission")
+LIGHT = tuple(f"{k} {t}" for k in KINDS for t in ("Direct", "Indirect")) + (
+    "Emission", "Environment")
+COLOR = tuple(f"{k} Color" for k in KINDS)
+
+
+def _emitter(bpy, name, rgb, strength):
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    nt = m.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    e = nt.nodes.new("ShaderNodeEmission")
+    e.inputs["Color"].default_value = (*rgb, 1.0)
+    e.inputs["Strength"].default_value = strength
+    nt.links.new(e.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _scene(bpy):
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends as mb
+    scene = mb.reset()
+    floor = mb.material("floor", "diffuse", (0.7, 0.55, 0.4))
+    wall = mb.material("wall", "diffuse", (0.3, 0.6, 0.8))
+    metal = mb.material("metal", "principled", (0.9, 0.75, 0.5), roughness=0.3, metallic=1.0)
+    glass = mb.material("glass", "glass", (1, 1, 1), ior=1.45)
+    mb.plane("Floor", 8, 8, floor)
+    mb.plane("Wall", 8, 4, wall, (0, 1.6, 2.0), (math.radians(90), 0, 0))
+    mb.sphere("Metal", 0.5, metal, (-0.9, 0.2, 0.5), segments=32, rings=16)
+    mb.sphere("Glass", 0.5, glass, (0.4, -0.2, 0.5), segments=32, rings=16)
+    mb.sphere("Lamp", 0.25, _emitter(bpy, "lamp", (1.0, 0.6, 0.3), 4.0), (1.4, 0.6, 0.25),
+              segments=24, rings=12)
+    mb.set_world((0.25, 0.3, 0.4))
+    mb.light("Area", "AREA", (1.0, -1.5, 3.0), 300.0, look_at=(0, 0, 0), size=1.0)
+    mb.camera((0, -4.2, 1.8), (0, 0.3, 0.5), fov_deg=55.0)
+    r = scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage = W, H, 100
+    r.use_compositing = False
+    vl = scene.view_layers[0]
+    for k in ("diffuse", "glossy", "transmission"):
+        for t in ("direct", "indirect", "color"):
+            setattr(vl, f"use_pass_{k}_{t}", True)
+    vl.use_pass_emit = vl.use_pass_environment = True
+    return scene
+
+
+@pytest.fixture(scope="module")
+def renders(bpy_addon, tmp_path_factory):
+    """{engine: {pass: (H,W,C)}}: Cycles at 256 spp, ours at 64."""
+    bpy = bpy_addon
+    tmp = tmp_path_factory.mktemp("light_passes")
+    scene = _scene(bpy)
+    out = {}
+    for engine in ("CYCLES", "PHOTONMAP"):
+        scene.render.engine = engine
+        if engine == "CYCLES":
+            cycles_plain(scene, CYCLES_SPP, 12)
+        else:
+            cheap(scene, spp=OUR_SPP, photons=100_000, caustic_photons=50_000)
+        out[engine] = read_layers(render_exr(bpy, scene, tmp / f"{engine}.exr",
+                                             multilayer=True))
+    return out
+
+
+def _rgb(layers, name):
+    return layers[name][..., :3].astype(np.float64)
+
+
+def test_recombination_identity(renders):
+    """Blender's recombination of our light passes gives our Combined (float precision:
+    the passes are float32, divided by the colour and multiplied back)."""
+    ours = renders["PHOTONMAP"]
+    rec = sum((_rgb(ours, f"{k} Direct") + _rgb(ours, f"{k} Indirect"))
+              * _rgb(ours, f"{k} Color") for k in KINDS)
+    rec = rec + _rgb(ours, "Emission") + _rgb(ours, "Environment")
+    comb = _rgb(ours, "Combined")
+    assert comb.max() > 0.1
+    np.testing.assert_allclose(rec, comb, rtol=1e-5, atol=1e-6)
+
+
+def test_light_passes_match_cycles(renders):
+    """Each light pass's image mean as Blender shows it times its colour (the light it
+    adds to Combined), and Diffuse Direct / Indirect as shown over the floor and wall
+    (where Diffuse Color is large), against Cycles'."""
+    cyc, ours = renders["CYCLES"], renders["PHOTONMAP"]
+    for name in LIGHT + COLOR:
+        assert name in ours, (name, sorted(ours))
+        assert np.isfinite(ours[name]).all(), name
+    report = {}
+    for name in LIGHT:
+        kind = name.split()[0]
+        col = f"{kind} Color" if kind in KINDS else None
+        c, o = _rgb(cyc, name), _rgb(ours, name)
+        if col is not None:
+            c, o = c * _rgb(cyc, col), o * _rgb(ours, col)
+        cm, om = c.reshape(-1, 3).mean(0), o.reshape(-1, 3).mean(0)
+        report[name] = (cm.round(4).tolist(), om.round(4).tolist())
+    comb_c = _rgb(cyc, "Combined").reshape(-1, 3).mean(0).sum()
+    print(report)
+    for name, (cm, om) in report.items():
+        cm, om = np.array(cm), np.array(om)
+        # 3 % of the pass, or 0.3 % of the whole image for the faint passes.
+        tol = np.maximum(0.03 * cm, 0.003 * comb_c / 3)
+        assert np.all(np.abs(om - cm) <= tol), (name, cm, om)
+    diffuse = (_rgb(cyc, "Diffuse Color")[..., 0] > 0.25) & (_rgb(ours, "Diffuse Color")[..., 0] > 0.25)
+    assert diffuse.sum() > 500
+    for name in ("Diffuse Direct", "Diffuse Indirect"):
+        cm = _rgb(cyc, name)[diffuse].mean(0)
+        om = _rgb(ours, name)[diffuse].mean(0)
+        np.testing.assert_allclose(om, cm, rtol=0.04, err_msg=name)
