@@ -1,7 +1,7 @@
 """Cycles' light passes through the add-on (issue 14, engine/lightpasses.py): Diffuse /
 Glossy / Transmission Direct and Indirect, Emission and Environment against live Cycles
 5.0's same passes on a small scene (a diffuse floor and wall, a rough metal ball, a clear
-glass ball, an emitting ball, a world colour, an area light); Blender's recombination
+and a rough glass ball, an emitting ball, a world colour, an area light); Blender's recombination
 (Dir + Ind) x Col + Emission + Environment = Combined in our render result.
 """
 import math
@@ -46,9 +46,13 @@ def _scene(bpy):
     metal = mb.material("metal", "principled", (0.9, 0.75, 0.5), roughness=0.3, metallic=1.0)
     glass = mb.material("glass", "glass", (1, 1, 1), ior=1.45)
     mb.plane("Floor", 8, 8, floor)
-    mb.plane("Wall", 8, 4, wall, (0, 1.6, 2.0), (math.radians(90), 0, 0))
+    mb.plane("Wall", 8, 2, wall, (0, 1.6, 1.0), (math.radians(90), 0, 0))
     mb.sphere("Metal", 0.5, metal, (-0.9, 0.2, 0.5), segments=32, rings=16)
     mb.sphere("Glass", 0.5, glass, (0.4, -0.2, 0.5), segments=32, rings=16)
+    frosted = mb.material("frosted", "glass", (1, 1, 1), ior=1.45)
+    next(n for n in frosted.node_tree.nodes if n.type == "BSDF_GLASS").inputs[
+        "Roughness"].default_value = 0.3
+    mb.sphere("Frosted", 0.35, frosted, (1.1, -1.0, 0.35), segments=32, rings=16)
     mb.sphere("Lamp", 0.25, _emitter(bpy, "lamp", (1.0, 0.6, 0.3), 4.0), (1.4, 0.6, 0.25),
               segments=24, rings=12)
     mb.set_world((0.25, 0.3, 0.4))
