@@ -179,3 +179,12 @@ def test_divide_even_color():
 
 def test_settings_bring_color():
     assert RenderSettings(data_passes=("light",)).data_passes == ("color", "light")
+
+
+def test_progressive_averages_raw_passes():
+    """Progressive passes average the raw sums (Film.data), so the recombination of the
+    averaged passes is still the averaged Combined."""
+    from engine import Budget, render_progressive
+    film = render_progressive(_floor_scene(wall=True), _settings(spp=2), Budget(passes=2))
+    assert "diffuse_indirect" in film.data
+    np.testing.assert_allclose(_recombined(film), film.combined, rtol=1e-5, atol=1e-6)
