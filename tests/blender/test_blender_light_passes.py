@@ -13,7 +13,7 @@ import pytest
 
 from blender_helpers import ROOT, cheap, cycles_plain, read_layers, render_exr
 
-pytestmark = [pytest.mark.blender, pytest.mark.slow]
+pytestmark = pytest.mark.blender
 
 W, H = 64, 48
 CYCLES_SPP, OUR_SPP = 256, 64
