@@ -153,8 +153,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     continuation that meets the shade from them is then MIS-weighted,
     shadelight.shade_bsdf_weights); False elsewhere.
     glossy_out: None, or an (n,3) zero array that receives, with bsdf, the rough
-    reflective lobes' part of the result (the light passes' Glossy Direct,
-    engine/lightpasses.py): the same samples again with the diffuse f at 0."""
+    reflective lobes' part of the result, sheen aside (Cycles counts sheen as diffuse;
+    the light passes' Glossy Direct, engine/lightpasses.py): direct_light's glossy."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     light_cut = None
@@ -198,23 +198,28 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 # The lobes' caps differ: both, per hit (directlight.direct_light).
                 passages = np.ascontiguousarray(
                     np.broadcast_to(np.stack([cap, gcap], axis=-1), (n, 2)), np.int64)
+    link = receiver_link(ctx, hit, rows, skip_mesh_lights)
+    # The glossy lobes' part, summed beside E from the same entries (no number drawn:
+    # the image keeps its bits); with Light Linking by a second pass (below).
+    g_out = glossy_out if bsdf is not None and link is None else None
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
                            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
-                           else None, link=receiver_link(ctx, hit, rows, skip_mesh_lights))
+                           else None, link=link, glossy=g_out)
     counters.shadow_rays += rays
-    if glossy_out is not None and bsdf is not None:
-        # (No number drawn, no buffer shared: the image keeps its bits.)
+    if glossy_out is not None and bsdf is not None and link is not None:
+        # Light Linking splits the hits by receiver set: the same samples again with the
+        # diffuse f at 0 (fresh buffers; sheen's light then counts as glossy).
         glossy_out += direct_light(
             packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel, SHADOW, n,
             shadow=shadow, tree=None if chosen is None else chosen[1],
             bsdf=(np.zeros_like(bsdf[0]),) + bsdf[1:], rows=rows, passages=passages,
             light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
             world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None else None,
-            link=receiver_link(ctx, hit, rows, skip_mesh_lights))[0]
+            link=link)[0]
     if shade_glossy is not None:
         shade_glossy[:] = False
     panes, shades = panes_for(ctx), shades_for(ctx)

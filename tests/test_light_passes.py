@@ -188,3 +188,24 @@ def test_progressive_averages_raw_passes():
     film = render_progressive(_floor_scene(wall=True), _settings(spp=2), Budget(passes=2))
     assert "diffuse_indirect" in film.data
     np.testing.assert_allclose(_recombined(film), film.combined, rtol=1e-5, atol=1e-6)
+
+
+def test_sheen_is_diffuse_and_specular_layer_glossy():
+    """Cycles counts sheen as diffuse: a sheen floor under the sun puts its light in
+    Diffuse Direct only; a Principled specular layer's highlight goes to Glossy Direct,
+    the base below it to Diffuse Direct."""
+    s = _floor_scene()
+    s.materials["floor"].sheen_weight = 1.0
+    s.materials["floor"].sheen_roughness = 0.5
+    film = render(s, _settings())
+    assert film.data["diffuse_direct"].any()
+    assert not film.data["glossy_direct"].any()
+    s = _floor_scene()
+    s.add_sun((0.3, 0.0, -1.0), strength=1.0)
+    s.materials["floor"].specular = 1.0
+    s.materials["floor"].roughness = 0.3
+    film = render(s, _settings())
+    assert film.data["glossy_direct"].any() and film.data["diffuse_direct"].any()
+    raw = sum(film.data[k].astype(np.float64) for k in lp.KEYS)
+    comb = sum(getattr(film, n).astype(np.float64) for n in EFFECTS)
+    np.testing.assert_allclose(raw, comb, rtol=1e-6, atol=1e-7)
