@@ -2537,8 +2537,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # sample 0), whose surface writes them as Cycles' sample 0 does.
     single = np.zeros(len(o), bool)
     # Cycles' light passes (engine/lightpasses.py): each path's class and bends.
-    lp = acc.light = (lightpasses.PathPasses(acc, len(o)) if "light" in want_data
-                      else None)
+    lpass = acc.light = (lightpasses.PathPasses(acc, len(o)) if "light" in want_data
+                         else None)
     first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
              else np.zeros(len(o), bool))
     for bounce in range(depth_limit + 1):
@@ -2636,8 +2636,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 if len(src):
                     rows = esc[src]
                     acc.add("direct" if bounce == 0 else "specular", pix, Ls, tp, rows)
-                    if lp is not None:
-                        lp.volume(pix, Ls, tp, rows)
+                    if lpass is not None:
+                        lpass.volume(pix, Ls, tp, rows)
         if miss.any():
             drawn = miss
             if s.film_transparent:
@@ -2700,15 +2700,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         s, np.take(chain[:, 0], missed) - 1))
                 acc.add(target, pix, radiance, tp, missed)
                 datapasses.add_light(acc, pix, missed, tp, ftp, feat, radiance)
-                if lp is not None:
+                if lpass is not None:
                     # The world into Environment, the suns' discs into Emission (Cycles'
                     # distant lights), a clamp shared in proportion.
                     env, sun_part = lightpasses.split_direct(
                         raw, None if env is raw else raw - env,
                         radiance if clamping else None)
-                    lp.met(pix, env, tp, missed, lightpasses.ENVIRONMENT)
+                    lpass.met(pix, env, tp, missed, lightpasses.ENVIRONMENT)
                     if sun_part is not None:
-                        lp.met(pix, sun_part, tp, missed, lightpasses.EMISSION)
+                        lpass.met(pix, sun_part, tp, missed, lightpasses.EMISSION)
             datapasses.add_background(acc, want_data, pix,
                                       np.nonzero(miss & (ray_cls == CAMERA))[0], first, single)
         hitm = prim >= 0
@@ -2763,8 +2763,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                pdf_b))
             if passages is not None:
                 passages.compact(kept)
-            if lp is not None:
-                lp.take(kept)
+            if lpass is not None:
+                lpass.take(kept)
             chain = np.take(chain, kept, axis=0)
             if shade_from is not None:
                 shade_from = shade_from[kept]
@@ -2788,8 +2788,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 src, Le = glow.along(prim, d, t, medium)
                 if len(src):
                     acc.add(target, pix, Le, tp_seg, src)
-                    if lp is not None:
-                        lp.met(pix, Le, tp_seg, src, lightpasses.EMISSION)
+                    if lpass is not None:
+                        lpass.met(pix, Le, tp_seg, src, lightpasses.EMISSION)
             if scatter is not None:
                 # The light the medium scatters into the segment (single scattering of
                 # the lamps' light, weighted by the throughput at its start).
@@ -2808,7 +2808,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # rebuilt from the paths' own sample indices and pixels)
                     vol_uv = sampler0.for_samples(sample_id, np.asarray(pix) + pix_shift).uv(
                         ("volume",), rng=vol_rng)
-                if lp is None:
+                if lpass is None:
                     scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o,
                                 d, t, medium, tp_seg, vol_rng, counters, uv=vol_uv)
                 else:  # (scatter.add's two steps, the light also into the light passes)
@@ -2817,7 +2817,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     if len(src):
                         tp_c = np.ascontiguousarray(tp_seg, np.float64)
                         acc.add("direct" if bounce == 0 else "specular", pix, Ls, tp_c, src)
-                        lp.volume(pix, Ls, tp_c, src)
+                        lpass.volume(pix, Ls, tp_c, src)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -2885,8 +2885,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     Le = sampleclamp.clamp(Le, tp, None,
                                            sampleclamp.bounce_limits(s, chain[:, 0] - 1))
                 acc.add(target, pix, Le, tp)
-                if lp is not None:
-                    lp.met(pix, Le, tp, None, lightpasses.EMISSION)
+                if lpass is not None:
+                    lpass.met(pix, Le, tp, None, lightpasses.EMISSION)
                 if feat is not None:
                     datapasses.add_light(acc, pix, np.arange(len(pix)), tp, ftp, feat, Le)
         if want_data:
@@ -2942,7 +2942,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             sg = (np.zeros(nd, np.bool_) if shades is not None and bounce < depth_limit
                   and g.any() else None)
             # The glossy lobes' part of direct, for the light passes.
-            g_part = np.zeros((nd, 3)) if lp is not None and g.any() else None
+            g_part = np.zeros((nd, 3)) if lpass is not None and g.any() else None
             direct, caustic, indirect = shade_diffuse(
                 ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
@@ -2960,16 +2960,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 # (A new array: direct may be the direct stage's buffers.)
                 direct = sampleclamp.clamp(direct, tp, dsel, sampleclamp.bounce_limits(
                     s, np.take(chain[:, 0], dsel)))
-            if lp is not None:
+            if lpass is not None:
                 # Direct light by lobe at a path's first bent bounce, the photon
                 # estimates (light that bounced before) Diffuse Indirect; past it all
                 # the path's Indirect. (Before the adds below: direct_raw may be the
                 # direct stage's buffers, valid until its next use.)
                 d_part, g_part = lightpasses.split_direct(
                     direct_raw, g_part, direct if clamping else None)
-                lp.shaded(pix, d_part, tp, dsel, lightpasses.DIFFUSE_DIRECT)
+                lpass.shaded(pix, d_part, tp, dsel, lightpasses.DIFFUSE_DIRECT)
                 if g_part is not None:
-                    lp.shaded(pix, g_part, tp, dsel, lightpasses.GLOSSY_DIRECT)
+                    lpass.shaded(pix, g_part, tp, dsel, lightpasses.GLOSSY_DIRECT)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:
@@ -2986,8 +2986,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         indirect[past] = 0.0
                 acc.add("specular", pix, direct if caustic is None
                         else direct + caustic + indirect, tp, dsel)
-            if lp is not None and caustic is not None:
-                lp.shaded(pix, caustic + indirect, tp, dsel, lightpasses.DIFFUSE_INDIRECT)
+            if lpass is not None and caustic is not None:
+                lpass.shaded(pix, caustic + indirect, tp, dsel, lightpasses.DIFFUSE_INDIRECT)
         if GLASS_LIGHT_SAMPLING:
             # Rough glass hits sample the lights behind their surface too (Cycles' light
             # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:
@@ -3028,8 +3028,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     Lt = sampleclamp.clamp(Lt, tp, gl, sampleclamp.bounce_limits(
                         s, np.take(chain[:, 0], gl)))
                 acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
-                if lp is not None:
-                    lp.shaded(pix, Lt, tp, gl, lightpasses.TRANSMISSION_DIRECT)
+                if lpass is not None:
+                    lpass.shaded(pix, Lt, tp, gl, lightpasses.TRANSMISSION_DIRECT)
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
@@ -3065,9 +3065,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         dk = np.take(d_in, keep, axis=0)
         bent = (d[:, 0] != dk[:, 0]) | (d[:, 1] != dk[:, 1]) | (d[:, 2] != dk[:, 2])
         chain[:, 0] += bent
-        if lp is not None:
-            lp.take(keep)
-            lp.bend(bent, ray_cls)
+        if lpass is not None:
+            lpass.take(keep)
+            lpass.bend(bent, ray_cls)
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)

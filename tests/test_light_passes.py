@@ -209,3 +209,24 @@ def test_sheen_is_diffuse_and_specular_layer_glossy():
     raw = sum(film.data[k].astype(np.float64) for k in lp.KEYS)
     comb = sum(getattr(film, n).astype(np.float64) for n in EFFECTS)
     np.testing.assert_allclose(raw, comb, rtol=1e-6, atol=1e-7)
+
+
+def test_light_linking_keeps_the_identity():
+    """With Light Linking (receiver sets split the shaded hits) the glossy part comes
+    from a second direct stage: the passes still sum to the image, which keeps its bits."""
+    s = PaperScene(W, H, background=(0.0, 0.0, 0.0))
+    s.add_material(Material("gloss", ALBEDO, specular=1.0, roughness=0.4))
+    s.add_plane((-1.0, 0, 0), (0, 0, 1), (2.0, 4.0), "gloss", name="left", up=(0, 1, 0))
+    s.add_plane((1.0, 0, 0), (0, 0, 1), (2.0, 4.0), "gloss", name="right", up=(0, 1, 0))
+    key = s.add_point_light((0.5, -1.0, 2.0), power=500.0, radius=0.3, name="key")
+    key.receivers = ["left"]
+    s.add_sun((0.2, 0.1, -1.0), strength=1.0)
+    s.set_camera((0.0, -3.0, 3.0), (0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), view_angle=50.0)
+    plain = render(s, _settings(data_passes=()))
+    film = render(s, _settings())
+    for name in EFFECTS:
+        assert np.array_equal(getattr(plain, name), getattr(film, name)), name
+    assert film.data["glossy_direct"].any() and film.data["diffuse_direct"].any()
+    raw = sum(film.data[k].astype(np.float64) for k in lp.KEYS)
+    comb = sum(getattr(film, n).astype(np.float64) for n in EFFECTS)
+    np.testing.assert_allclose(raw, comb, rtol=1e-6, atol=1e-7)
