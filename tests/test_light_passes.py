@@ -230,3 +230,23 @@ def test_light_linking_keeps_the_identity():
     raw = sum(film.data[k].astype(np.float64) for k in lp.KEYS)
     comb = sum(getattr(film, n).astype(np.float64) for n in EFFECTS)
     np.testing.assert_allclose(raw, comb, rtol=1e-6, atol=1e-7)
+
+
+def test_fog_light_is_kept_apart():
+    """Light scattered in a fog slab towards the camera goes to the volume sum (Volume
+    Direct / Indirect stay unmade), the emissive floor seen through it to Emission; the
+    passes still sum to the image."""
+    s = PaperScene(8, 8)
+    s.add_material(Material("fog", volume_only=True, absorption=(0.3, 0.1, 0.0),
+                            scattering=(0.6, 1.0, 1.6)))
+    s.add_box((0, 0, 0.25), (20.0, 20.0, 0.5), "fog", name="slab")
+    s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0)))
+    s.add_plane((0, 0, -0.2), (0, 0, 1), 30.0, "glow", name="floor")
+    s.add_point_light((0.4, 0.2, 1.5), power=200.0)
+    s.set_camera((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    film = render(s, _settings())
+    d = film.data
+    assert d["volume"].min() > 0 and d["emission"].min() > 0
+    raw = sum(d[k].astype(np.float64) for k in lp.KEYS)
+    comb = sum(getattr(film, n).astype(np.float64) for n in EFFECTS)
+    np.testing.assert_allclose(raw, comb, rtol=1e-6, atol=1e-7)
