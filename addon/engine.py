@@ -91,13 +91,30 @@ _OLD_LIGHT_NAMES = {"Diffuse Direct": "DiffDir", "Diffuse Indirect": "DiffInd",
                     "Emission": "Emit", "Environment": "Env"}
 
 
-def _light_passes(view_layer=None):
+# Cycles' Volume Direct / Indirect (view_layer.cycles' switches): made at Volume bounces 0
+# (Cycles' default), where the media's light is single scattering of the lights at the
+# camera segments (lightpasses.shown's volume_bounces); warned above it.
+VOLUME_PASSES = (("use_pass_volume_direct", "Volume Direct", "volume_direct"),
+                 ("use_pass_volume_indirect", "Volume Indirect", "volume_indirect"))
+_OLD_LIGHT_NAMES.update({"Volume Direct": "VolumeDir", "Volume Indirect": "VolumeInd"})
+
+
+def _volume_bounces(scene) -> int:
+    return int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0) or 0)
+
+
+def _light_passes(view_layer=None, scene=None):
     """LIGHT_PASSES with this Blender's pass names (those view_layer asks for: all when
-    None)."""
+    None), and VOLUME_PASSES asked for when scene renders at Volume bounces 0."""
     new = bpy.app.version >= (5, 0, 0)
-    return tuple((sw, name if new else _OLD_LIGHT_NAMES[name], key)
-                 for sw, name, key in LIGHT_PASSES
-                 if view_layer is None or getattr(view_layer, sw, False))
+    out = [(sw, name if new else _OLD_LIGHT_NAMES[name], key)
+           for sw, name, key in LIGHT_PASSES
+           if view_layer is None or getattr(view_layer, sw, False)]
+    cyc = getattr(view_layer, "cycles", None)
+    if scene is not None and cyc is not None and _volume_bounces(scene) == 0:
+        out += [(sw, name if new else _OLD_LIGHT_NAMES[name], key)
+                for sw, name, key in VOLUME_PASSES if getattr(cyc, sw, False)]
+    return tuple(out)
 
 
 def _effect_passes(view_layer):
@@ -122,8 +139,8 @@ UNMADE_PASSES = (
     ("", "use_pass_subsurface_indirect", "Subsurface Indirect"),
     ("", "use_pass_subsurface_color", "Subsurface Color"),
     ("", "use_pass_grease_pencil", "Grease Pencil"),
-    ("cycles", "use_pass_volume_direct", "Volume Direct"),
-    ("cycles", "use_pass_volume_indirect", "Volume Indirect"),
+    ("cycles", "use_pass_volume_direct", "Volume Direct (made at Volume bounces 0)"),
+    ("cycles", "use_pass_volume_indirect", "Volume Indirect (made at Volume bounces 0)"),
     ("cycles", "pass_render_time", "Render Time"),
 )
 
@@ -164,17 +181,22 @@ def data_passes(view_layer) -> tuple:
         out.append("denoising")
     if any(getattr(view_layer, switch, False) for switch, _, _ in COLOR_PASSES):
         out.append("color")
-    if any(getattr(view_layer, switch, False) for switch, _, _ in LIGHT_PASSES):
+    cyc = getattr(view_layer, "cycles", None)
+    if (any(getattr(view_layer, switch, False) for switch, _, _ in LIGHT_PASSES)
+            or any(getattr(cyc, switch, False) for switch, _, _ in VOLUME_PASSES)):
         out.append("light")  # (brings "color": Blender divides by it)
     out += [key for switch, _, key, *_ in SURFACE_PASSES if getattr(view_layer, switch, False)]
     return tuple(out)
 
 
-def unmade_passes_warning(view_layer, adaptive: bool = False):
+def unmade_passes_warning(view_layer, adaptive: bool = False, volume_bounces: int = 0):
     """One warning naming the passes view_layer asks for that the engine does not make
-    (they stay empty), or None."""
+    (they stay empty), or None. volume_bounces: the scene's Light Paths > Volume bounces
+    (the volume passes are made at 0)."""
     names = []
     for owner, switch, label in UNMADE_PASSES:
+        if volume_bounces == 0 and switch in {sw for sw, _, _ in VOLUME_PASSES}:
+            continue
         holder = getattr(view_layer, owner, None) if owner else view_layer
         if holder is not None and bool(getattr(holder, switch, False)):
             names.append(label)
@@ -414,7 +436,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
-        for _, name, _ in _light_passes(renderlayer):
+        for _, name, _ in _light_passes(renderlayer, scene):
             self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         for switch, name, _, channels, chan_id, kind in _surface_passes():
             if getattr(renderlayer, switch, False):
@@ -519,7 +541,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         kwargs["pass_alpha_threshold"] = float(getattr(view_layer, "pass_alpha_threshold",
                                                        0.5))
         settings = pm.RenderSettings(**kwargs)
-        unmade = unmade_passes_warning(view_layer, _adaptive(scene))
+        unmade = unmade_passes_warning(view_layer, _adaptive(scene), _volume_bounces(scene))
         if unmade is not None:  # said with the export's warnings, kept in film.warnings
             pm_scene.warnings.append(unmade)
         # Refuse what cannot fit before anything big is allocated (Blender's render result
@@ -784,7 +806,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, 3, "RGB", layer=layer)
-        for _, name, _ in _light_passes(view_layer):
+        for _, name, _ in _light_passes(view_layer, view_layer.id_data):
             self.add_pass(name, 3, "RGB", layer=layer)
         for switch, name, _, channels, chan_id, _ in _surface_passes():
             if getattr(view_layer, switch, False):
@@ -829,8 +851,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 if key in data:
                     buffers[name] = data[key] if data[key].ndim == 3 else data[key][:, :, None]
             # The light passes as Blender shows them (Direct / Indirect / Color).
-            shown = _engine_module("lightpasses").shown(data)
-            for _, name, key in _light_passes(view_layer):
+            scene = view_layer.id_data
+            shown = _engine_module("lightpasses").shown(data, _volume_bounces(scene))
+            for _, name, key in _light_passes(view_layer, scene):
                 if key in shown:
                     buffers[name] = shown[key]
             if film.sample_count is not None:  # the share of Samples each pixel took

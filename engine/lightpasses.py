@@ -31,10 +31,12 @@ bounce that sets the path's pass_diffuse_weight / pass_glossy_weight at bounce 0
   Diffuse Indirect.
 - Emission: emitters (surfaces, lamps, suns' discs, emitting media) met by camera rays
   and their transparent continuations; Environment: the world they meet.
-- Light scattered in media (engine/volumescatter.py, volumewalk.py) is kept in the
-  "volume" sum (Cycles splits it into Volume Direct / Indirect by the scattering
-  vertex's bounce; the walks' multiple scattering is not split here: those two passes
-  stay unmade, docs/compatibility.md); past the first bounce it is the path's Indirect.
+- Light scattered in media (engine/volumescatter.py, volumewalk.py) before the first
+  bent bounce is kept in the "volume" sum; past it, it is the path's Indirect (Cycles:
+  the surface bounce came first). Cycles splits the media's light into Volume Direct /
+  Indirect by the scattering vertex's bounce: at Volume bounces 0 (its default) all of
+  it is single scattering of the lights, Volume Direct (shown); with more bounces the
+  walks' multiple scattering is not told apart and the two passes stay unmade.
 
 The sums (per-sample averages in Film.data, as Cycles' render buffer) are written raw;
 Blender shows Direct / Indirect divided by the Color pass of their kind
@@ -168,10 +170,14 @@ def split_direct(direct, glossy, keep=None):
     return direct - glossy, glossy
 
 
-def shown(data) -> dict:
+def shown(data, volume_bounces=None) -> dict:
     """Blender's light passes from Film.data's raw per-sample averages (key -> (H,W,3)):
     Direct / Indirect divided by their Color pass (safe_divide_even_color, Cycles' read),
-    Emission, Environment and the volume light as they are. Keys absent stay absent."""
+    Emission, Environment and the volume light as they are. Keys absent stay absent.
+    volume_bounces 0 (Cycles' default Light Paths > Volume bounces): also "volume_direct"
+    = the volume light and "volume_indirect" = 0, Cycles' split there (the camera
+    segments' single scattering of the lights is Volume Direct; nothing scatters twice).
+    None or more bounces: not split (the walks' multiple scattering is not told apart)."""
     out = {}
     for key in KEYS:
         if key not in data:
@@ -179,6 +185,9 @@ def shown(data) -> dict:
         col = DIVIDE.get(key)
         out[key] = (data[key] if col is None else
                     divide_even_color(data[key], data.get(col, np.zeros_like(data[key]))))
+    if volume_bounces == 0 and "volume" in data:
+        out["volume_direct"] = data["volume"]
+        out["volume_indirect"] = np.zeros_like(data["volume"])
     return out
 
 

@@ -234,7 +234,7 @@ def test_light_linking_keeps_the_identity():
 
 def test_fog_light_is_kept_apart():
     """Light scattered in a fog slab towards the camera goes to the volume sum (Volume
-    Direct / Indirect stay unmade), the emissive floor seen through it to Emission; the
+    Direct at Volume bounces 0), the emissive floor seen through it to Emission; the
     passes still sum to the image."""
     s = PaperScene(8, 8)
     s.add_material(Material("fog", volume_only=True, absorption=(0.3, 0.1, 0.0),
@@ -247,6 +247,10 @@ def test_fog_light_is_kept_apart():
     film = render(s, _settings())
     d = film.data
     assert d["volume"].min() > 0 and d["emission"].min() > 0
+    # At Volume bounces 0 (the settings' default) Blender's Volume Direct is all of it.
+    sh = lp.shown(d, volume_bounces=0)
+    assert np.array_equal(sh["volume_direct"], d["volume"]) and not sh["volume_indirect"].any()
+    assert "volume_direct" not in lp.shown(d, volume_bounces=2)
     raw = sum(d[k].astype(np.float64) for k in lp.KEYS)
     comb = sum(getattr(film, n).astype(np.float64) for n in EFFECTS)
     np.testing.assert_allclose(raw, comb, rtol=1e-6, atol=1e-7)

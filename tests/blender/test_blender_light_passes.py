@@ -134,3 +134,61 @@ def test_light_passes_match_cycles(renders):
         cm = _rgb(cyc, name)[diffuse].mean(0)
         om = _rgb(ours, name)[diffuse].mean(0)
         np.testing.assert_allclose(om, cm, rtol=0.04, err_msg=name)
+
+
+def _fog_scene(bpy):
+    """A Principled Volume box (Density 0.5) floating over a diffuse floor, a point lamp
+    beside it, a black world, Volume bounces 0 (Cycles' default)."""
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends as mb
+    from blender_helpers import black_world
+    scene = mb.reset()
+    mb.plane("Floor", 8, 8, mb.material("floor", "diffuse", (0.7, 0.55, 0.4)))
+    fog, nt, out = mb.empty_material("fog")
+    v = nt.nodes.new("ShaderNodeVolumePrincipled")
+    v.inputs["Density"].default_value = 0.5
+    nt.links.new(v.outputs[0], out.inputs["Volume"])
+    mb.box("FogBox", 1.6, 1.6, 1.0, fog, location=(0.0, 0.0, 1.0))
+    mb.light("Lamp", "POINT", (1.3, -0.6, 1.4), 200.0)
+    mb.camera((0, -4.2, 1.8), (0, 0.0, 0.8), fov_deg=50.0)
+    black_world(bpy, scene)
+    scene.cycles.volume_bounces = 0
+    r = scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage = 48, 36, 100
+    r.use_compositing = False
+    vl = scene.view_layers[0]
+    vl.use_pass_diffuse_direct = vl.use_pass_diffuse_indirect = True
+    vl.use_pass_diffuse_color = vl.use_pass_emit = vl.use_pass_environment = True
+    vl.cycles.use_pass_volume_direct = vl.cycles.use_pass_volume_indirect = True
+    return scene
+
+
+def test_volume_direct_matches_cycles(bpy_addon, tmp_path):
+    """At Volume bounces 0 the fog's light is Volume Direct (Volume Indirect 0, as
+    Cycles'), its mean against Cycles'; with it the passes recombine to Combined."""
+    bpy = bpy_addon
+    scene = _fog_scene(bpy)
+    out = {}
+    for engine in ("CYCLES", "PHOTONMAP"):
+        scene.render.engine = engine
+        if engine == "CYCLES":
+            cycles_plain(scene, CYCLES_SPP, 12)
+        else:
+            cheap(scene, spp=OUR_SPP, photons=50_000, caustic_photons=10_000)
+        out[engine] = read_layers(render_exr(bpy, scene, tmp_path / f"{engine}.exr",
+                                             multilayer=True))
+    cyc, ours = out["CYCLES"], out["PHOTONMAP"]
+    for name in ("Volume Direct", "Volume Indirect"):
+        assert name in ours, sorted(ours)
+    cm = _rgb(cyc, "Volume Direct").reshape(-1, 3).mean(0)
+    om = _rgb(ours, "Volume Direct").reshape(-1, 3).mean(0)
+    print({"Volume Direct": (cm.round(4).tolist(), om.round(4).tolist()),
+           "Volume Indirect": _rgb(cyc, "Volume Indirect").reshape(-1, 3).mean(0).tolist()})
+    assert cm.min() > 1e-3
+    np.testing.assert_allclose(om, cm, rtol=0.05)
+    assert not _rgb(ours, "Volume Indirect").any()
+    assert np.abs(_rgb(cyc, "Volume Indirect")).max() == 0.0
+    rec = ((_rgb(ours, "Diffuse Direct") + _rgb(ours, "Diffuse Indirect"))
+           * _rgb(ours, "Diffuse Color") + _rgb(ours, "Emission") + _rgb(ours, "Environment")
+           + _rgb(ours, "Volume Direct"))
+    np.testing.assert_allclose(rec, _rgb(ours, "Combined"), rtol=1e-5, atol=1e-6)
