@@ -1323,18 +1323,26 @@ def _instance_name(inst, obj, info) -> str:
     return name
 
 
-def particle_hair_mesh(pm, inst, obj, geo: LocalGeometry, converter, materials: dict,
-                       info: dict, view_layer):
-    """The engine Mesh of an object's particle hair (extract_particle_hair's local
-    geometry) at the instance's matrix, named '<object>/particle hair': the emitter's
-    material slots, ray visibility, Object Info and Cryptomatte names (Cycles renders the
-    strands as part of the emitter object), its Light Linking too (info["owners"])."""
+def slot_materials(obj, converter, materials: dict) -> list:
+    """The engine material names of obj's material slots (object- or data-linked, as the
+    evaluated object sees them; one default without slots), each converted once and added
+    to materials (name -> engine Material)."""
     names = []
     for mat in [slot.material for slot in obj.material_slots] or [None]:
         m = converter.convert(mat)
         drop_holdout_warning(mat, m)
         materials[m.name] = m
         names.append(m.name)
+    return names
+
+
+def particle_hair_mesh(pm, inst, obj, geo: LocalGeometry, converter, materials: dict,
+                       info: dict, view_layer):
+    """The engine Mesh of an object's particle hair (extract_particle_hair's local
+    geometry) at the instance's matrix, named '<object>/particle hair': the emitter's
+    material slots, ray visibility, Object Info and Cryptomatte names (Cycles renders the
+    strands as part of the emitter object), its Light Linking too (info["owners"])."""
+    names = slot_materials(obj, converter, materials)
     base = _instance_name(inst, obj, info)
     name = f"{base}/particle hair"
     info["owners"][name] = info["owners"][base]
@@ -1731,16 +1739,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         geo = cache[key]
         if geo is None:
             continue
-        # Materials per slot (object- or data-linked), as the evaluated object sees them.
-        slot_mats = [slot.material for slot in obj.material_slots]
-        if not slot_mats:
-            slot_mats = [None]
-        names = []
-        for mat in slot_mats:
-            m = converter.convert(mat)
-            drop_holdout_warning(mat, m)
-            materials[m.name] = m
-            names.append(m.name)
+        names = slot_materials(obj, converter, materials)
         mids = np.clip(geo.material_index, 0, len(names) - 1)
         if uses.get(key, 0) > 1 and key not in prototypes:
             prototypes[key] = _prototype(pm, obj.name, geo, mids)
@@ -1949,12 +1948,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         geo = cache.geometry[gkey]
         if geo is None:
             continue
-        names = []
-        for mat in [slot.material for slot in obj.material_slots] or [None]:
-            m = converter.convert(mat)
-            drop_holdout_warning(mat, m)
-            materials[m.name] = m
-            names.append(m.name)
+        names = slot_materials(obj, converter, materials)
         iname = _instance_name(inst, obj, info)
         matrix = np.array(inst.matrix_world, dtype=np.float64)
         visibility = ray_visibility(obj, inst, view_layer)

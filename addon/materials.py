@@ -35,8 +35,38 @@ import numpy as np
 
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
-                     "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN")
+                     "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN",
+                     "BSDF_METALLIC", "SUBSURFACE_SCATTERING")
 MAX_NODE_DEPTH = 32
+
+
+def fresnel_conductor(cos_i, n, k):
+    """Unpolarised Fresnel reflectance of a conductor of complex IOR n + ik (per channel)
+    at incidence cosine cos_i: Cycles' fresnel_conductor (closure/bsdf_util.h)."""
+    cos2 = cos_i * cos_i
+    tmp_f = n * n + k * k
+    tmp = tmp_f * cos2
+    r_parl = (tmp - 2.0 * n * cos_i + 1.0) / (tmp + 2.0 * n * cos_i + 1.0)
+    r_perp = (tmp_f - 2.0 * n * cos_i + cos2) / (tmp_f + 2.0 * n * cos_i + cos2)
+    return 0.5 * (r_parl + r_perp)
+
+
+def conductor_f82_tint(n, k):
+    """(F0, F82 tint) (3,) each of the F82-tint Fresnel (Cycles'
+    bsdf_microfacet_setup_fresnel_f82_tint) that equals a conductor's of complex IOR
+    n + ik (Cycles' fresnel_conductor) at normal incidence and at cos = 1/7, where the
+    tint model is anchored: the tint is F(1/7) over Schlick's F0 + (1 - F0) (6/7)^5 there.
+    Between, within 0.024 of the conductor's curve for gold, 0.016 for the node's default
+    (a tint matching the curve's cosine-weighted mean instead: 0.069 and 0.029, the same
+    ball's brightness within 0.1 %)."""
+    n = np.maximum(np.asarray(n, np.float64), 0.0)
+    k = np.maximum(np.asarray(k, np.float64), 0.0)
+    f0 = np.clip(fresnel_conductor(1.0, n, k), 0.0, 1.0)
+    schlick = f0 + (1.0 - f0) * (6.0 / 7.0) ** 5
+    tint = np.maximum(fresnel_conductor(1.0 / 7.0, n, k) / np.maximum(schlick, 1e-9), 0.0)
+    return f0, tint
+
+
 # Cycles' largest Henyey-Greenstein |g| (volume_henyey_greenstein_setup: 1 - 1e-3).
 G_LIMIT = 0.999
 # Tests set this: a node tree the converter cannot read raises instead of falling back to
@@ -395,6 +425,7 @@ class MaterialConverter:
         warnings: list[str] = []
         # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
         self._medium = (np.zeros(3), False, np.zeros(3), 0.0, np.zeros(3))
+        self._density_field = None  # a texture on the medium's Density (_medium_of)
         self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
             closure = Closure()
@@ -452,6 +483,9 @@ class MaterialConverter:
             absorption=self._medium[0], volume_only=self._medium[1],
             scattering=self._medium[2], anisotropy=self._medium[3],
             volume_emission=self._medium[4],
+            # a texture on the Density: a heterogeneous medium (engine/heterogeneous.py;
+            # the coefficients above are then at density 1)
+            density_texture=self._density_field,
             # true displacement (Displacement Only / and Bump): vertices moved at prepare
             displacement=self._displace[0], displacement_method=self._displace[1])
         m.warnings[:0] = warnings
@@ -501,7 +535,7 @@ class MaterialConverter:
         if volume is not None and volume.is_linked:
             # The medium inside the object: its absorption (engine/media.py); a material
             # without a surface lets every ray through to it (Material.volume_only).
-            sigma, scatter, g, emit = self._medium_of(volume)
+            sigma, scatter, g, emit = self._medium_of(volume, fields=True)
             only = out.inputs.get("Surface") is None or not out.inputs["Surface"].is_linked
             self._medium = (sigma, only, scatter, g, emit)
         surface = out.inputs.get("Surface")
@@ -625,11 +659,11 @@ class MaterialConverter:
         t = node.type
         if t == "VOLUME_ABSORPTION":
             color = self._volume_color(node, "Color")
-            return (max(self._float(node, "Density", 1.0), 0.0) * (1.0 - color), np.zeros(3),
+            return (self._density(node) * (1.0 - color), np.zeros(3),
                     np.zeros(3), np.zeros(3))
         if t == "PRINCIPLED_VOLUME":
             color = np.clip(self._volume_color(node, "Color"), 0.0, None)
-            density = max(self._float(node, "Density", 1.0), 0.0)
+            density = self._density(node)
             absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
             g = self._anisotropy_g(node)
             emit = np.zeros(3)
@@ -656,7 +690,7 @@ class MaterialConverter:
                            f"of Volume Scatter '{node.name}' is not supported; rendered "
                            "with the Henyey-Greenstein phase of its Anisotropy")
             color = np.clip(self._volume_color(node, "Color"), 0.0, None)
-            scatter = max(self._float(node, "Density", 1.0), 0.0) * color
+            scatter = self._density(node) * color
             return np.zeros(3), scatter, scatter * self._anisotropy_g(node), np.zeros(3)
         if t == "EMISSION":
             # Cycles' emission closure in a volume shader: radiance per metre of ray
@@ -695,16 +729,54 @@ class MaterialConverter:
                         for w in self._warnings)
         return medium
 
-    def _medium_of(self, socket):
+    def _medium_of(self, socket, fields=False):
         """(sigma_a (3,), sigma_s (3,), g, emission (3,)) of the volume tree feeding
         `socket` (_volume; 1/m, the emission W/m^2/sr per m), the coefficients clipped at
         0; one phase function for the medium: the scattering-weighted mean of its
-        Henyey-Greenstein g (a single scatter node: its own g), within +-G_LIMIT."""
+        Henyey-Greenstein g (a single scatter node: its own g), within +-G_LIMIT.
+
+        fields: a texture on a volume node's Density may make the medium heterogeneous
+        (a material's, not the world's): when the tree has one volume node and its
+        Density is driven by a node tree (_density), the coefficients are those at
+        density 1 and self._density_field is that tree (engine Material.density_texture:
+        sigma(p) = max(tree(p), 0) x them, engine/heterogeneous.py). Several volume
+        nodes with a textured Density among them are warned and read at each socket's
+        own value (a homogeneous medium)."""
+        self._fields, self._volume_nodes = ([] if fields else None), 0
         absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
+        if self._fields:
+            if len(self._fields) == 1 and self._volume_nodes == 1:
+                self._density_field = self._fields[0][1]
+            else:
+                node = self._fields[0][0]
+                self._warn(f"material '{self._mat.name}': a texture on the Density of "
+                           f"'{node.name}' mixed with other volume shaders is not "
+                           "supported (one volume node per heterogeneous medium); each "
+                           "Density read at its socket's own value")
+                self._fields = None
+                self._volume_nodes = 0
+                absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
+        self._fields = None
         scatter = np.clip(scatter, 0.0, None)
         g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
         return (np.clip(absorb, 0.0, None), scatter, min(max(g, -G_LIMIT), G_LIMIT),
                 np.clip(emit, 0.0, None))
+
+    def _density(self, node) -> float:
+        """A volume node's Density (at least 0). A node tree on it, when _medium_of
+        allows fields (self._fields a list): recorded there as (node, tree) and 1.0
+        returned (the coefficients at density 1); else one constant (_float: a per-point
+        tree warned, its socket's own value used)."""
+        self._volume_nodes += 1
+        s = node.inputs.get("Density")
+        if (self._fields is not None and s is not None
+                and self._source(s) is not None):
+            val = self._input(node, s, 0)
+            if hasattr(val, "evaluate"):
+                self._fields.append((node, val))
+                return 1.0
+            return max(float(val) if np.ndim(val) == 0 else float(np.mean(val)), 0.0)
+        return max(self._float(node, "Density", 1.0), 0.0)
 
     def _anisotropy_g(self, node) -> float:
         """A volume node's Anisotropy as the Henyey-Greenstein g Cycles uses: clamped to
@@ -849,6 +921,24 @@ class MaterialConverter:
                         scalars=sc)
             self._anisotropy(node, c, "Anisotropy", "Rotation")
             return c
+        if t == "BSDF_METALLIC":
+            return self._metallic(node)
+        if t == "SUBSURFACE_SCATTERING":
+            # Cycles' node is the BSSRDF alone (albedo = Color, no specular closure):
+            # the Principled subsurface stand-in at weight 1 (engine/subsurface.py).
+            base, tex = self._color(node, "Color")
+            ss = self.pm.subsurface
+            if tex is None:
+                base = ss.diffuse_color(base, 1.0)
+            else:
+                tex, base = ss.SubsurfaceColor(tex, 1.0), np.ones(3)
+            self._warn(f"material '{self._mat.name}': Subsurface Scattering '{node.name}' "
+                       "is approximated: rendered as a diffuse surface of the albedo "
+                       "Cycles' random-walk subsurface scattering gives a thick object of "
+                       "its Color (no light spreads beneath the surface or through thin "
+                       "parts; Scale and Radius are not used)")
+            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
+                           normal_map=self._normal(node))
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
             sc = {}
@@ -982,6 +1072,41 @@ class MaterialConverter:
                            normal_map=self._normal(node))
         self._unsupported(node)
         return self._viewport(self._mat)
+
+    def _metallic(self, node) -> Closure:
+        """Metallic BSDF (Blender 4.3+): Cycles' F82 conductor (svm: f0 = saturate(Base
+        Color), the F82-tint Fresnel of saturate(Edge Tint)) is the Principled BSDF's metal
+        lobe with that Edge Tint as its Specular Tint: rendered so, with the Principled
+        anisotropy mapping (the same aspect formula in Cycles), the node's distribution.
+        Physical Conductor (complex IOR n + ik per channel): approximated by the F82-tint
+        Fresnel that matches Cycles' fresnel_conductor at normal incidence and at
+        acos(1/7) (~82 degrees), where the tint model is anchored (conductor_f82_tint);
+        between, the two differ by a few per cent at most. Thin Film: warned, ignored."""
+        inp = node.inputs
+        sc = {}
+        if getattr(node, "fresnel_type", "F82") == "PHYSICAL_CONDUCTOR":
+            for name in ("IOR", "Extinction"):
+                if inp[name].is_linked:
+                    self._warn(f"material '{self._mat.name}': a node plugged into '{name}' of "
+                               f"'{node.name}' is not supported; using its value")
+            n = np.asarray(tuple(inp["IOR"].default_value)[:3], np.float64)
+            k = np.asarray(tuple(inp["Extinction"].default_value)[:3], np.float64)
+            base, tint = conductor_f82_tint(n, k)
+            tex = None
+        else:
+            base, tex = self._color(node, "Base Color")
+            base = np.clip(base, 0.0, 1.0) if tex is None else base
+            tint = np.clip(self._const_color(node, "Edge Tint", (1, 1, 1)), 0.0, 1.0)
+        thickness = inp.get("Thin Film Thickness")
+        if thickness is not None and (thickness.is_linked or thickness.default_value > 0.0):
+            self._warn(f"material '{self._mat.name}': Thin Film of '{node.name}' is not "
+                       "simulated (no iridescence)")
+        c = Closure(base_color=base, texture=tex, metallic=1.0, specular_tint=tint,
+                    roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                    multiscatter=self._distribution(node), normal_map=self._normal(node),
+                    scalars=sc)
+        self._anisotropy(node, c, "Anisotropy", "Rotation")
+        return c
 
     def _principled_hair(self, node) -> Closure:
         """Principled Hair BSDF (Chiang, or Huang) as engine.hairbsdf renders it on the

@@ -122,10 +122,32 @@ def export_worlds(pm, world, warnings: list) -> tuple:
                         "Emission, joined by Mix and Add Shader nodes, are); using the "
                         "world viewport colour as background")
         return (viewport, None), None
+    seen_by_camera = _ray_visibility(world, warnings)
+    if not seen_by_camera:  # World > Settings > Ray Visibility > Camera off: black there
+        return _resolve_terms(pm, light), (np.zeros(3), None)
     if len(camera) == len(light) and all(
             wc == wl and tc is tl for (wc, tc), (wl, tl) in zip(camera, light)):
         return _resolve_terms(pm, light), None
     return _resolve_terms(pm, light), _resolve_terms(pm, camera)
+
+
+def _ray_visibility(world, warnings) -> bool:
+    """World > Settings > Ray Visibility (Cycles' world visibility flags): whether camera
+    rays see the world (off: they see black, as Cycles evaluates no background for them;
+    with Film > Transparent nothing). Diffuse, Glossy, Transmission and Volume Scatter off
+    are warned (the engine's world lookups do not tell those rays apart); Shadow off
+    changes only Cycles' sampling of the world, not the image: nothing to do."""
+    vis = getattr(world, "cycles_visibility", None)
+    if vis is None:
+        return True
+    off = [label for attr, label in (("diffuse", "Diffuse"), ("glossy", "Glossy"),
+                                     ("transmission", "Transmission"),
+                                     ("scatter", "Volume Scatter"))
+           if not getattr(vis, attr, True)]
+    if off:
+        warnings.append(f"world '{world.name}': Ray Visibility {', '.join(off)} off is not "
+                        "simulated; those rays see the world")
+    return bool(getattr(vis, "camera", True))
 
 
 def _shader_terms(pm, world, node, ray, warnings, memo):
@@ -135,8 +157,9 @@ def _shader_terms(pm, world, node, ray, warnings, memo):
     if node is None:
         return []
     if node.type in ("BACKGROUND", "EMISSION"):
-        term = _background_term(pm, world, node, warnings, memo)
-        return [(1.0, term)]
+        strength = max(world_fac(world, node.inputs["Strength"], ray, warnings,
+                                 f"the {node.name} Strength"), 0.0)
+        return [(strength, _background_color(pm, world, node, warnings, memo))]
     if node.type == "ADD_SHADER":
         parts = [_shader_terms(pm, world, _from(sock), ray, warnings, memo)
                  for sock in node.inputs if sock.type == "SHADER"]
@@ -153,11 +176,12 @@ def _shader_terms(pm, world, node, ray, warnings, memo):
     return None
 
 
-def world_fac(world, socket, ray, warnings) -> float:
-    """The value of a world Mix Shader's factor socket for ray ("light" or "camera"): its
-    constant, or a Light Path output (LIGHT_PATH_CAMERA for camera rays; for the rest Is
-    Camera Ray is 0 and the other ray kinds are warned and read as 0), through Math
-    (one operand a constant) and Invert nodes. Anything else: warned, its constant."""
+def world_fac(world, socket, ray, warnings, what="a Mix Shader factor") -> float:
+    """The value of a world shader's float socket (a Mix Shader's factor, a Background's
+    Strength: `what`, for the warning) for ray ("light" or "camera"): its constant, or a
+    Light Path output (LIGHT_PATH_CAMERA for camera rays; for the rest Is Camera Ray is 0
+    and the other ray kinds are warned and read as 0), through Math (one operand a
+    constant) and Invert nodes. Anything else: warned, its constant."""
     who = f"world '{world.name}'"
     if not socket.is_linked:
         return float(socket.default_value)
@@ -177,17 +201,17 @@ def world_fac(world, socket, ray, warnings) -> float:
                 warnings.append(msg)
         return 0.0
     if node.type == "MATH":
-        values = [world_fac(world, sock, ray, warnings) for sock in node.inputs[:2]]
+        values = [world_fac(world, sock, ray, warnings, what) for sock in node.inputs[:2]]
         result = _math(node.operation, *values)
         if result is not None:
             return min(max(result, 0.0), 1.0) if node.use_clamp else result
     if node.type == "INVERT":
-        fac = world_fac(world, node.inputs["Fac"], ray, warnings)
-        x = world_fac(world, node.inputs["Color"], ray, warnings)
+        fac = world_fac(world, node.inputs["Fac"], ray, warnings, what)
+        x = world_fac(world, node.inputs["Color"], ray, warnings, what)
         return fac * (1.0 - x) + (1.0 - fac) * x
     value = float(getattr(socket, "default_value", 0.0))
-    msg = (f"{who}: node '{node.name}' ({node.type}) driving a Mix Shader factor is not "
-           f"supported (a constant, Light Path, Math and Invert are); using {value:g}")
+    msg = (f"{who}: node '{node.name}' ({node.type}) driving {what} is not supported (a "
+           f"constant, Light Path, Math and Invert are); using {value:g}")
     if msg not in warnings:
         warnings.append(msg)
     return value
@@ -205,50 +229,149 @@ def _math(op, a, b):
     return None if f is None else float(f())
 
 
-def _background_term(pm, world, node, warnings, memo):
-    """A Background (or Emission) node's Color x Strength: RGB (3,) or an engine
-    Environment (an Environment Texture or a Sky Texture; each node read once: memo)."""
+class EnvTerm:
+    """An environment map in a world sum: make(strength) -> the engine Environment at that
+    strength (an Environment Texture's or Sky Texture's, or a baked colour graph's)."""
+
+    def __init__(self, make, unit=None):
+        self.make = make
+        self.unit = unit if unit is not None else make(1.0)
+
+
+class _EnvLeaf:
+    """An environment map inside a world colour graph (engine/shadernodes nodes evaluated
+    per texel of the bake grid): its radiance along the grid texels' world directions."""
+
+    def __init__(self, env):
+        self.env, self.dirs = env, None
+
+    def evaluate(self, geo, prim, u, v):
+        return self.env.radiance(self.dirs[prim])
+
+
+class _WorldColours(MaterialConverter):
+    """The material converter's colour nodes (engine/shadernodes) for a world's Background
+    colour: Environment and Sky Textures become _EnvLeaf nodes (made at strength 1)."""
+
+    def __init__(self, pm, world, warnings):
+        super().__init__(pm)
+        self._world, self._world_warnings = world, warnings
+        self._mat = type("WorldName", (), {"name": world.name})()
+        self._warned, self._warnings = set(), []
+        self.leaves = []
+        self.fallback = np.zeros(3)  # the Background's own colour (set before a read)
+
+    def _node_output(self, n, out, depth):
+        if n.type in ("TEX_ENVIRONMENT", "TEX_SKY"):
+            make = (_environment if n.type == "TEX_ENVIRONMENT" else _sky)(
+                self.pm, self._world, n, self._world_warnings)
+            if make is None:  # (warned) the Background's colour; a sky: the viewport's
+                return (self.fallback if n.type == "TEX_ENVIRONMENT" else
+                        np.asarray(tuple(self._world.color)[:3], np.float64))
+            leaf = _EnvLeaf(make(1.0))
+            leaf.make = make
+            self.leaves.append(leaf)
+            return leaf
+        return super()._node_output(n, out, depth)
+
+    def told(self) -> list:
+        """The converter's warnings, naming the world."""
+        prefix = f"material '{self._world.name}'"
+        return [w.replace(prefix, f"world '{self._world.name}'", 1) for w in self._warnings]
+
+
+def _background_color(pm, world, node, warnings, memo):
+    """A Background (or Emission) node's Color: RGB (3,) or an EnvTerm (an Environment
+    Texture, a Sky Texture, or colour nodes over them: Mix, Hue/Saturation, Bright /
+    Contrast, Gamma, Invert, RGB Curves, Math and the rest of the material converter's
+    colour nodes, baked on the first map's texels). Each node read once (memo)."""
     if node.name in memo:
         return memo[node.name]
     who = f"world '{world.name}'"
-    strength_socket = node.inputs["Strength"]
-    strength = float(strength_socket.default_value)
-    if strength_socket.is_linked:
-        warnings.append(f"{who}: a node plugged into the {node.name} strength is not "
-                        f"supported; using {strength:g}")
-    strength = max(strength, 0.0)
     col_socket = node.inputs["Color"]
     color = np.asarray(tuple(col_socket.default_value)[:3], dtype=np.float64)
-    src = _from(col_socket)
+    colours = _WorldColours(pm, world, warnings)
+    colours.fallback = color
+    val = colours._input(node, col_socket, 0)
     term = None
-    if src is None:
-        term = np.clip(color * strength, 0.0, None)
-    elif src.type == "RGB":
-        color = np.asarray(tuple(src.outputs[0].default_value)[:3], dtype=np.float64)
-        term = np.clip(color * strength, 0.0, None)
-    elif src.type == "TEX_ENVIRONMENT":
-        term = _environment(pm, world, src, strength, warnings)
-        if term is None:
-            term = np.clip(color * strength, 0.0, None)
-    elif src.type == "TEX_SKY":
-        term = _sky(pm, world, src, strength, warnings)
-        if term is None:
-            viewport = np.asarray(tuple(world.color)[:3], dtype=np.float64)
-            term = np.clip(viewport * strength, 0.0, None)
-    else:
+    if isinstance(val, _EnvLeaf):
+        term = EnvTerm(val.make, val.env)
+    elif hasattr(val, "evaluate") and colours.leaves:
+        term = _bake_colours(pm, world, val, colours.leaves, warnings)
+    elif hasattr(val, "evaluate"):
+        src = _from(col_socket)
         warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the Background "
-                        "colour is not supported (a colour, an RGB node or an Environment "
-                        f"Texture are); using the colour {color.round(3).tolist()}")
-        term = np.clip(color * strength, 0.0, None)
+                        "colour is not supported (a colour, colour nodes and Environment "
+                        f"or Sky Textures are); using the colour {color.round(3).tolist()}")
+    else:
+        arr = np.asarray(val, np.float64)
+        color = np.full(3, float(arr)) if arr.ndim == 0 else arr[:3]
+    warnings.extend(w for w in colours.told() if w not in warnings)
+    if term is None:
+        term = np.clip(color, 0.0, None)
     memo[node.name] = term
     return term
 
 
+# A baked world map (colour nodes over a map, maps and colours summed) is sampled from its
+# sources' own lookups on a grid this many times finer than the first map's texels in
+# each direction, as long as it holds at most BAKE_TEXELS texels: the bake's linear
+# interpolation then follows the sources' lookups between their texels, where the
+# colour nodes' nonlinearity, and an sRGB-stored map's interpolation of encoded values
+# (Cycles' and ours), make "interpolate, then the nodes" differ from "the nodes at the
+# texels, then interpolate" (newuser39: a 64 x 32 sRGB-tagged map with a 200 sun texel lit
+# the floor 1.26-1.35x Cycles when baked at its own texels; an 8-bit JPG panorama is
+# sRGB-stored too).
+BAKE_UPSAMPLE = (4, 2, 1)
+BAKE_TEXELS = 2 ** 21
+
+
+def bake_grid(env) -> tuple:
+    """(height, width, (height x width, 3) world directions) of the bake grid over env:
+    its texel grid refined by the first of BAKE_UPSAMPLE that keeps it within
+    BAKE_TEXELS texels, the directions at the grid's texel centres (rows top first: the
+    zenith; equirectangular, env's rotation)."""
+    h0, w0 = env.pixels.shape[:2]
+    k = next((k for k in BAKE_UPSAMPLE if h0 * w0 * k * k <= BAKE_TEXELS), 1)
+    height, width = h0 * k, w0 * k
+    theta = (np.arange(height) + 0.5)[:, None] / height * np.pi
+    u = (np.arange(width) + 0.5)[None, :] / width
+    phi = 2.0 * np.pi * (0.5 - u)
+    st = np.sin(theta)
+    texture_dirs = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi),
+                                                np.cos(theta)), -1).reshape(-1, 3)
+    return height, width, texture_dirs @ env.rotation  # (rotation: world -> texture)
+
+
+def _bake_colours(pm, world, val, leaves, warnings):
+    """EnvTerm of a colour graph over environment maps (leaves): evaluated on the bake
+    grid of the first map (bake_grid; every map looked up there), negatives clamped."""
+    first = leaves[0].env
+    height, width, dirs = bake_grid(first)
+    for leaf in leaves:
+        leaf.dirs = dirs
+    n = height * width
+    try:
+        rgb = np.asarray(val.evaluate(None, np.arange(n), np.zeros(n), np.zeros(n)),
+                         np.float64)
+    except Exception as exc:  # noqa: BLE001 - a node that needs a surface
+        warnings.append(f"world '{world.name}': the Background colour's nodes cannot be "
+                        f"evaluated over the environment map ({exc}); using the map alone")
+        return EnvTerm(leaves[0].make, first)
+    if rgb.ndim == 1:
+        rgb = np.repeat(rgb[:, None], 3, axis=1)
+    pixels = np.nan_to_num(np.maximum(rgb, 0.0), nan=0.0, posinf=0.0).reshape(
+        height, width, 3).astype(np.float32)
+    return EnvTerm(lambda strength: pm.Environment(pixels, strength, first.rotation,
+                                                   first.interpolation, name=first.name))
+
+
 def _resolve_terms(pm, terms) -> tuple:
-    """(background RGB (3,), Environment or None) of [(weight, term)]: the colours
-    summed; one map alone kept as it is; a map with colours or other maps baked into one
-    map on the first map's texels (the others looked up at those texels' directions, the
-    colours added), its sky's sun disc (sun_light) scaled by the sky's weight."""
+    """(background RGB (3,), Environment or None) of [(weight, term)], term an RGB (3,) or
+    an EnvTerm: the colours summed; one map alone made at its weight; a map with colours
+    or other maps baked into one map on the first map's bake grid (bake_grid: every map
+    looked up there, the colours added), its sky sun disc (sun_light) scaled by the sky's
+    weight."""
     const = np.zeros(3)
     maps = []
     for w, term in terms:
@@ -260,30 +383,24 @@ def _resolve_terms(pm, terms) -> tuple:
             maps.append((w, term))
     if not maps:
         return np.clip(const, 0.0, None), None
-    w0, first = maps[0]
-    if len(maps) == 1 and w0 == 1.0 and not np.any(const > 0):
+    w0, first = maps[0][0], maps[0][1].make(maps[0][0])
+    if len(maps) == 1 and not np.any(const > 0):
         return first.average(), first
-    height, width = first.pixels.shape[:2]
-    theta = (np.arange(height) + 0.5)[:, None] / height * np.pi
-    u = (np.arange(width) + 0.5)[None, :] / width
-    phi = 2.0 * np.pi * (0.5 - u)
-    st = np.sin(theta)
-    texture_dirs = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi),
-                                                np.cos(theta)), -1).reshape(-1, 3)
-    world_dirs = texture_dirs @ first.rotation  # (R: world -> texture; R^T d per row)
-    pixels = w0 * first.pixels.astype(np.float64) + const
-    for w, other in maps[1:]:
-        pixels += w * other.radiance(world_dirs).reshape(height, width, 3)
-    env = pm.Environment(pixels.astype(np.float32), 1.0, first.rotation, first.interpolation,
-                         name=first.name)
-    sun = getattr(first, "sun_light", None)
+    height, width, dirs = bake_grid(first)
+    pixels = np.broadcast_to(const, (height * width, 3)).copy()
+    for w, term in maps:
+        pixels += w * term.unit.radiance(dirs)
+    env = pm.Environment(pixels.reshape(height, width, 3).astype(np.float32), 1.0,
+                         first.rotation, first.interpolation, name=first.name)
+    sun = getattr(maps[0][1].unit, "sun_light", None)
     if sun is not None:
         env.sun_light = dict(sun, color=np.asarray(sun["color"], np.float64) * w0)
     return env.average(), env
 
 
-def _environment(pm, world, node, strength, warnings):
-    """engine Environment for an Environment Texture node, or None after a warning."""
+def _environment(pm, world, node, warnings):
+    """make(strength) -> the engine Environment of an Environment Texture node (its image
+    read once), or None after a warning."""
     who = f"world '{world.name}': Environment Texture '{node.name}'"
     img = node.image
     if img is None:
@@ -312,14 +429,17 @@ def _environment(pm, world, node, strength, warnings):
         # encoded values (addon/materials.py cycles_stores_srgb); encode back (exact to
         # float rounding). 8-bit texels are the stored encoded values already.
         rgb = _srgb_encoder(pm)(rgb).astype(np.float32)
-    try:
+    def make(strength):
         # srgb: the engine interpolates the encoded texels and decodes after, as Cycles
         # (engine/lights/environment.py).
         return pm.Environment(rgb, strength, rotation, interpolation, name=img.name,
                               srgb=srgb)
+    try:
+        make(1.0)
     except ValueError as exc:
         warnings.append(f"{who}: {exc}; using the Background colour")
         return None
+    return make
 
 
 def _check_coordinates(world, socket, warnings):
@@ -379,10 +499,23 @@ def _mapping_rotation(pm, world, env_node, warnings):
     return R.T if m.vector_type == "TEXTURE" else R
 
 
-def _sky(pm, world, node, strength, warnings):
-    """engine Environment baked from a Sky Texture node (engine/lights/sky.py), with the
-    sun disc's light parameters as its `sun_light` (None without a disc); or None after a
-    warning (a sky type engine/lights/sky.py does not know)."""
+def _sky(pm, world, node, warnings):
+    """make(strength) -> the engine Environment baked from a Sky Texture node
+    (engine/lights/sky.py), with the sun disc's light parameters as its `sun_light` (None
+    without a disc); or None after a warning (a sky type engine/lights/sky.py does not
+    know, or a bake that fails)."""
+    made = {}
+
+    def make(strength):
+        if strength not in made:
+            made[strength] = _sky_at(pm, world, node, strength, warnings)
+        return made[strength]
+    return make if make(1.0) is not None else None
+
+
+def _sky_at(pm, world, node, strength, warnings):
+    """engine Environment of a Sky Texture node at `strength` (_sky), or None after a
+    warning."""
     from importlib import import_module
     sky_mod = import_module(pm.__name__ + ".lights.sky")
     who = f"world '{world.name}': Sky Texture '{node.name}'"
@@ -391,7 +524,7 @@ def _sky(pm, world, node, strength, warnings):
         warnings.append(f"{who}: sky type {sky_type} is not supported (Single / Multiple "
                         "Scattering, Preetham and Hosek / Wilkie are); using the world "
                         "viewport colour "
-                        f"{np.round(tuple(world.color)[:3], 3).tolist()} x strength {strength:g}")
+                        f"{np.round(tuple(world.color)[:3], 3).tolist()}")
         return None
     rotation = _mapping_rotation(pm, world, node, warnings)
     # Blender 5.0 calls the aerosols' density aerosol_density, 4.x dust_density.
@@ -417,7 +550,7 @@ def _sky(pm, world, node, strength, warnings):
         try:
             env = sky_mod.SkyTexture(**params).environment()
         except ValueError as exc:
-            warnings.append(f"{who}: {exc}; using the world viewport colour x strength")
+            warnings.append(f"{who}: {exc}; using the world viewport colour")
             return None
         _SKY_CACHE[key] = env
         while len(_SKY_CACHE) > 2:

@@ -46,8 +46,13 @@ POLL_SECONDS = 0.05
 # kept and at the peak of the build instead of 91 B kept and 123 B at the peak, the same
 # hits bit for bit, closest hits 10-30 % slower (docs/performance.md, "Memory per
 # triangle"). Used from COMPACT_TRIANGLES on, where memory per triangle starts to count.
+# 2^18 -> 2^19 (hair39): newuser38's 3000-strand groom (288,000 tube triangles) traced its
+# rays 20-26 % slower in the compact BVH (Embree 11.3 -> 9.0 s of a 16 spp render); below
+# 2^19 the default BVH costs at most ~16 MB more kept, ~32 MB at the build. The two BVHs
+# answered 800k test rays alike, but not every ray of a render: the groom's 128 spp film
+# differs in 9 % of its pixels by noise (docs/performance.md hair39).
 SCENE_FLAG_COMPACT, SCENE_FLAG_ROBUST = 2, 4
-COMPACT_TRIANGLES = 1 << 18
+COMPACT_TRIANGLES = 1 << 19
 
 
 def _embree_library():

@@ -1121,6 +1121,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                                 cls=shadow_cls)
             if medium_sigma is not None:
                 _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma)
+                if getattr(shadow, "hetero", None) is not None:
+                    # (a density texture's correction on those rays: heterogeneous.py)
+                    _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma, shadow.hetero)
             if shadow is not None:
                 # (the rays the first query found blocked: those crossing surfaces)
                 was_blocked = blocked.copy() if world_sigma is not None else None
@@ -1190,9 +1193,11 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     return E, rays
 
 
-def _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma):
+def _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma, hetero=None):
     """The entries (j < m_all) whose shadow ray the OCCLUDED query found clear: x
-    exp(-sigma_t length), sigma_t their hit's medium_sigma row (direct_light)."""
+    exp(-sigma_t length), sigma_t their hit's medium_sigma row (direct_light); with
+    hetero (engine/heterogeneous.py HeterogeneousMedia) x its ratio-tracked correction
+    of that factor instead (for media with a density texture; 1 for the others)."""
     r = buf.ray[:m_all]
     j = np.flatnonzero(r >= 0)
     rr = r[j]
@@ -1205,6 +1210,11 @@ def _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma):
     if not on.any():
         return
     j, rr, sig = j[on], rr[on], sig[on]
+    if hetero is not None:
+        u, back = np.unique(rr, return_inverse=True)
+        c = hetero.correction(buf.o32[u], buf.d32[u], t_keep[u], salt=6)
+        buf.contrib[j] *= c[back]
+        return
     length = t_keep[rr].astype(np.float64) * np.linalg.norm(
         buf.d32[rr].astype(np.float64), axis=1)
     buf.contrib[j] *= np.exp(-sig * length[:, None])

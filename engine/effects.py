@@ -657,6 +657,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                        "where the sky lights it most" if env is None else
                        f"environment map '{env.name}' ({env.width}x{env.height}) lights "
                        "the scene (shadow rays importance-sample the map)")
+            if worldmedium.has_camera_world(scene):
+                how += ("; the camera sees a world of its own behind the scene (the "
+                        "world's Light Path Is Camera Ray), which lights nothing")
             plan.add("world light", True, how)
             leak = _portal_leak_note(li)
             if leak:

@@ -66,6 +66,9 @@ class MaterialTable:
                                         # Material.volume_emission, engine/volumeemission.py)
     volume_only: np.ndarray = None     # (M,) bool a volume without a surface (its
                                        # surface a transparent pass: Material.volume_only)
+    density_textures: list = None      # per material: its medium's density field
+                                       # (Material.density_texture, a node; None: none;
+                                       # engine/heterogeneous.py)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -99,6 +102,8 @@ class MaterialTable:
                                             np.float64).reshape(-1, 3),
                    volume_only=np.array([bool(getattr(m, "volume_only", False))
                                          for m in materials], np.bool_),
+                   density_textures=[getattr(m, "density_texture", None)
+                                     for m in materials],
                    **cols)
 
     @property

@@ -28,9 +28,9 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
-from . import (adaptive, chaincounts, datapasses, lightpasses, media, photonvisibility,
-               sampleclamp,
-               shadelight, volumeemission, volumescatter, volumewalk, worldmedium)
+from . import (adaptive, chaincounts, datapasses, heterogeneous, lightpasses, media,
+               photonvisibility, sampleclamp, shadelight, volumeemission, volumescatter,
+               volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -1065,6 +1065,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # buffer's throughput rows stay ones.)
                 tp_seg = tp
                 tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium_h[idx])
+                tp = heterogeneous.attenuated(ctx, tp, o, d, t, prim)
                 if glow is not None:
                     # The glow of an emitting medium along the ray (as a gather ray's
                     # radiance: x pi / G).
@@ -2783,6 +2784,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 medium = medium[kept]
             tp_seg = tp  # (attenuated returns a new array when it dims any row)
             tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium)
+            tp = heterogeneous.attenuated(ctx, tp, o, d, t, prim)  # (density textures)
             if glow is not None:
                 # The glow of an emitting medium along the segment (engine/volumeemission.py).
                 src, Le = glow.along(prim, d, t, medium)

@@ -68,11 +68,57 @@ def _unique_keys(rk):
     return both, which.reshape(-1)
 
 
+def _packed_keys(rk):
+    """(N,) int64: orientation keys rk (N,3) int64 packed as _unique_keys packs them (three
+    15-bit fields: the rows' lexicographic order), or None when a component lies outside
+    +-1 / PLANE_TOLERANCE (no packing); (N,) bool beside it: the rows inside that range."""
+    off = int(round(1.0 / PLANE_TOLERANCE))
+    if 2 * off >= (1 << 15):
+        return None, None
+    inside = np.all((rk >= -off) & (rk <= off), axis=1)
+    r = np.where(inside[:, None], rk, 0) + off
+    return (r[:, 0] << 30) | (r[:, 1] << 15) | r[:, 2], inside
+
+
+class KeyIndex:
+    """Distinct orientation keys (K,3) int64 sorted once, so that each call's rows find
+    theirs by a binary search (O(Q log K)) instead of sorting the K keys with the Q rows
+    (_orientation_index's np.unique: a hair groom's tubes have ~10^5 orientations, ~30 ms
+    a call; docs/performance.md hair39)."""
+
+    def __init__(self, keys):
+        self.keys = np.asarray(keys, np.int64).reshape(-1, 3)
+        packed, inside = _packed_keys(self.keys)
+        self.sorted = None
+        if packed is not None and inside.all():
+            self.order = np.argsort(packed, kind="stable")
+            self.sorted = packed[self.order]
+
+    def find(self, queries) -> np.ndarray:
+        """(Q,) int64: the index in keys of each row of queries (Q,3) int64, -1 where
+        keys has no such row (_orientation_index's answer)."""
+        queries = np.asarray(queries, np.int64).reshape(-1, 3)
+        if self.sorted is None:
+            return _unique_index(self.keys, queries)
+        if not len(self.keys) or not len(queries):
+            return np.full(len(queries), -1, np.int64)
+        packed, inside = _packed_keys(queries)
+        at = np.minimum(np.searchsorted(self.sorted, packed), len(self.sorted) - 1)
+        found = inside & (self.sorted[at] == packed)
+        return np.where(found, self.order[at], -1).astype(np.int64)
+
+
 def _orientation_index(keys, queries):
     """(Q,) int64: for each row of queries (Q,3) int64, the index of the equal row of keys
-    (K,3) int64 (rows distinct), -1 where keys has none. One sort of both together
-    (np.unique over rows: O((K + Q) log(K + Q)) time, O(K + Q) memory), the same answer
-    as comparing every query with every key (O(K Q))."""
+    (K,3) int64 (rows distinct), -1 where keys has none: the same answer as comparing
+    every query with every key (O(K Q)), by KeyIndex's binary search (keys whose
+    components pack) or one sort of both together (_unique_index)."""
+    return KeyIndex(keys).find(queries)
+
+
+def _unique_index(keys, queries):
+    """_orientation_index by one sort of keys and queries together (np.unique over rows:
+    O((K + Q) log(K + Q)) time, O(K + Q) memory)."""
     keys = np.asarray(keys, np.int64).reshape(-1, 3)
     queries = np.asarray(queries, np.int64).reshape(-1, 3)
     if not len(keys) or not len(queries):
@@ -154,6 +200,7 @@ class OneSurfaceCells:
         for more than one (None: too many cells or entries)."""
         self.fine = None
         self.keys = keys
+        self.key_index = KeyIndex(keys)  # sorted once: free()'s rows search it
         self._sole_grid = None
         self._sole_lock = threading.Lock()
         side = self.cell / FINE_DIVISIONS
@@ -242,7 +289,7 @@ class OneSurfaceCells:
             return out
         rows = np.flatnonzero(ask)
         # The rows' orientations that some triangle has (index into keys, else -1).
-        o_of = _orientation_index(self.keys, _orientation_keys(np.asarray(n)[rows]))
+        o_of = self.key_index.find(_orientation_keys(np.asarray(n)[rows]))
         found = o_of >= 0
         if not found.any():
             return out

@@ -92,6 +92,10 @@ class PhotonScattering:
         self.count = np.zeros(slots, np.int16)  # each slot's volume scatters so far
         self.max_total = int(np.asarray(limits)[pk.B_TOTAL])
         self.scattering = np.any(self.sigma_s > 0.0, axis=1)  # (M,) a medium that scatters
+        # Density textures (engine/heterogeneous.py; set by photons._bounces): the
+        # scatters' weights take the ratio-tracked T(s) and the field at the point (the
+        # passing photons take their correction with the attenuation, photons.py).
+        self.hetero = None
 
     @classmethod
     def for_chunk(cls, table, settings, slots: int, caustic_only: bool):
@@ -156,6 +160,10 @@ class PhotonScattering:
         Tr = np.exp(-st * s[:, None])
         pdf = np.sum(q[scat] * st * Tr, axis=1)
         w = ss * Tr / np.maximum(pdf, 1e-300)[:, None]
+        if self.hetero is not None:
+            o_r = np.asarray(o32, np.float64)[r]
+            d_r = np.asarray(d, np.float64)[r]
+            w = self.hetero.scatter_weights(o_r, d_r, o_r + s[:, None] * d_r, med[r], w)
         geom[r] = -1  # the surface scatter sees a miss
         slots_r = slot[r]
         # Russian roulette by the weight's largest channel.

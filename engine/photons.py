@@ -340,6 +340,11 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     vol = (photonmedium.PhotonScattering.for_chunk(table, settings, len(pmed.medium),
                                                    caustic_only)
            if pmed is not None else None)
+    het = getattr(ctx, "hetero", None)
+    if het is None or not het.fields or pmed is None:
+        het = None
+    elif vol is not None:
+        vol.hetero = het  # (the free flights' scatter weights)
     limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
@@ -431,6 +436,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # exp(-sigma_a s) of its power over the segment (Beer-Lambert), before the
             # scatter stores or continues it.
             pmed.attenuate(geom, prim32, starts, material, e1, e2, d, tfar[:m], power, slot)
+            if het is not None:
+                # Density textures (engine/heterogeneous.py): the mean density's
+                # stand-in times the ratio-tracked correction over the segment (the
+                # photons that scattered on it, a miss now, take theirs in flights).
+                power *= het.correction(o, d, np.where(np.asarray(geom) >= 0, tfar[:m], 0.0),
+                                        salt=5)
         if given and not numpy_hits:
             pk.photon_surfaces(rows, u64, v64, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf_m)

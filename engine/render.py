@@ -40,6 +40,7 @@ from .resources import check_resources
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
 from .stagespans import StageSpans
+from .heterogeneous import HeterogeneousMedia
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
 from .visualimportance import indirect_share
@@ -103,6 +104,8 @@ class Context:
     # Light Linking (engine/lightlinking.py): which light lights which object (None: every
     # light lights every object).
     links: object = None
+    # Heterogeneous media (engine/heterogeneous.py: density textures; None: none).
+    hetero: object = None
 
 
     def serial(self) -> "Context":
@@ -139,6 +142,9 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     pieces of the geometry preparation and the BVH build: raises Cancelled."""
     scene.validate()
     geo, table = prepare(scene, should_cancel)
+    # Density textures (engine/heterogeneous.py): the table's rows become the mean
+    # density's stand-in before anything reads them.
+    hetero = HeterogeneousMedia.for_scene(geo, table, settings.seed)
     # One BVH per distinct set of triangles a ray class sees (usually one in all).
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
                             threads=settings.threads, should_cancel=should_cancel,
@@ -156,7 +162,12 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     ctx = Context(scene, settings, geo, table, accel, lights,
                   packed_lights=packed_lights_for(lights, settings), shadow=shadow)
     ctx.links = links
+    ctx.hetero = hetero
+    if shadow is not None and hetero is not None and hetero.fields:
+        shadow.hetero = hetero  # (its shadow rays' transmittance: transmittance())
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    if hetero is not None and hetero.fields:
+        ctx.plan.add("heterogeneous media", True, hetero.describe())
     if geo.instances is not None:  # which way instancing went (engine/resources.py)
         from .resources import instance_choice
         ins = geo.instances
@@ -187,6 +198,8 @@ def close_context(ctx: Context) -> None:
         ctx.links.close()
     if ctx.catcher_alone is not None:
         ctx.catcher_alone.accel.close()
+    if getattr(ctx.hetero, "accel", None) is not None:
+        ctx.hetero.accel.close()  # (the textured media's boundaries: heterogeneous.py)
 
 
 def _sample_every_side(lights) -> bool:
@@ -285,6 +298,8 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
     # Compiled kernels: compiled on the first render on this machine (the progress text
     # says so), loaded from the on-disk cache by later processes, once per process.
     stats["time_compile"] = ensure_compiled(progress)
+    if ctx.hetero is not None:
+        stats.setdefault("warnings", []).extend(ctx.hetero.limits(settings))
     try:
         shots = ()
         if ctx.catcher_alone is not None and on_plan is not None:

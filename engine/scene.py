@@ -166,6 +166,10 @@ class Material:
     `volume_only`: the material has a volume but no surface (Surface unlinked): Cycles
     renders the surface invisible, rays pass it unbent and only the medium acts; here
     that is a transparent pass (alpha 0, white tint, no emission, black base).
+    `density_texture`: a node (engine/shadernodes.py, evaluate -> (N,) or (N,3)) whose
+    value at a point inside the object scales the medium: sigma(p) = max(value, 0) x
+    absorption / scattering, which are then the coefficients at density 1 (a textured
+    Density socket: clouds, smoke; engine/heterogeneous.py). None: homogeneous.
     `displacement`, `displacement_method`: Cycles' true displacement (Material > Settings >
     Displacement): with "DISPLACEMENT" (Displacement Only) or "BOTH" (Displacement and
     Bump), the vertices of this material's faces move by the world-space vectors (m) of
@@ -215,6 +219,7 @@ class Material:
     anisotropy: float = 0.0
     volume_emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     volume_only: bool = False
+    density_texture: object | None = None
     displacement: object | None = None
     displacement_method: str = "BUMP"
     warnings: list = field(default_factory=list, repr=False)
@@ -301,6 +306,10 @@ class Material:
             raise SceneError(f"{who} volume_emission: must be >= 0 (W/m^2/sr per m), got "
                              f"{self.volume_emission.tolist()}")
         self.volume_only = bool(self.volume_only)
+        if self.density_texture is not None and not hasattr(self.density_texture,
+                                                            "evaluate"):
+            raise SceneError(f"{who} density_texture: expected a node with evaluate(), got "
+                             f"{type(self.density_texture).__name__}")
         if self.volume_only:
             # No surface: every ray passes it unbent and untinted (a transparent pass).
             self.alpha = 0.0

@@ -514,8 +514,29 @@ class ShadowTransmittance:
             return None
         return cls(geo, table, max_hits)
 
+    # Heterogeneous media (engine/heterogeneous.py; set by render.prepare_context):
+    # the rays that get through take their ratio-tracked correction (transmittance).
+    hetero = None
+
     def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
                       crossed_out=None) -> np.ndarray:
+        """_transmittance's (R,3), with the heterogeneous media's correction
+        (heterogeneous.HeterogeneousMedia.correction: ratio tracking over the parts inside
+        a medium with a density texture) on the rays that get through."""
+        trans = self._transmittance(o32, d32, t32, rows, cls, passages, crossed_out)
+        het = self.hetero
+        if het is not None and len(trans):
+            r = np.arange(len(o32)) if rows is None else np.asarray(rows, np.int64)
+            through = np.flatnonzero(np.any(trans > 0.0, axis=1))
+            if len(through):
+                rr = r[through]
+                trans[through] *= het.correction(np.asarray(o32, np.float64)[rr],
+                                                 np.asarray(d32, np.float64)[rr],
+                                                 np.asarray(t32, np.float64)[rr], salt=3)
+        return trans
+
+    def _transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
+                       crossed_out=None) -> np.ndarray:
         """(R,3) RGB transmittance of the shadow rays `rows` (default: all) from o32 (R,3)
         along d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space),
         through transparent surfaces: the product of (1 - alpha) x transparent tint of the

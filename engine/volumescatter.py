@@ -476,6 +476,16 @@ def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None,
                                np.concatenate([world_sigma, world_sigma]))
         if counters is not None:
             counters.shadow_rays += m_rays
+    het = getattr(ctx, "hetero", None)
+    if het is not None and het.fields and clear.any():
+        # The rays that met no surface (a lamp inside the fog) through a medium with a
+        # density texture: ratio tracking's correction (engine/heterogeneous.py); the
+        # rays that crossed surfaces took theirs in shadow.pass_blocked.
+        from .shadowtransmittance import scale_entries
+        r = np.flatnonzero(clear)
+        ray_trans = np.ones((m_rays, 3))
+        ray_trans[r] = het.correction(buf.o32[r], buf.d32[r], t_keep[r], salt=4)
+        scale_entries(buf.contrib, buf.ray, m_all, ray_trans)
     accumulate_phase(L, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
                      buf.wdir, nrm, wo, g, n, clear, t_keep, buf.d32[:m_rays],
                      np.ascontiguousarray(sigma_t, np.float64))
@@ -623,6 +633,13 @@ class CameraScattering:
         src, pts, w, seg_m = self._scatter_points(prim, o, d, t, medium, rng, uv)
         if len(src) == 0:
             return np.zeros(0, np.int64), np.zeros((0, 3))
+        het = getattr(self.ctx, "hetero", None)
+        if het is not None and het.fields:
+            # Density textures (engine/heterogeneous.py): the weights drawn for the mean
+            # density's stand-in take the ratio-tracked T(s) and the field at the point.
+            w = het.scatter_weights(np.take(np.asarray(o, np.float64), src, axis=0),
+                                    np.take(np.asarray(d, np.float64), src, axis=0), pts,
+                                    seg_m, w)
         wo = np.take(np.asarray(d, np.float64), src, axis=0)
         wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
         Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
@@ -693,6 +710,10 @@ class CameraScattering:
             if len(rows):
                 L[idx[rows]] += beta[rows] * Ls
             src, p2, w2, m2 = self._scatter_points(prim, x, d_new, t, m, rng)
+            het = getattr(self.ctx, "hetero", None)
+            if het is not None and het.fields and len(src):
+                # (density textures: as radiance's first scatter, engine/heterogeneous.py)
+                w2 = het.scatter_weights(x[src], d_new[src], p2, m2, w2)
             idx, x, d_in, m = idx[src], p2, d_new[src], m2
             beta = beta[src] * w2
             if len(src) == 0:

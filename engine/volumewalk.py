@@ -56,6 +56,11 @@ class WalkingScattering(CameraScattering):
         n = len(prim)
         prim = np.asarray(prim, np.int64)
         T = np.exp(-self.sigma_t[m] * np.asarray(t, np.float64)[:, None])
+        het = getattr(ctx, "hetero", None)
+        if het is not None and het.fields:
+            # Density textures: the stand-in's T(S) corrected (engine/heterogeneous.py).
+            T = T * het.correction(x, d, np.where(prim >= 0, np.asarray(t, np.float64),
+                                                  0.0), salt=7)
         rows = np.arange(n)
         d = np.asarray(d, np.float64)
         vo_table = getattr(ctx.table, "volume_only", None)

@@ -50,6 +50,10 @@ def test_the_camera_sees_its_world_and_the_light_is_the_scenes():
     np.testing.assert_allclose(img[sky], np.broadcast_to(SHOWN, img[sky].shape), rtol=1e-6)
     # elsewhere (edge pixels) each sample's sky traded for SHOWN, darker in every channel
     assert np.all(img <= ref + 1e-7)
+    line = next(e for e in with_cam.stats["effects"] if e.startswith("world light"))
+    assert "Is Camera Ray" in line
+    assert "Is Camera Ray" not in next(e for e in without.stats["effects"]
+                                       if e.startswith("world light"))
 
 
 def test_through_a_transparent_card_the_camera_world_reflections_the_scenes():

@@ -11,8 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from engine import onesurface
-from engine.onesurface import (FINE_DIVISIONS, OneSurfaceCells,
-                               _orientation_index, _orientation_keys)
+from engine.onesurface import (FINE_DIVISIONS, KeyIndex, OneSurfaceCells,
+                               _orientation_index, _orientation_keys, _unique_index)
 
 
 def _old_index(keys, queries):
@@ -120,6 +120,35 @@ def test_orientation_index_equals_the_pairwise_lookup():
     assert _orientation_index(keys, np.zeros((0, 3), np.int64)).shape == (0,)
     np.testing.assert_array_equal(_orientation_index(np.zeros((0, 3), np.int64), keys[:4]),
                                   [-1] * 4)
+
+
+def test_key_index_equals_the_joint_sort():
+    """OneSurfaceCells' keys sorted once (KeyIndex, hair39) answer each call's rows as the
+    joint sort of keys and rows did (_unique_index) and as the pairwise comparison: a
+    hair groom's ~10^5 tube orientations, keys in any order, rows no key has, rows whose
+    components lie beyond the packing's range (never a key's: -1), and the keys of a
+    range the packing cannot hold (the joint sort answers)."""
+    rng = np.random.default_rng(12)
+    keys = np.unique(_orientation_keys(rng.normal(size=(100_000, 3))), axis=0)
+    keys = keys[rng.permutation(len(keys))]
+    index = KeyIndex(keys)
+    assert index.sorted is not None
+    queries = np.concatenate([keys[rng.integers(0, len(keys), 4000)],
+                              _orientation_keys(rng.normal(size=(4000, 3))),
+                              [[20_000, 0, 0], [-20_000, 5, 5], keys[0] + (1 << 15)]])
+    want = _unique_index(keys, queries)
+    np.testing.assert_array_equal(index.find(queries), want)
+    assert (want[:4000] >= 0).all() and (want[-3:] == -1).all()
+    small = keys[:300]
+    np.testing.assert_array_equal(KeyIndex(small).find(queries[:500]),
+                                  _old_index(small, queries[:500]))
+    wide = np.array([[40_000, 0, 0], [0, 1, 0], [-40_000, 2, 0]], np.int64)
+    assert KeyIndex(wide).sorted is None  # beyond the packing: the joint sort
+    np.testing.assert_array_equal(KeyIndex(wide).find(np.array([[0, 1, 0], [40_000, 0, 0],
+                                                                [1, 1, 1]])), [1, 0, -1])
+    assert KeyIndex(keys).find(np.zeros((0, 3), np.int64)).shape == (0,)
+    np.testing.assert_array_equal(KeyIndex(np.zeros((0, 3), np.int64)).find(keys[:3]),
+                                  [-1] * 3)
 
 
 def test_sole_grid_gives_every_orientations_grid():

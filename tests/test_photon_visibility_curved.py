@@ -114,3 +114,43 @@ def test_a_wall_piercing_the_ball_still_hides_what_is_across_it():
 
 if __name__ == "__main__":
     pytest.main([__file__, "-q"])
+
+
+def test_bent_paths_second_segment_first_same_answers():
+    """_blocked_paths (hair39) traces a bent path's first segment only when its second is
+    clear: every path (single ray or adjacent pair of one row and photon) reads hidden
+    exactly when tracing all its segments finds one blocked, each traced segment answers
+    as traced alone, and the first segments it skips are those of paths already hidden."""
+    from engine.accel import Accel
+    from engine.photonvisibility import _blocked_paths
+    rng = np.random.default_rng(4)
+    acc = Accel(rng.random((300, 3)).astype(np.float32), rng.integers(0, 300, (200, 3)))
+    # 400 paths: single rays and pairs, rows and photons as _read_rays writes them.
+    pair = rng.random(400) < 0.6
+    ray_row = np.repeat(np.arange(400) // 8, np.where(pair, 2, 1))
+    ray_photon = np.repeat(np.arange(400), np.where(pair, 2, 1))
+    nr = len(ray_row)
+    o = rng.random((nr, 3)).astype(np.float32)
+    d = rng.normal(size=(nr, 3)).astype(np.float32)
+    t = (0.2 + rng.random(nr)).astype(np.float32)
+    every = np.zeros(nr, bool)
+    acc.occluded_into(o, d, t.copy(), every)
+    got = _blocked_paths(acc, o, d, t.copy(), ray_row, ray_photon, nr)
+    path = np.repeat(np.arange(400), np.where(pair, 2, 1))
+    hidden_every = np.zeros(400, bool)
+    np.logical_or.at(hidden_every, path, every)
+    hidden_got = np.zeros(400, bool)
+    np.logical_or.at(hidden_got, path, got)
+    assert 20 < hidden_every.sum() < 380
+    np.testing.assert_array_equal(hidden_got, hidden_every)
+    assert (every[got]).all()  # a segment read blocked is blocked
+    skipped = got != every  # first segments of pairs whose second is blocked
+    first = np.r_[(ray_photon[1:] == ray_photon[:-1]), False]
+    assert skipped.any() and first[skipped].all() and every[np.flatnonzero(skipped) + 1].all()
+    # Single rays alone (no pair): one call, each ray's own answer.
+    n1 = 50
+    o1, d1 = np.ascontiguousarray(o[:n1]), np.ascontiguousarray(d[:n1])
+    want = np.zeros(n1, bool)
+    acc.occluded_into(o1, d1, t[:n1].copy(), want)
+    np.testing.assert_array_equal(
+        _blocked_paths(acc, o1, d1, t[:n1].copy(), np.arange(n1), np.arange(n1), n1), want)

@@ -771,6 +771,37 @@ def closure_metal_f82():
 
 
 @case("closures")
+def closure_metallic_bsdf():
+    """The Metallic BSDF node (Blender 4.3+) in its default F82 mode: a warm base and a
+    blue Edge Tint, roughness 0.35 (Cycles' F82-tint conductor: the Principled metal lobe)."""
+    _point_ball_scene(lambda: _shader("metallic", "ShaderNodeBsdfMetallic", **{
+        "Base Color": (0.95, 0.65, 0.35), "Edge Tint": (0.4, 0.7, 1.0), "Roughness": 0.35}))
+
+
+@case("closures")
+def closure_metallic_conductor():
+    """The Metallic BSDF as a Physical Conductor (gold's n = (0.18, 0.42, 1.37),
+    k = (3.42, 2.35, 1.77)), roughness 0.25: approximated by the F82-tint Fresnel matching
+    the conductor's at 0 and ~82 degrees."""
+    def make():
+        m = _shader("gold", "ShaderNodeBsdfMetallic", Roughness=0.25)
+        node = next(n for n in m.node_tree.nodes if n.type == "BSDF_METALLIC")
+        node.fresnel_type = "PHYSICAL_CONDUCTOR"
+        node.inputs["IOR"].default_value = (0.18, 0.42, 1.37)
+        node.inputs["Extinction"].default_value = (3.42, 2.35, 1.77)
+        return m
+    _point_ball_scene(make)
+
+
+@case("closures")
+def closure_subsurface_node():
+    """The Subsurface Scattering node (Random Walk, Scale 0.05) on a thick ball: the
+    BSSRDF alone, rendered as the diffuse albedo Cycles' random walk gives (warned)."""
+    _point_ball_scene(lambda: _shader("sss", "ShaderNodeSubsurfaceScattering",
+                                      Color=(0.8, 0.3, 0.2), Scale=0.05))
+
+
+@case("closures")
 def closure_glossy_ggx():
     """Glossy BSDF with the GGX distribution (no multiple-scattering compensation)."""
     def make():
@@ -2210,12 +2241,41 @@ def world_camera_ray_mix():
 
 
 @case("world", ours=dict(spp=64))
+def world_camera_invisible():
+    """World > Settings > Ray Visibility > Camera off: the HDRI lights the scene, the
+    camera sees black behind it."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.0)
+    bpy.context.scene.world.cycles_visibility.camera = False
+
+
+@case("world", ours=dict(spp=64))
 def world_mix_constant():
     """The HDRI at 0.6 plus a warm colour at 0.4 (a Mix Shader of two Backgrounds with a
     constant factor): the engine bakes them into one map."""
     _hdri_scene()
     mb.set_world_hdri(mb.sky_hdri(), 1.0)
     _mix_world_background(0.4, rgb=(0.9, 0.6, 0.3), strength=0.8)
+
+
+@case("world", ours=dict(spp=64))
+def world_hdri_color_nodes():
+    """The HDRI graded in the world tree (Hue/Saturation: hue 0.45, saturation 1.6, then
+    Bright/Contrast: contrast 0.2) before its Background, whose Strength is 1.2: the
+    colour nodes baked into the map's texels."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.2)
+    nt = bpy.context.scene.world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    env = next(n for n in nt.nodes if n.type == "TEX_ENVIRONMENT")
+    hue = nt.nodes.new("ShaderNodeHueSaturation")
+    hue.inputs["Hue"].default_value = 0.45
+    hue.inputs["Saturation"].default_value = 1.6
+    bc = nt.nodes.new("ShaderNodeBrightContrast")
+    bc.inputs["Contrast"].default_value = 0.2
+    nt.links.new(env.outputs["Color"], hue.inputs["Color"])
+    nt.links.new(hue.outputs[0], bc.inputs["Color"])
+    nt.links.new(bc.outputs[0], bg.inputs["Color"])
 
 
 # The sun texel in rough metal. Measured (128 spp unless said): with the matrix's 100k +
@@ -2319,6 +2379,39 @@ def volume_fog_spot():
     mb.box("Fog", 1.8, 1.8, 1.4, m, (0.0, 0.0, 0.75))
     mb.light("Spot", "SPOT", (0.2, 0.0, 3.2), 600.0, look_at=(0, 0, 0),
              spot_size=math.radians(35.0), spot_blend=0.2, shadow_soft_size=0.0)
+
+
+@case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))
+def volume_cloud():
+    """A cloud cube: Principled Volume (Color 0.8) whose Density is 4 x a Color Ramp
+    (black below 0.45, white above 0.62) of a Noise Texture (Scale 2.5, Detail 2,
+    Generated coordinates); the Surface unlinked; floating over the floor, a spot light
+    above it: its puffs lit by the spot, its patchy shadow, the walls lit by the floor's
+    photons that passed it (engine/heterogeneous.py, docs/compatibility.md hetvol39), at
+    Cycles' default Volume bounces 0. (It was warned: the Density socket's own value, a
+    homogeneous box.)"""
+    _stage()
+    m, nt, out = _nodes_material("cloud")
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    noise.inputs["Detail"].default_value = 2.0
+    nt.links.new(tc.outputs["Generated"], noise.inputs["Vector"])
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = 0.45
+    ramp.color_ramp.elements[1].position = 0.62
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    mul = nt.nodes.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    mul.inputs[1].default_value = 4.0
+    nt.links.new(ramp.outputs["Color"], mul.inputs[0])
+    v = nt.nodes.new("ShaderNodeVolumePrincipled")
+    v.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    nt.links.new(mul.outputs[0], v.inputs["Density"])
+    nt.links.new(v.outputs[0], out.inputs["Volume"])
+    mb.box("Cloud", 1.6, 1.6, 1.2, m, (0.0, 0.0, 1.0))
+    mb.light("Spot", "SPOT", (0.2, 0.0, 3.4), 600.0, look_at=(0, 0, 0),
+             spot_size=math.radians(40.0), spot_blend=0.2, shadow_soft_size=0.0)
 
 
 # (No Sky Texture case: every sky type is simulated and checked against Cycles 5.0.1 by

@@ -354,3 +354,34 @@ def light_portal(bpy, scene, location, size=1.0, energy=10.0):
     ob.location = location
     scene.collection.objects.link(ob)
     return ob
+
+
+def principled_material(bpy, name, colour, roughness):
+    """A new node material of its Principled BSDF with Base Color `colour` (RGB) and
+    `roughness`."""
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    p = m.node_tree.nodes["Principled BSDF"]
+    p.inputs["Base Color"].default_value = (*colour, 1.0)
+    p.inputs["Roughness"].default_value = roughness
+    return m
+
+
+def block_means(img, size=12):
+    """(H/size, W/size) means of `size` x `size` blocks of an (H,W) image."""
+    h, w = img.shape[:2]
+    return img[:h // size * size, :w // size * size].reshape(
+        h // size, size, w // size, size).mean(axis=(1, 3))
+
+
+def cycles_and_ours(bpy, scene, tmp_path, cycles_spp=256, ours_spp=32):
+    """(ours, Cycles) luminance images of scene: Cycles plain at cycles_spp (12 bounces,
+    its default indirect clamp 10, which ours reads too), then ours at ours_spp."""
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, cycles_spp, 12)
+    scene.cycles.sample_clamp_indirect = 10.0
+    ref = render_luminance(bpy, scene, tmp_path / "cycles.exr")
+    scene.render.engine = "PHOTONMAP"
+    scene.photonmap.spp = ours_spp
+    return render_luminance(bpy, scene, tmp_path / "ours.exr"), ref

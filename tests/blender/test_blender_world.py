@@ -75,6 +75,12 @@ def test_unsupported_world_nodes_warn_once_naming_the_node(mb, bpy_addon):
     assert len([w for w in scene.all_warnings() if "Clouds" in w]) == 1
 
 
+def pm_environment(pixels):
+    """The engine Environment of a linear map as set_world_hdri packs it (strength 1)."""
+    from addon.core import load_engine
+    return load_engine().Environment(pixels, 1.0)
+
+
 def _mix(bpy, fac=None, rgb=(0.1, 0.2, 0.7), strength=1.0, output="Is Camera Ray",
          swap=False):
     """Mix the world's Background (the HDRI) with a colour Background by a Mix Shader:
@@ -131,9 +137,14 @@ def test_constant_mixes_and_adds_are_summed_into_one_world(mb, bpy_addon):
     mb.set_world_hdri(sky, 1.0)
     _mix(bpy, fac=0.4, rgb=(0.5, 0.25, 0.1), strength=2.0)
     scene = _export(bpy)
-    np.testing.assert_allclose(scene.environment.pixels,
-                               0.6 * sky + 0.4 * np.array([1.0, 0.5, 0.2]), rtol=1e-5,
-                               atol=1e-6)
+    # (baked on the map's grid refined 4x: each baked texel the map's own lookup there)
+    from addon.world import bake_grid
+    plain = pm_environment(sky)
+    h, w, dirs = bake_grid(plain)
+    assert (h, w) == (64, 128)
+    np.testing.assert_allclose(scene.environment.pixels.reshape(-1, 3),
+                               0.6 * plain.radiance(dirs) + 0.4 * np.array([1.0, 0.5, 0.2]),
+                               rtol=1e-5, atol=1e-6)
     assert scene.camera_environment is None and scene.camera_background is None
     nt = bpy.context.scene.world.node_tree
     nt.nodes.clear()
@@ -171,6 +182,64 @@ def test_other_light_path_outputs_and_shaders_in_the_world_are_warned(mb, bpy_ad
     scene = _export(bpy)
     hits = [w for w in scene.all_warnings() if "not supported" in w and "surface" in w]
     assert len(hits) == 1 and scene.environment is None
+
+
+def test_colour_nodes_over_the_hdri_are_baked_into_the_map(mb, bpy_addon):
+    """Gamma and Multiply (a Mix node) between the Environment Texture and the Background
+    are evaluated on the map's texels (engine/shadernodes: the material nodes' own code);
+    a Strength from Light Path's Is Camera Ray (Math) gives the camera its own strength."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(32, 16)
+    mb.set_world_hdri(sky, 1.0)
+    nt = bpy.context.scene.world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    env = next(n for n in nt.nodes if n.type == "TEX_ENVIRONMENT")
+    gamma = nt.nodes.new("ShaderNodeGamma")
+    gamma.inputs["Gamma"].default_value = 2.0
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Factor"].default_value = 1.0
+    mix.inputs[7].default_value = (1.0, 0.5, 0.25, 1.0)
+    nt.links.new(env.outputs["Color"], gamma.inputs["Color"])
+    nt.links.new(gamma.outputs[0], mix.inputs[6])
+    nt.links.new(mix.outputs[2], bg.inputs["Color"])
+    path = nt.nodes.new("ShaderNodeLightPath")
+    strength = nt.nodes.new("ShaderNodeMath")
+    strength.operation = "ADD"
+    strength.inputs[1].default_value = 2.0
+    nt.links.new(path.outputs["Is Camera Ray"], strength.inputs[0])
+    nt.links.new(strength.outputs[0], bg.inputs["Strength"])
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "world" in w], scene.all_warnings()
+    from addon.world import bake_grid
+    plain = pm_environment(sky)
+    want = plain.radiance(bake_grid(plain)[2]) ** 2 * np.array([1.0, 0.5, 0.25])
+    np.testing.assert_allclose(scene.environment.pixels.reshape(-1, 3), 2.0 * want,
+                               rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(scene.camera_environment.pixels.reshape(-1, 3), 3.0 * want,
+                               rtol=1e-4,
+                               atol=1e-6)
+
+
+def test_ray_visibility_camera_off_shows_black_and_lights_as_before(mb, bpy_addon):
+    """World > Settings > Ray Visibility > Camera off: camera rays see black (Cycles
+    evaluates no background for them), the HDRI still lights; Glossy off is warned."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(16, 8)
+    mb.set_world_hdri(sky, 1.0)
+    vis = bpy.context.scene.world.cycles_visibility
+    vis.camera = False
+    scene = _export(bpy)
+    np.testing.assert_allclose(scene.environment.pixels, sky, rtol=1e-5)
+    assert scene.camera_environment is None
+    np.testing.assert_array_equal(scene.camera_background, np.zeros(3))
+    assert not [w for w in scene.all_warnings() if "Ray Visibility" in w]
+    vis.camera, vis.glossy = True, False
+    scene = _export(bpy)
+    assert scene.camera_background is None
+    hits = [w for w in scene.all_warnings() if "Ray Visibility" in w]
+    assert len(hits) == 1 and "Glossy" in hits[0]
 
 
 def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):

@@ -17,8 +17,9 @@ import sys
 import numpy as np
 import pytest
 
-from blender_helpers import (ROOT, cycles_plain, read_rgba, render_exr, render_luminance,
-                             sun_light, world_color)
+from blender_helpers import (ROOT, block_means, cycles_and_ours, cycles_plain,
+                             principled_material, read_rgba, render_exr, sun_light,
+                             world_color)
 
 pytestmark = pytest.mark.blender
 
@@ -30,10 +31,10 @@ def _tuft(bpy, shape):
     floor_mesh = bpy.data.meshes.new("Floor")
     floor_mesh.from_pydata([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], [], [(0, 1, 2, 3)])
     sc.collection.objects.link(bpy.data.objects.new("Floor", floor_mesh))
-    floor_mesh.materials.append(_principled(bpy, "Grey", (0.5, 0.5, 0.5), 0.5))
+    floor_mesh.materials.append(principled_material(bpy, "Grey", (0.5, 0.5, 0.5), 0.5))
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends
-    make_blends.tuft("Tuft", _principled(bpy, "Hair", (0.8, 0.3, 0.1), 0.6), count=400,
+    make_blends.tuft("Tuft", principled_material(bpy, "Hair", (0.8, 0.3, 0.1), 0.6), count=400,
                      keys=5, spread=0.8, height=0.6, lean=0.15, radius=(0.012, 0.004), seed=3)
     sun_light(bpy, sc, (math.radians(40), 0, math.radians(30)), energy=3.0)
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
@@ -45,33 +46,16 @@ def _tuft(bpy, shape):
     return sc
 
 
-def _principled(bpy, name, colour, roughness):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    p = m.node_tree.nodes["Principled BSDF"]
-    p.inputs["Base Color"].default_value = (*colour, 1.0)
-    p.inputs["Roughness"].default_value = roughness
-    return m
-
-
 @pytest.mark.parametrize("shape", ["RIBBONS", pytest.param("THICK", marks=pytest.mark.slow)])
 def test_a_tuft_of_hair_matches_cycles(bpy_addon, tmp_path, shape):
     bpy = bpy_addon
     sc = _tuft(bpy, shape)
-    sc.render.engine = "CYCLES"
-    cycles_plain(sc, 256, 12)
-    sc.cycles.sample_clamp_indirect = 10.0  # Cycles' default, which ours reads too
-    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
-    sc.render.engine = "PHOTONMAP"
-    sc.photonmap.spp = 32
+    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
     from addon import engine
-    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert not [w for w in engine.last_render["warnings"] if "hair" in w.lower()]
     assert np.isfinite(ours).all()
     whole = ours.mean() / ref.mean()
-    ratio = (ours.reshape(6, 12, 8, 12).mean(axis=(1, 3))
-             / ref.reshape(6, 12, 8, 12).mean(axis=(1, 3)))
+    ratio = block_means(ours) / block_means(ref)
     assert 0.975 < whole < 1.01, whole
     assert 0.92 < ratio.min() and ratio.max() < 1.04, np.round(ratio, 3)
     # The hair is there: its blocks differ from the bare floor's (the tuft's middle).
@@ -144,17 +128,10 @@ def test_curves_info_colours_the_strands_as_in_cycles(bpy_addon, tmp_path):
     strand.inputs[1].default_value = 0.6
     nt.links.new(strand.outputs[0], nt.nodes["Principled BSDF"].inputs["Roughness"])
     nt.links.new(mix.outputs[2], nt.nodes["Principled BSDF"].inputs["Base Color"])
-    sc.render.engine = "CYCLES"
-    cycles_plain(sc, 256, 12)
-    sc.cycles.sample_clamp_indirect = 10.0
-    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
-    sc.render.engine = "PHOTONMAP"
-    sc.photonmap.spp = 32
+    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
     from addon import engine
-    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert not [w for w in engine.last_render["warnings"] if "Curves Info" in w]
-    ratio = (ours.reshape(6, 12, 8, 12).mean(axis=(1, 3))
-             / ref.reshape(6, 12, 8, 12).mean(axis=(1, 3)))
+    ratio = block_means(ours) / block_means(ref)
     assert 0.93 < ratio.min() and ratio.max() < 1.04, np.round(ratio, 3)
     assert 0.975 < ours.mean() / ref.mean() < 1.015
     # Tips over roots (block rows 1 and 3, the tuft's middle): 1.515 in Cycles, 1.549 ours.

@@ -15,19 +15,10 @@ import math
 import numpy as np
 import pytest
 
-from blender_helpers import cycles_plain, render_luminance, sun_light, world_color
+from blender_helpers import (block_means, cycles_and_ours, principled_material, sun_light,
+                             world_color)
 
 pytestmark = pytest.mark.blender
-
-
-def _principled(bpy, name, colour, roughness):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    p = m.node_tree.nodes["Principled BSDF"]
-    p.inputs["Base Color"].default_value = (*colour, 1.0)
-    p.inputs["Roughness"].default_value = roughness
-    return m
 
 
 def _scene(bpy, count=300, children="NONE"):
@@ -38,12 +29,12 @@ def _scene(bpy, count=300, children="NONE"):
     world_color(bpy, sc, (0.05, 0.05, 0.05))
     bpy.ops.mesh.primitive_plane_add(size=4)
     bpy.context.object.name = "Floor"
-    bpy.context.object.data.materials.append(_principled(bpy, "Grey", (0.5, 0.5, 0.5), 0.5))
+    bpy.context.object.data.materials.append(principled_material(bpy, "Grey", (0.5, 0.5, 0.5), 0.5))
     bpy.ops.mesh.primitive_plane_add(size=1.2, location=(0, 0, 0.001))
     emitter = bpy.context.object
     emitter.name = "Emitter"
-    emitter.data.materials.append(_principled(bpy, "Skin", (0.2, 0.6, 0.2), 0.5))
-    emitter.data.materials.append(_principled(bpy, "Hair", (0.8, 0.3, 0.1), 0.6))
+    emitter.data.materials.append(principled_material(bpy, "Skin", (0.2, 0.6, 0.2), 0.5))
+    emitter.data.materials.append(principled_material(bpy, "Hair", (0.8, 0.3, 0.1), 0.6))
     mod = emitter.modifiers.new("Fur", "PARTICLE_SYSTEM")
     part = mod.particle_system.settings
     part.type = "HAIR"
@@ -166,19 +157,12 @@ def test_particle_hair_matches_cycles(bpy_addon, tmp_path, children):
     uv_map = nt.nodes.new("ShaderNodeUVMap")
     nt.links.new(uv_map.outputs["UV"], checker.inputs["Vector"])
     nt.links.new(checker.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
-    sc.render.engine = "CYCLES"
-    cycles_plain(sc, 256, 12)
-    sc.cycles.sample_clamp_indirect = 10.0
-    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
-    sc.render.engine = "PHOTONMAP"
-    sc.photonmap.spp = 32
+    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
     from addon import engine
-    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert not [w for w in engine.last_render["warnings"] if "hair" in w.lower()]
     assert np.isfinite(ours).all()
     whole = ours.mean() / ref.mean()
-    ratio = (ours.reshape(6, 12, 8, 12).mean(axis=(1, 3))
-             / ref.reshape(6, 12, 8, 12).mean(axis=(1, 3)))
+    ratio = block_means(ours) / block_means(ref)
     assert 0.985 < whole < 1.015, whole
     assert 0.88 < ratio.min() and ratio.max() < 1.07, np.round(ratio, 3)
     # The hair is there: the tuft's blocks differ from the bare floor's.

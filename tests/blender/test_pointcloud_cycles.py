@@ -10,20 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from blender_helpers import (cycles_plain, export_warnings, render_luminance, sun_light,
-                             world_color)
+from blender_helpers import (block_means, cycles_and_ours, export_warnings,
+                             principled_material, sun_light, world_color)
 
 pytestmark = pytest.mark.blender
-
-
-def _principled(bpy, name, colour, roughness):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    p = m.node_tree.nodes["Principled BSDF"]
-    p.inputs["Base Color"].default_value = (*colour, 1.0)
-    p.inputs["Roughness"].default_value = roughness
-    return m
 
 
 def _points_modifier(bpy, obj, radius, material=None, drop_radius=False):
@@ -56,11 +46,11 @@ def _scene(bpy, radius=0.08):
     sc = bpy.context.scene
     world_color(bpy, sc, (0.05, 0.05, 0.05))
     bpy.ops.mesh.primitive_plane_add(size=4)
-    bpy.context.object.data.materials.append(_principled(bpy, "Grey", (0.5, 0.5, 0.5), 0.5))
+    bpy.context.object.data.materials.append(principled_material(bpy, "Grey", (0.5, 0.5, 0.5), 0.5))
     bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=2, radius=0.8, location=(0, 0, 0.9))
     dots = bpy.context.object
     dots.name = "Dots"
-    _points_modifier(bpy, dots, radius, _principled(bpy, "Red", (0.8, 0.2, 0.1), 0.4))
+    _points_modifier(bpy, dots, radius, principled_material(bpy, "Red", (0.8, 0.2, 0.1), 0.4))
     sun_light(bpy, sc, (math.radians(40), 0, math.radians(30)), energy=3.0)
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     cam.location, cam.rotation_euler = (0, -3.2, 1.6), (math.radians(65), 0, 0)
@@ -121,17 +111,10 @@ def test_a_volume_object_is_warned_naming_it(bpy_addon):
 def test_points_match_cycles(bpy_addon, tmp_path):
     bpy = bpy_addon
     sc, _dots = _scene(bpy)
-    sc.render.engine = "CYCLES"
-    cycles_plain(sc, 256, 12)
-    sc.cycles.sample_clamp_indirect = 10.0
-    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
-    sc.render.engine = "PHOTONMAP"
-    sc.photonmap.spp = 32
-    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
+    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
     assert np.isfinite(ours).all()
     whole = ours.mean() / ref.mean()
-    ratio = (ours.reshape(6, 12, 8, 12).mean(axis=(1, 3))
-             / ref.reshape(6, 12, 8, 12).mean(axis=(1, 3)))
+    ratio = block_means(ours) / block_means(ref)
     assert 0.99 < whole < 1.01, whole
     assert 0.97 < ratio.min() and ratio.max() < 1.03, np.round(ratio, 3)
     # the dots are there: the top rows (dots against the wall-less sky) differ from Cycles'
@@ -167,16 +150,9 @@ def test_point_info_colours_the_points_as_in_cycles(bpy_addon, tmp_path):
     nt.links.new(ramp.outputs["Color"], mix.inputs[6])
     nt.links.new(size.outputs[0], mix.inputs[7])  # 0.8: grey
     nt.links.new(mix.outputs[2], nt.nodes["Principled BSDF"].inputs["Base Color"])
-    sc.render.engine = "CYCLES"
-    cycles_plain(sc, 256, 12)
-    sc.cycles.sample_clamp_indirect = 10.0
-    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
-    sc.render.engine = "PHOTONMAP"
-    sc.photonmap.spp = 32
+    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
     from addon import engine
-    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert not [w for w in engine.last_render["warnings"] if "Point Info" in w]
-    ratio = (ours.reshape(6, 12, 8, 12).mean(axis=(1, 3))
-             / ref.reshape(6, 12, 8, 12).mean(axis=(1, 3)))
+    ratio = block_means(ours) / block_means(ref)
     assert 0.99 < ours.mean() / ref.mean() < 1.01
     assert 0.96 < ratio.min() and ratio.max() < 1.04, np.round(ratio, 3)

@@ -202,6 +202,19 @@ def test_volume_export_and_its_warnings(bpy_addon):
         noise = nt.nodes.new("ShaderNodeTexNoise")
         nt.links.new(noise.outputs[0], v.inputs["Density"])
         return v.outputs[0]
+    # A texture on the Density: a heterogeneous medium (engine/heterogeneous.py, hetvol39),
+    # the coefficients those at density 1.
     m = convert_material(material("textured", textured))
-    np.testing.assert_allclose(m.absorption, 3.0 * (1.0 - np.array([0.2, 0.4, 0.6])))
-    assert any("'textured'" in w and "Density" in w for w in m.warnings)
+    np.testing.assert_allclose(m.absorption, 1.0 - np.array([0.2, 0.4, 0.6]))
+    assert m.density_texture is not None and not m.warnings
+
+    def textured_and_another(nt):
+        add = nt.nodes.new("ShaderNodeAddShader")
+        nt.links.new(textured(nt), add.inputs[0])
+        nt.links.new(absorption(nt, (0.5, 0.5, 0.5), 2.0).outputs[0], add.inputs[1])
+        return add.outputs[0]
+    # Mixed with another volume node: warned, each Density at its socket's own value.
+    m = convert_material(material("textured2", textured_and_another))
+    np.testing.assert_allclose(m.absorption, 3.0 * (1.0 - np.array([0.2, 0.4, 0.6])) + 1.0)
+    assert m.density_texture is None
+    assert any("'textured2'" in w and "Density" in w for w in m.warnings)

@@ -1,0 +1,489 @@
+"""Heterogeneous media: a texture on a volume's Density (clouds, smoke puffs, patchy fog).
+
+A material whose medium has a density field (Material.density_texture: a node tree of
+engine/shadernodes.py, the same objects a Base Color texture is made of, evaluated at
+points inside the object instead of at surface hits) has the extinction
+
+    sigma_t(p) = f(p) x sigma_t_unit,   sigma_s(p) = f(p) x sigma_s_unit,
+
+f(p) = max(program(p), 0) (Cycles clamps a volume's density at 0:
+svm_node_principled_volume) and sigma_unit the material's coefficients at density 1
+(Material.absorption / scattering, exported at density 1 by addon/materials.py). The
+program reads Generated or Object coordinates; inside an undeformed mesh both are an
+affine function of the position, recovered here from the mesh's own corners (a least
+squares fit over the triangles of each object, exact for an affine map: PointGeometry).
+
+The homogeneous machinery (engine/media.py, volumescatter.py, photons) keeps working on
+a homogeneous stand-in: the material table's rows are set to the field's mean
+(f_mean x sigma_unit, f_mean from FIELD_SAMPLES points in the objects' bounds). Where
+light crosses the medium, the stand-in's factor is turned into an unbiased estimate of
+the true one (Cycles 5.0 renders heterogeneous volumes unbiased too: null scattering
+and Kettunen et al. 2021's unbiased ray-marching transmittance against octree
+majorants, volume_integrate_heterogeneous in kernel/integrator/shade_volume.h):
+
+- transmittance along a part [a, b] of a ray inside the medium: residual ratio tracking
+  about the mean (Novak et al. 2014, "Residual ratio tracking for estimating attenuation
+  in participating media"): tentative collisions x_i at the rate
+  mu = max|f - f_mean| x max_c sigma_t_unit,c, and correction_c = prod_i (1 - (f(x_i) -
+  f_mean) sigma_t_unit,c / mu), whose expectation is exp(-int (sigma_t - sigma_t_mean)),
+  T_true / T_stand-in itself (correction(); RESIDUAL False: plain ratio tracking against
+  the majorant f_max, the stand-in's exponential divided out).
+- camera segments and final-gather rays (integrator, through attenuated()), shadow rays
+  (shadowtransmittance.ShadowTransmittance.transmittance, volumescatter.in_scattered's
+  rays to a lamp inside the fog, directlight._dim_in_medium's rays of a surface inside
+  the medium), photons (photons._bounces) and the camera walks' surface term
+  (volumewalk): x correction over the parts inside such a medium.
+- scattering (volumescatter.CameraScattering.radiance and walk, photonmedium's free
+  flights): the distance is drawn as for the stand-in (any pdf is unbiased) and the
+  weight T(s) sigma_s(s) / pdf(s) takes the field: w x correction(0, s) x f(p) / f_mean
+  (scatter_weights).
+
+The bound: the field's largest and smallest values and its mean over FIELD_SAMPLES points
+(a jittered grid) in the bounds of the objects that carry the material, the range x
+MAJORANT_MARGIN. A field beyond it somewhere (a peak between the samples) stays unbiased
+(a factor below 0 there) but noisier.
+
+Random numbers: the tracking steps draw from a counter-based hash of the render's seed
+and the ray itself (its origin and direction bits and the part's start, splitmix64):
+the same seed gives the same image for any worker count, and no stream's draws shift
+(a scene without a density texture renders exactly as before).
+
+Not heterogeneous (the stand-in at the mean density, warned: `limits`): an emitting
+medium's emission integral (engine/volumeemission.py). The World Volume and objects with
+shared instances keep a constant density (warned).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+FIELD_SAMPLES = 32 ** 3  # points per object for the majorant and the mean
+MAJORANT_MARGIN = 1.25
+# Residual ratio tracking (Novak et al. 2014) about the stand-in's mean density: the
+# tentative collisions at the rate of the largest |f - f_mean| (x MAJORANT_MARGIN) and
+# the factors 1 - (f(x) - f_mean) sigma_t_unit / mu, whose product is T / T_mean itself
+# (the correction, nothing divided out); False: plain ratio tracking against the majorant.
+RESIDUAL = True
+MAX_CROSSINGS = 8  # medium intervals followed along one ray
+MAX_STEPS = 4096  # tracking steps per interval (a runaway majorant guard)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _splitmix(x: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser on uint64 arrays (wrapping arithmetic)."""
+    with np.errstate(over="ignore"):
+        x = x + _GOLDEN
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return x ^ (x >> np.uint64(31))
+
+
+def ray_keys(seed: int, o: np.ndarray, d: np.ndarray, salt: int = 0) -> np.ndarray:
+    """(n,) uint64 a key per ray from the seed and the ray's float64 bits (o, d (n,3))."""
+    bits = np.ascontiguousarray(np.concatenate([np.asarray(o, np.float64),
+                                                np.asarray(d, np.float64)], axis=1))
+    bits = bits.view(np.uint64)
+    h = np.full(len(bits), np.uint64((int(seed) * 0x2545F4914F6CDD1D + salt)
+                                     & 0xFFFFFFFFFFFFFFFF), np.uint64)
+    for c in range(bits.shape[1]):
+        h = _splitmix(h ^ bits[:, c])
+    return h
+
+
+def uniforms(keys: np.ndarray, step) -> np.ndarray:
+    """(n,) float64 in [0, 1): number `step` ((n,) or scalar) of each key's stream."""
+    with np.errstate(over="ignore"):
+        x = _splitmix(keys ^ (np.asarray(step, np.uint64) * np.uint64(0xD1B54A32D192ED03)))
+    return (x >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+class PointGeometry:
+    """A Geometry stand-in for evaluating a node tree at points inside objects: prim is
+    the point's index; coordinates(name) applies each point's object's affine map
+    (world -> that texture space, fitted by HeterogeneousMedia)."""
+
+    def __init__(self, points, obj, maps, offset):
+        self.points = np.asarray(points, np.float64)
+        self.obj = np.asarray(obj, np.int64)
+        self.maps = maps  # {(object, name): (4,3)}
+        self.offset = offset
+
+    def coordinates(self, name, prim, u, v):
+        p = self.points[np.asarray(prim, np.int64)]
+        ob = self.obj[np.asarray(prim, np.int64)]
+        out = np.zeros((len(p), 3))
+        for k in np.unique(ob):
+            A = self.maps.get((int(k), name))
+            if A is None:
+                continue
+            sel = ob == k
+            out[sel] = p[sel] @ A[:3] + A[3]
+        return out
+
+    def hit_points(self, prim, u, v):
+        return self.points[np.asarray(prim, np.int64)]
+
+    def uvs(self, prim, u, v):
+        return np.zeros((len(prim), 2))
+
+    def colors(self, prim, u, v):
+        return np.zeros((len(prim), 3))
+
+
+class Field:
+    """One material's density field: node, sigma_t_unit (3,), sigma_s_unit (3,), f_max,
+    f_mean, mu (the majorant extinction, 1/m)."""
+
+    def __init__(self, node, sigma_t_unit, sigma_s_unit):
+        self.node = node
+        self.sigma_t_unit = np.asarray(sigma_t_unit, np.float64)
+        self.sigma_s_unit = np.asarray(sigma_s_unit, np.float64)
+        self.f_max = 0.0
+        self.f_mean = 0.0
+        self.f_range = 0.0  # bound on |f - f_mean| (residual tracking's)
+
+    @property
+    def mu(self) -> float:
+        """The tracking rate (1/m): the majorant's, or with RESIDUAL the residual's."""
+        bound = self.f_range if RESIDUAL else self.f_max
+        return bound * float(np.max(self.sigma_t_unit))
+
+
+class HeterogeneousMedia:
+    """The scene's heterogeneous media (None from for_scene when there are none)."""
+
+    def __init__(self, geo, table, fields: dict, seed: int = 0):
+        self.geo = geo
+        self.table = table
+        self.fields = fields  # material row -> Field
+        self.seed = int(seed)
+        self.warnings: list[str] = []
+        self.maps = {}
+        mats = np.asarray(geo.material)
+        rows = np.flatnonzero(np.isin(mats, list(fields)))
+        self.rows = rows  # the triangles of heterogeneous materials
+        v0 = np.asarray(geo.v0, np.float64)[rows]
+        e1 = np.asarray(geo.e1, np.float64)[rows]
+        e2 = np.asarray(geo.e2, np.float64)[rows]
+        self.normal = np.cross(e1, e2)
+        self.material = mats[rows].astype(np.int64)
+        self.object = np.asarray(geo.object_id)[rows].astype(np.int64)
+        corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (R,3,3)
+        self._fit_maps(corners)
+        self._measure(corners)
+        verts = corners.reshape(-1, 3)
+        from .accel import Accel
+        self.accel = Accel(verts.astype(np.float32),
+                           np.arange(len(verts), dtype=np.int32).reshape(-1, 3))
+        # Commit the BVH on this thread: the camera pass's workers then only read it.
+        self.accel.intersect(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))
+        # The homogeneous stand-in: the table's rows at the mean density.
+        for m, f in fields.items():
+            table.absorption[m] = f.f_mean * (f.sigma_t_unit - f.sigma_s_unit)
+            table.scattering[m] = f.f_mean * f.sigma_s_unit
+
+    @classmethod
+    def for_scene(cls, geo, table, seed: int = 0):
+        """HeterogeneousMedia, or None when no material of the table has a density
+        texture (table.density_textures) on a triangle of geo."""
+        textures = getattr(table, "density_textures", None)
+        if not textures or all(t is None for t in textures) or geo.count == 0:
+            return None
+        fields = {}
+        for m, node in enumerate(textures):
+            if node is None:
+                continue
+            a = np.asarray(table.absorption[m], np.float64)
+            s = np.asarray(table.scattering[m], np.float64)
+            fields[m] = Field(node, a + s, s)
+        if getattr(geo, "shared", None) is not None:
+            # (a shared instance's triangles are not in the flat tables this reads)
+            for m in fields:
+                table.density_textures[m] = None
+            return _Warned([f"material '{table.names[m]}': a density texture on objects "
+                            "with shared instances (instanced copies) is not supported; "
+                            "rendered as a homogeneous medium of density 1" for m in fields])
+        used = set(np.unique(np.asarray(geo.material)).tolist())
+        fields = {m: f for m, f in fields.items() if m in used}
+        if not fields:
+            return None
+        # A tree that reads what a point inside a volume does not have (a surface's
+        # normal, a camera's view...): warned, the medium homogeneous at density 1.
+        warnings = []
+        for m in list(fields):
+            try:
+                probe = PointGeometry(np.zeros((2, 3)), np.zeros(2, np.int64), {},
+                                      np.asarray(geo.offset, np.float64))
+                _field_values(fields[m].node, probe, 2)
+            except Exception as exc:  # noqa: BLE001 - any node's failure, reported
+                warnings.append(f"material '{table.names[m]}': its density texture cannot "
+                                f"be evaluated inside the volume ({type(exc).__name__}: "
+                                f"{exc}); rendered as a homogeneous medium of density 1")
+                table.density_textures[m] = None
+                del fields[m]
+        if not fields:
+            return _Warned(warnings)
+        het = cls(geo, table, fields, seed)
+        het.warnings[:0] = warnings
+        return het
+
+    # -- setup ---------------------------------------------------------------------
+    def _fit_maps(self, corners):
+        """The affine maps world -> each corner coordinate space of each object
+        (least squares over its corners; warned when the fit is not exact: a deformed
+        mesh, whose coordinates are not affine in the position)."""
+        cc = getattr(self.geo, "corner_coordinates", None) or {}
+        for name, table in cc.items():
+            if name not in ("generated", "object"):
+                continue
+            vals = np.asarray(table, np.float64)[self.rows]  # (R,3,3)
+            for k in np.unique(self.object):
+                sel = self.object == k
+                P = corners[sel].reshape(-1, 3)
+                C = vals[sel].reshape(-1, 3)
+                if len(P) > 3000:
+                    pick = np.linspace(0, len(P) - 1, 3000).astype(np.int64)
+                    P, C = P[pick], C[pick]
+                X = np.concatenate([P, np.ones((len(P), 1))], axis=1)
+                A, *_ = np.linalg.lstsq(X, C, rcond=None)
+                err = float(np.max(np.abs(X @ A - C))) if len(C) else 0.0
+                scale = max(float(np.max(np.abs(C))) if len(C) else 0.0, 1.0)
+                if err > 1e-4 * scale:
+                    self.warnings.append(
+                        f"object '{self._object_name(k)}': its {name.title()} coordinates "
+                        "are not an affine function of the position (a deformed mesh); "
+                        f"the volume's density reads the nearest affine map (error {err:.3g})")
+                self.maps[(int(k), name)] = A
+
+    def _object_name(self, k):
+        names = getattr(self.geo, "object_names", None)
+        try:
+            return names[int(k)]
+        except (TypeError, IndexError):
+            return str(k)
+
+    def _measure(self, corners):
+        """f_max (x MAJORANT_MARGIN) and f_mean of each field over FIELD_SAMPLES jittered
+        grid points in the bounds of each object that carries it."""
+        rng = np.random.default_rng([self.seed, 39, 14])
+        n = round(FIELD_SAMPLES ** (1.0 / 3.0))
+        g = (np.arange(n) + 0.5) / n
+        grid = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+        for m, f in self.fields.items():
+            tot, cnt, top, low = 0.0, 0, 0.0, math.inf
+            for k in np.unique(self.object[self.material == m]):
+                sel = (self.object == k) & (self.material == m)
+                P = corners[sel].reshape(-1, 3)
+                lo, hi = P.min(axis=0), P.max(axis=0)
+                jit = (rng.random(grid.shape) - 0.5) / n
+                pts = lo + (hi - lo) * np.clip(grid + jit, 0.0, 1.0)
+                vals = self._density(f, pts, np.full(len(pts), k))
+                tot += float(vals.sum())
+                cnt += len(vals)
+                top = max(top, float(vals.max()) if len(vals) else 0.0)
+                low = min(low, float(vals.min()) if len(vals) else 0.0)
+            f.f_mean = tot / max(cnt, 1)
+            f.f_max = top * MAJORANT_MARGIN
+            f.f_range = max(top - f.f_mean, f.f_mean - low, 0.0) * MAJORANT_MARGIN
+
+    def _density(self, f: Field, points, obj) -> np.ndarray:
+        """(n,) the field f at points (n,3) (re-centred world) of objects obj (n,)."""
+        n = len(points)
+        if n == 0:
+            return np.zeros(0)
+        pg = PointGeometry(points, obj, self.maps, np.asarray(self.geo.offset, np.float64))
+        return _field_values(f.node, pg, n)
+
+    def density(self, m: int, points, obj) -> np.ndarray:
+        """(n,) material m's density field at points (n,3) inside objects obj (n,)."""
+        return self._density(self.fields[int(m)], points, obj)
+
+    # -- transport -----------------------------------------------------------------
+    def intervals(self, o, u, length):
+        """The parts of the rays o + s u (u unit, s in [0, length]) inside heterogeneous
+        media: (ray (K,), a (K,), b (K,), material (K,), object (K,)). A part starts
+        at the ray's origin when the ray's first crossing is a back face (it starts
+        inside), or at a front face; it ends at the next back face or at length."""
+        n = len(o)
+        out = ([], [], [], [], [])
+        cur = np.zeros(n)
+        idx = np.arange(n)
+        for _ in range(2 * MAX_CROSSINGS):
+            if len(idx) == 0:
+                break
+            start = o[idx] + u[idx] * cur[idx, None]
+            t, prim, _, _ = self.accel.intersect(start, u[idx])
+            hit = prim >= 0
+            idx, t, prim = idx[hit], np.asarray(t)[hit], np.asarray(prim, np.int64)[hit]
+            if len(idx) == 0:
+                break
+            back = np.einsum("ij,ij->i", u[idx], self.normal[prim]) > 0.0
+            end = cur[idx] + t
+            b_i = back
+            if b_i.any():
+                r = idx[b_i]
+                a = cur[r]
+                b = np.minimum(end[b_i], length[r])
+                ok = b > a
+                out[0].append(r[ok])
+                out[1].append(a[ok])
+                out[2].append(b[ok])
+                out[3].append(self.material[prim[b_i]][ok])
+                out[4].append(self.object[prim[b_i]][ok])
+            # step just past the crossing (a relative nudge: the same face is not met
+            # again)
+            cur[idx] = end + 1e-6 * np.maximum(1.0, np.abs(end))
+            go = cur[idx] < length[idx]
+            idx = idx[go]
+        if not out[0]:
+            e = np.zeros(0, np.int64)
+            return e, np.zeros(0), np.zeros(0), e, e
+        return tuple(np.concatenate(x) for x in out)
+
+    def ratio_tracking(self, o, u, keys, a, b, m, obj):
+        """(K,3) per part ray o + s u, s in [a, b] (K,) of material m, object obj: the
+        ratio-tracking estimate of exp(-integral sigma_t) per channel, from each part's
+        key stream (keys (K,) uint64)."""
+        K = len(a)
+        T = np.ones((K, 3))
+        mu = np.array([self.fields[int(x)].mu for x in m]) if K else np.zeros(0)
+        unit = (np.array([self.fields[int(x)].sigma_t_unit for x in m]).reshape(-1, 3))
+        centre = (np.array([self.fields[int(x)].f_mean for x in m]) if RESIDUAL
+                  else np.zeros(K))
+        x = np.array(a, np.float64)
+        alive = np.flatnonzero(mu > 0.0)
+        step = 0
+        while len(alive) and step < MAX_STEPS:
+            r = uniforms(keys[alive], step)
+            x[alive] += -np.log1p(-r) / mu[alive]
+            alive = alive[x[alive] < b[alive]]
+            step += 1
+            if not len(alive):
+                break
+            pts = o[alive] + u[alive] * x[alive, None]
+            f = np.zeros(len(alive))
+            for mm in np.unique(m[alive]):
+                sel = m[alive] == mm
+                f[sel] = self.density(mm, pts[sel], obj[alive][sel])
+            T[alive] *= 1.0 - (f - centre[alive])[:, None] * unit[alive] / mu[alive, None]
+            # (a part whose estimate reached 0 stays 0: stop tracking it)
+            alive = alive[np.any(T[alive] != 0.0, axis=1)]
+        return T
+
+    def correction(self, o, d, tmax, salt: int = 0) -> np.ndarray:
+        """(n,3) the factor that turns the homogeneous stand-in's transmittance of the
+        segments o + t d, t in [0, tmax] (units of |d|; o, d (n,3)) into the
+        heterogeneous media's (ratio tracking over each part inside one, divided by the
+        stand-in's exp(-sigma_t_mean (b - a)) there); 1 for segments outside them."""
+        o = np.asarray(o, np.float64)
+        d = np.asarray(d, np.float64)
+        n = len(o)
+        out = np.ones((n, 3))
+        if n == 0:
+            return out
+        dl = np.linalg.norm(d, axis=1)
+        ok = dl > 0
+        u = np.where(ok[:, None], d / np.where(ok, dl, 1.0)[:, None], 0.0)
+        length = np.where(ok, np.maximum(np.asarray(tmax, np.float64), 0.0) * dl, 0.0)
+        ray, a, b, m, obj = self.intervals(o, u, length)
+        if not len(ray):
+            return out
+        keys = ray_keys(self.seed, o[ray], d[ray], salt) ^ (a.view(np.uint64))
+        T = self.ratio_tracking(o[ray], u[ray], keys, a, b, m, obj)
+        if not RESIDUAL:
+            # the stand-in's factor, divided out (it is at least exp(-700) in any scene
+            # whose mean optical depth is below 700)
+            mean = np.array([self.fields[int(x)].f_mean * self.fields[int(x)].sigma_t_unit
+                             for x in m]).reshape(-1, 3)
+            T = T * np.exp(np.minimum(mean * (b - a)[:, None], 700.0))
+        np.multiply.at(out, ray, T)
+        return out
+
+    def scatter_weights(self, o, d, pts, seg_m, w):
+        """Single scattering's weights w (K,3) at points pts (K,3) (rays from o along d
+        (K,3)) in media seg_m (K,), drawn for the stand-in: the heterogeneous media's
+        rows x correction(o -> p) x f(p) / f_mean, in place."""
+        het = np.isin(seg_m, list(self.fields))
+        if not het.any():
+            return w
+        i = np.flatnonzero(het)
+        o_i = np.asarray(o, np.float64)[i]
+        p_i = np.asarray(pts, np.float64)[i]
+        seg = p_i - o_i
+        w[i] *= self.correction(o_i, seg, np.ones(len(i)), salt=1)
+        # the point's object: the medium's interval the point lies in
+        s = np.linalg.norm(seg, axis=1)
+        u = seg / np.maximum(s, 1e-300)[:, None]
+        obj = self._object_at(o_i, u, s)
+        for mm in np.unique(seg_m[i]):
+            sel = seg_m[i] == mm
+            f = self.fields[int(mm)]
+            dens = self.density(mm, p_i[sel], obj[sel])
+            w[i[sel]] *= (dens / f.f_mean)[:, None] if f.f_mean > 0 else 0.0
+        return w
+
+    def _object_at(self, o, u, s):
+        """(n,) the object of the first heterogeneous face beyond o + s u along u (the
+        face the medium's part that holds the point ends on; -1: none)."""
+        t, prim, _, _ = self.accel.intersect(o + u * s[:, None], u)
+        prim = np.asarray(prim, np.int64)
+        return np.where(prim >= 0, self.object[np.maximum(prim, 0)], -1)
+
+    def describe(self) -> str:
+        """The effect report's line: each textured medium's density range."""
+        return "; ".join(
+            f"density texture of '{self.table.names[m]}': mean {f.f_mean:.3g}, largest "
+            f"{f.f_max / MAJORANT_MARGIN:.3g} over its objects' bounds (the homogeneous "
+            "stand-in at the mean, corrected by residual ratio tracking along camera "
+            "segments, shadow rays and photons; single scattering at the field's value)"
+            for m, f in self.fields.items())
+
+    def limits(self, settings=None) -> list[str]:
+        """Warnings for what renders at the stand-in's mean density in this render: an
+        emitting medium's emission integral; one per material, naming it."""
+        out = list(self.warnings)
+        emit = getattr(self.table, "volume_emission", None)
+        for m, f in self.fields.items():
+            if emit is not None and np.any(np.asarray(emit[m]) > 0):
+                out.append(f"material '{self.table.names[m]}': its density texture is "
+                           "followed by camera rays, scattering, shadow rays and photons, "
+                           "but its emission is integrated at its mean density "
+                           f"{f.f_mean:.4g} (a homogeneous glow)")
+        return out
+
+
+def _field_values(node, pg, n) -> np.ndarray:
+    """(n,) max(node's value, 0) at the n points of PointGeometry pg (a colour: its
+    luminance, shadernodes._eval's conversion into a value; NaN read as 0)."""
+    from .shadernodes import _eval
+    prim = np.arange(n, dtype=np.int64)
+    z = np.zeros(n)
+    val = _eval(node, pg, prim, z, z, 1)
+    return np.maximum(np.nan_to_num(np.asarray(val, np.float64), nan=0.0), 0.0)
+
+
+class _Warned:
+    """for_scene's answer when density textures cannot be rendered heterogeneous: only
+    its warnings (no field)."""
+
+    fields: dict = {}
+
+    def __init__(self, warnings):
+        self.warnings = warnings
+
+    def limits(self, settings=None):
+        return list(self.warnings)
+
+
+def attenuated(ctx, tp, o, d, t, prim) -> np.ndarray:
+    """The camera or gather paths' throughput tp (n,3) after media.attenuated, with the
+    heterogeneous media's correction over their last segment (o, d (n,3), t (n,) in
+    units of |d|, ending on prim (n,)); tp itself without heterogeneous media."""
+    het = getattr(ctx, "hetero", None)
+    if het is None or not het.fields or len(tp) == 0:
+        return tp
+    c = het.correction(o, d, np.where(np.asarray(prim) >= 0, t, 0.0), salt=2)
+    if np.all(c == 1.0):
+        return tp
+    return np.asarray(tp, np.float64) * c
