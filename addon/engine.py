@@ -73,6 +73,58 @@ def _surface_passes():
                  for sw, name, *rest in SURFACE_PASSES)
 
 
+# Cycles' light passes (engine/lightpasses.py): (view layer switch, Blender 5's pass name,
+# Film.data key), in Cycles' add-on's order; Blender 4 named them DiffDir, ... Emit, Env.
+# Blender shows Direct / Indirect divided by their Color pass (lightpasses.shown).
+LIGHT_PASSES = (("use_pass_diffuse_direct", "Diffuse Direct", "diffuse_direct"),
+                ("use_pass_diffuse_indirect", "Diffuse Indirect", "diffuse_indirect"),
+                ("use_pass_glossy_direct", "Glossy Direct", "glossy_direct"),
+                ("use_pass_glossy_indirect", "Glossy Indirect", "glossy_indirect"),
+                ("use_pass_transmission_direct", "Transmission Direct", "transmission_direct"),
+                ("use_pass_transmission_indirect", "Transmission Indirect",
+                 "transmission_indirect"),
+                ("use_pass_emit", "Emission", "emission"),
+                ("use_pass_environment", "Environment", "environment"))
+_OLD_LIGHT_NAMES = {"Diffuse Direct": "DiffDir", "Diffuse Indirect": "DiffInd",
+                    "Glossy Direct": "GlossDir", "Glossy Indirect": "GlossInd",
+                    "Transmission Direct": "TransDir", "Transmission Indirect": "TransInd",
+                    "Emission": "Emit", "Environment": "Env"}
+
+
+# Cycles' Volume Direct / Indirect (view_layer.cycles' switches): made at Volume bounces 0
+# (Cycles' default), where the media's light is single scattering of the lights at the
+# camera segments (lightpasses.shown's volume_bounces); warned above it.
+VOLUME_PASSES = (("use_pass_volume_direct", "Volume Direct", "volume_direct"),
+                 ("use_pass_volume_indirect", "Volume Indirect", "volume_indirect"))
+_OLD_LIGHT_NAMES.update({"Volume Direct": "VolumeDir", "Volume Indirect": "VolumeInd"})
+
+
+def _volume_bounces(scene) -> int:
+    return int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0) or 0)
+
+
+def _light_passes(view_layer=None, scene=None):
+    """LIGHT_PASSES with this Blender's pass names (those view_layer asks for: all when
+    None), and VOLUME_PASSES asked for when scene renders at Volume bounces 0."""
+    new = bpy.app.version >= (5, 0, 0)
+    out = [(sw, name if new else _OLD_LIGHT_NAMES[name], key)
+           for sw, name, key in LIGHT_PASSES
+           if view_layer is None or getattr(view_layer, sw, False)]
+    cyc = getattr(view_layer, "cycles", None)
+    if scene is not None and cyc is not None and _volume_bounces(scene) == 0:
+        out += [(sw, name if new else _OLD_LIGHT_NAMES[name], key)
+                for sw, name, key in VOLUME_PASSES if getattr(cyc, sw, False)]
+    return tuple(out)
+
+
+def _effect_passes(view_layer):
+    """EFFECT_PASSES the view layer gets: in Blender 5 Cycles' Emission pass (use_pass_emit)
+    takes the name "Emission", so our Emission effect pass gives way to it."""
+    if bpy.app.version >= (5, 0, 0) and getattr(view_layer, "use_pass_emit", False):
+        return tuple(p for p in EFFECT_PASSES if p[0] != "Emission")
+    return EFFECT_PASSES
+
+
 def _color_passes():
     """COLOR_PASSES with this Blender's pass names."""
     if bpy.app.version >= (5, 0, 0):
@@ -83,20 +135,12 @@ def _color_passes():
 UNMADE_PASSES = (
     ("", "use_pass_vector", "Vector"), ("", "use_pass_shadow", "Shadow"),
     ("", "use_pass_ambient_occlusion", "Ambient Occlusion"),
-    ("", "use_pass_emit", "Emission (Cycles'; the Photon Mapping Emission effect pass is ours)"),
-    ("", "use_pass_environment", "Environment"),
-    ("", "use_pass_diffuse_direct", "Diffuse Direct"),
-    ("", "use_pass_diffuse_indirect", "Diffuse Indirect"),
-    ("", "use_pass_glossy_direct", "Glossy Direct"),
-    ("", "use_pass_glossy_indirect", "Glossy Indirect"),
-    ("", "use_pass_transmission_direct", "Transmission Direct"),
-    ("", "use_pass_transmission_indirect", "Transmission Indirect"),
     ("", "use_pass_subsurface_direct", "Subsurface Direct"),
     ("", "use_pass_subsurface_indirect", "Subsurface Indirect"),
     ("", "use_pass_subsurface_color", "Subsurface Color"),
     ("", "use_pass_grease_pencil", "Grease Pencil"),
-    ("cycles", "use_pass_volume_direct", "Volume Direct"),
-    ("cycles", "use_pass_volume_indirect", "Volume Indirect"),
+    ("cycles", "use_pass_volume_direct", "Volume Direct (made at Volume bounces 0)"),
+    ("cycles", "use_pass_volume_indirect", "Volume Indirect (made at Volume bounces 0)"),
     ("cycles", "pass_render_time", "Render Time"),
 )
 
@@ -137,15 +181,22 @@ def data_passes(view_layer) -> tuple:
         out.append("denoising")
     if any(getattr(view_layer, switch, False) for switch, _, _ in COLOR_PASSES):
         out.append("color")
+    cyc = getattr(view_layer, "cycles", None)
+    if (any(getattr(view_layer, switch, False) for switch, _, _ in LIGHT_PASSES)
+            or any(getattr(cyc, switch, False) for switch, _, _ in VOLUME_PASSES)):
+        out.append("light")  # (brings "color": Blender divides by it)
     out += [key for switch, _, key, *_ in SURFACE_PASSES if getattr(view_layer, switch, False)]
     return tuple(out)
 
 
-def unmade_passes_warning(view_layer, adaptive: bool = False):
+def unmade_passes_warning(view_layer, adaptive: bool = False, volume_bounces: int = 0):
     """One warning naming the passes view_layer asks for that the engine does not make
-    (they stay empty), or None."""
+    (they stay empty), or None. volume_bounces: the scene's Light Paths > Volume bounces
+    (the volume passes are made at 0)."""
     names = []
     for owner, switch, label in UNMADE_PASSES:
+        if volume_bounces == 0 and switch in {sw for sw, _, _ in VOLUME_PASSES}:
+            continue
         holder = getattr(view_layer, owner, None) if owner else view_layer
         if holder is not None and bool(getattr(holder, switch, False)):
             names.append(label)
@@ -371,7 +422,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         effects = settings is None or settings.use_pass_effects
         hits = settings is None or settings.use_pass_photon_hits
         if effects:
-            for name, _ in EFFECT_PASSES:
+            for name, _ in _effect_passes(renderlayer):
                 self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         if hits:
             self.register_pass(scene, renderlayer, PHOTON_PASS[0], 3, "RGB", "COLOR")
@@ -385,6 +436,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
+        for _, name, _ in _light_passes(renderlayer, scene):
+            self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         for switch, name, _, channels, chan_id, kind in _surface_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
@@ -488,7 +541,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         kwargs["pass_alpha_threshold"] = float(getattr(view_layer, "pass_alpha_threshold",
                                                        0.5))
         settings = pm.RenderSettings(**kwargs)
-        unmade = unmade_passes_warning(view_layer, _adaptive(scene))
+        unmade = unmade_passes_warning(view_layer, _adaptive(scene), _volume_bounces(scene))
         if unmade is not None:  # said with the export's warnings, kept in film.warnings
             pm_scene.warnings.append(unmade)
         # Refuse what cannot fit before anything big is allocated (Blender's render result
@@ -739,7 +792,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         layer = view_layer.name
         settings = getattr(view_layer, "photonmap", None)
         if settings is None or settings.use_pass_effects:
-            for name, _ in EFFECT_PASSES:
+            for name, _ in _effect_passes(view_layer):
                 self.add_pass(name, 3, "RGB", layer=layer)
         if settings is None or settings.use_pass_photon_hits:
             self.add_pass(PHOTON_PASS[0], 3, "RGB", layer=layer)
@@ -753,6 +806,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, 3, "RGB", layer=layer)
+        for _, name, _ in _light_passes(view_layer, view_layer.id_data):
+            self.add_pass(name, 3, "RGB", layer=layer)
         for switch, name, _, channels, chan_id, _ in _surface_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, channels, chan_id, layer=layer)
@@ -784,7 +839,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             buffers = {"Combined": rgba}
             if with_pass:
                 buffers[SHADOW_CATCHER_PASS] = catcher.shadow_catcher_pass(film, transparent)
-            for name, attr in EFFECT_PASSES + (PHOTON_PASS,):
+            for name, attr in _effect_passes(view_layer) + (PHOTON_PASS,):
                 buffers[name] = getattr(film, attr)
             depth = np.where(np.isfinite(film.depth), film.depth, BACKGROUND_DEPTH)
             buffers["Depth"] = depth[:, :, None]
@@ -795,6 +850,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                               + [(p[1], p[2]) for p in _surface_passes()]):
                 if key in data:
                     buffers[name] = data[key] if data[key].ndim == 3 else data[key][:, :, None]
+            # The light passes as Blender shows them (Direct / Indirect / Color).
+            scene = view_layer.id_data
+            shown = _engine_module("lightpasses").shown(data, _volume_bounces(scene))
+            for _, name, key in _light_passes(view_layer, scene):
+                if key in shown:
+                    buffers[name] = shown[key]
             if film.sample_count is not None:  # the share of Samples each pixel took
                 spp = float(film.stats.get("adaptive_spp") or film.sample_count.max() or 1.0)
                 buffers[SAMPLE_COUNT_PASS] = (film.sample_count / spp)[:, :, None]

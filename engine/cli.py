@@ -251,8 +251,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--data-passes", type=_data_passes, metavar="KINDS",
                    help="Cycles' data passes to make, comma-separated: denoising (Denoising "
                         "Normal / Albedo / Depth), color (Diffuse / Glossy / Transmission "
-                        "Color), object_index, material_index, position, uv, mist; written "
-                        "with --save-passes")
+                        "Color), light (Cycles' Diffuse / Glossy / Transmission Direct and "
+                        "Indirect, Emission, Environment; brings color), object_index, "
+                        "material_index, position, uv, mist; written with --save-passes")
     r.add_argument("--strip", action="store_true",
                    help="also write the effect passes and their sum side by side, labelled, "
                         "as name.strip.png (docs/teaching.md)")

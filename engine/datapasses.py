@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import lightpasses
 from .camerakernels import film_add, film_add_scalar, hit_closures, view_depth
 from .closures import principled as pr
 
@@ -72,8 +73,11 @@ SURFACE = {"object_index": (("Object Index", "object_index", 1),),
            "position": (("Position", "position", 3),),
            "uv": (("UV", "uv", 3),),
            "mist": (("Mist", "mist", 1),)}
-PASSES = {"denoising": DENOISING, "color": COLOR, **SURFACE}
-ORDER = ("denoising", "color", "object_index", "material_index", "position", "uv", "mist")
+# Cycles' light passes (engine/lightpasses.py: raw sums, divided by colour when shown).
+LIGHT = lightpasses.PASSES
+PASSES = {"denoising": DENOISING, "color": COLOR, "light": LIGHT, **SURFACE}
+ORDER = ("denoising", "color", "light", "object_index", "material_index", "position", "uv",
+         "mist")
 # Written by each pixel's first sample and kept as written (not per-sample averages).
 FIRST_SAMPLE = frozenset(("object_index", "material_index", "position"))
 

@@ -1000,7 +1000,8 @@ class DirectLightBuffers:
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
                  bsdf=None, buffers=None, rows=None, transmission=None, passages=None,
-                 light_cut=None, medium_sigma=None, world_sigma=None, link=None):
+                 light_cut=None, medium_sigma=None, world_sigma=None, link=None,
+                 glossy=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -1043,6 +1044,10 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     lights its set is not linked to (their samples are zero, as Cycles' light_sample
     refuses them), and a light's shadow rays meet only its blockers (LightLinks.direct).
     None: every light lights every hit, every object blocks.
+    glossy: None, or with bsdf (and no link) an (n,3) float64 array that receives the
+    rough reflective lobes' part of the radiance, sheen aside (accumulate_bsdf again over
+    the same entries with the diffuse f and the sheen's weight at 0: the light passes'
+    Glossy Direct, engine/lightpasses.py).
     Returns (E or radiance, number of shadow rays traced)."""
     if link is not None and n and samples:
         links, recv = link
@@ -1077,6 +1082,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
             bent = True  # (the entries' bump column carries the lobes' split)
     rays = 0
     zeros = None
+    glossy_bsdf = None  # (fd, prm) of the glossy part, made when first needed
     for a in range(0, len(samples), per_call):
         group = samples[a:a + per_call]
         K = len(group)
@@ -1169,6 +1175,20 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
             accumulate_bsdf(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked,
                             m_all, buf.wdir, buf.lpdf, mode[klight], fd, prm, hit_arrays[1], wo,
                             sel, bump, hrow, cut)
+            if glossy is not None:
+                if glossy_bsdf is None:
+                    # The diffuse f at 0 and the sheen's weight at 0 (its pdf, which the
+                    # MIS weight reads, kept): the glossy lobes alone, every entry
+                    # (an untraced one carries no cut).
+                    prm_g = prm
+                    if prm[:, pr.P_SHEEN_W:pr.P_SHEEN_W + 3].any():
+                        prm_g = prm.copy()
+                        prm_g[:, pr.P_SHEEN_W:pr.P_SHEEN_W + 3] = 0.0
+                    glossy_bsdf = (np.zeros_like(fd), prm_g)
+                accumulate_bsdf(glossy, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples,
+                                blocked, m_all, buf.wdir, buf.lpdf, mode[klight],
+                                glossy_bsdf[0], glossy_bsdf[1], hit_arrays[1], wo, sel, bump,
+                                hrow, cut)
         rays += m_rays
     return E, rays
 

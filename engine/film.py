@@ -85,8 +85,10 @@ class Film:
         (signed camera-space normals, depths in metres, albedos), so linear float whatever
         the image's own format, as Blender's multilayer EXR keeps them."""
         from .imageio import write_image
+        from .lightpasses import shown
         paths = []
-        for key, img in self.data.items():
+        # (The light passes as Blender shows them: Direct / Indirect divided by Color.)
+        for key, img in {**self.data, **shown(self.data)}.items():
             rgb = img if img.ndim == 3 else np.repeat(img[..., None], 3, axis=2)
             paths.append(f"{root}.{key}.exr")
             write_image(rgb, paths[-1])

@@ -28,9 +28,9 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
-from . import (adaptive, chaincounts, datapasses, heterogeneous, media, photonvisibility,
-               sampleclamp, shadelight, volumeemission, volumescatter, volumewalk,
-               worldmedium)
+from . import (adaptive, chaincounts, datapasses, heterogeneous, lightpasses, media,
+               photonvisibility, sampleclamp, shadelight, volumeemission, volumescatter,
+               volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -126,7 +126,7 @@ _EMPTY_F = np.zeros(0)
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                       skip_mesh_lights=False, bsdf=None, buffers=None, rows=None,
-                      counts=None, shade_glossy=None) -> np.ndarray:
+                      counts=None, shade_glossy=None, glossy_out=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
@@ -151,7 +151,10 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     shade_glossy: None, or an (n,) bool array set True at the rows whose rough reflective
     lobes took the lamps through shades (shadelight.shade_light's glossy: the
     continuation that meets the shade from them is then MIS-weighted,
-    shadelight.shade_bsdf_weights); False elsewhere."""
+    shadelight.shade_bsdf_weights); False elsewhere.
+    glossy_out: None, or an (n,3) zero array that receives, with bsdf, the rough
+    reflective lobes' part of the result, sheen aside (Cycles counts sheen as diffuse;
+    the light passes' Glossy Direct, engine/lightpasses.py): direct_light's glossy."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     light_cut = None
@@ -195,14 +198,28 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 # The lobes' caps differ: both, per hit (directlight.direct_light).
                 passages = np.ascontiguousarray(
                     np.broadcast_to(np.stack([cap, gcap], axis=-1), (n, 2)), np.int64)
+    link = receiver_link(ctx, hit, rows, skip_mesh_lights)
+    # The glossy lobes' part, summed beside E from the same entries (no number drawn:
+    # the image keeps its bits); with Light Linking by a second pass (below).
+    g_out = glossy_out if bsdf is not None and link is None else None
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
                            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
-                           else None, link=receiver_link(ctx, hit, rows, skip_mesh_lights))
+                           else None, link=link, glossy=g_out)
     counters.shadow_rays += rays
+    if glossy_out is not None and bsdf is not None and link is not None:
+        # Light Linking splits the hits by receiver set: the same samples again with the
+        # diffuse f at 0 (fresh buffers; sheen's light then counts as glossy).
+        glossy_out += direct_light(
+            packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel, SHADOW, n,
+            shadow=shadow, tree=None if chosen is None else chosen[1],
+            bsdf=(np.zeros_like(bsdf[0]),) + bsdf[1:], rows=rows, passages=passages,
+            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
+            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None else None,
+            link=link)[0]
     if shade_glossy is not None:
         shade_glossy[:] = False
     panes, shades = panes_for(ctx), shades_for(ctx)
@@ -270,6 +287,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             Es[~diffuse[pts]] = 0.0
             g_on = gloss[pts]
             Es[g_on] += Lg[g_on]
+            if glossy_out is not None:
+                glossy_out[pts[g_on]] += Lg[g_on]
             if shade_glossy is not None:
                 shade_glossy[pts[g_on]] = True
         E[pts] += Es
@@ -704,6 +723,8 @@ def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org
             s, np.take(chain[:, 0], rows) - 1))
     acc.add(target, pix, L, tp, rows)
     datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
+    if acc.light is not None:
+        acc.light.met(pix, L, tp, rows, lightpasses.EMISSION)
 
 
 def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, org_ns, org_p,
@@ -742,6 +763,8 @@ def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, or
                 s, np.take(chain[:, 0], rows) - 1))
         acc.add(target, pix, sun, tp, rows)
         datapasses.add_light(acc, pix, rows, tp, ftp, feat, sun)
+        if acc.light is not None:
+            acc.light.met(pix, sun, tp, rows, lightpasses.EMISSION)
 
 
 def _linked_emission(ctx, Le, prim, from_prim, idx):
@@ -1210,6 +1233,8 @@ def _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium, world
                          np.take(medium, rows))
     if len(src):
         acc.add(target, pix, Le, tp, rows[src])
+        if acc.light is not None:
+            acc.light.met(pix, Le, tp, rows[src], lightpasses.EMISSION)
 
 
 def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
@@ -1780,7 +1805,8 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
-                  rows=None, bounce=None, extra=None, clamp_tp=None, shade_glossy=None):
+                  rows=None, bounce=None, extra=None, clamp_tp=None, shade_glossy=None,
+                  glossy_out=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -1804,14 +1830,15 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     (indirect light) are held to Cycles' Clamp Indirect per sample (engine/sampleclamp.py;
     the direct term is the caller's to clamp); None: no clamp.
     shade_glossy: direct_irradiance's (the rows whose glossy lobes took the lamps through
-    shades), written when glossy rows take shadow rays; None: not asked."""
+    shades), written when glossy rows take shadow rays; None: not asked. glossy_out:
+    direct_irradiance's (the glossy lobes' part of direct), with glossy rows."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
                                    buffers=buffers, rows=rows, counts=extra,
-                                   shade_glossy=shade_glossy)
+                                   shade_glossy=shade_glossy, glossy_out=glossy_out)
     else:
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
                                    rows=rows, counts=extra)
@@ -1952,6 +1979,9 @@ class Accumulator:
         # "background" (npix,3) the world along the rays that met a catcher or nothing
         # (without a transparent film); None until a bounce meets one.
         self.catcher = None
+        # The light passes' path state while _trace_paths fills this accumulator
+        # (engine/lightpasses.py PathPasses; None: no light pass asked for).
+        self.light = None
 
     def catcher_sums(self) -> dict:
         """This accumulator's shadow catcher sums (self.catcher), made when first asked."""
@@ -2507,6 +2537,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # pass" done, and whether it is its pixel's first sample (the first adaptive round's
     # sample 0), whose surface writes them as Cycles' sample 0 does.
     single = np.zeros(len(o), bool)
+    # Cycles' light passes (engine/lightpasses.py): each path's class and bends.
+    lpass = acc.light = (lightpasses.PathPasses(acc, len(o)) if "light" in want_data
+                         else None)
     first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
              else np.zeros(len(o), bool))
     for bounce in range(depth_limit + 1):
@@ -2604,6 +2637,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 if len(src):
                     rows = esc[src]
                     acc.add("direct" if bounce == 0 else "specular", pix, Ls, tp, rows)
+                    if lpass is not None:
+                        lpass.volume(pix, Ls, tp, rows)
         if miss.any():
             drawn = miss
             if s.film_transparent:
@@ -2637,6 +2672,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                       np.take(org_p, missed, axis=0),
                                                       _link_sets(ctx, link_prim,
                                                                  missed))[:, None]
+                env = radiance  # (the world's part; the suns' discs are added below)
                 for li, light in enumerate(ctx.lights):
                     # A sun's disc is seen by camera rays only when its light is visible
                     # to them: a Sky Texture's disc (the background); the add-on exports
@@ -2659,11 +2695,21 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                         _link_sets(ctx, link_prim,
                                                                    missed))[:, None]
                             radiance = radiance + sun
+                raw = radiance
                 if clamping:
                     radiance = sampleclamp.clamp(radiance, tp, missed, sampleclamp.bounce_limits(
                         s, np.take(chain[:, 0], missed) - 1))
                 acc.add(target, pix, radiance, tp, missed)
                 datapasses.add_light(acc, pix, missed, tp, ftp, feat, radiance)
+                if lpass is not None:
+                    # The world into Environment, the suns' discs into Emission (Cycles'
+                    # distant lights), a clamp shared in proportion.
+                    env, sun_part = lightpasses.split_direct(
+                        raw, None if env is raw else raw - env,
+                        radiance if clamping else None)
+                    lpass.met(pix, env, tp, missed, lightpasses.ENVIRONMENT)
+                    if sun_part is not None:
+                        lpass.met(pix, sun_part, tp, missed, lightpasses.EMISSION)
             datapasses.add_background(acc, want_data, pix,
                                       np.nonzero(miss & (ray_cls == CAMERA))[0], first, single)
         hitm = prim >= 0
@@ -2718,6 +2764,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                pdf_b))
             if passages is not None:
                 passages.compact(kept)
+            if lpass is not None:
+                lpass.take(kept)
             chain = np.take(chain, kept, axis=0)
             if shade_from is not None:
                 shade_from = shade_from[kept]
@@ -2742,6 +2790,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 src, Le = glow.along(prim, d, t, medium)
                 if len(src):
                     acc.add(target, pix, Le, tp_seg, src)
+                    if lpass is not None:
+                        lpass.met(pix, Le, tp_seg, src, lightpasses.EMISSION)
             if scatter is not None:
                 # The light the medium scatters into the segment (single scattering of
                 # the lamps' light, weighted by the throughput at its start).
@@ -2760,8 +2810,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # rebuilt from the paths' own sample indices and pixels)
                     vol_uv = sampler0.for_samples(sample_id, np.asarray(pix) + pix_shift).uv(
                         ("volume",), rng=vol_rng)
-                scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o, d, t,
-                            medium, tp_seg, vol_rng, counters, uv=vol_uv)
+                if lpass is None:
+                    scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o,
+                                d, t, medium, tp_seg, vol_rng, counters, uv=vol_uv)
+                else:  # (scatter.add's two steps, the light also into the light passes)
+                    src, Ls = scatter.radiance(prim, o, d, t, medium, vol_rng, counters,
+                                               vol_uv)
+                    if len(src):
+                        tp_c = np.ascontiguousarray(tp_seg, np.float64)
+                        acc.add("direct" if bounce == 0 else "specular", pix, Ls, tp_c, src)
+                        lpass.volume(pix, Ls, tp_c, src)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -2829,6 +2887,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     Le = sampleclamp.clamp(Le, tp, None,
                                            sampleclamp.bounce_limits(s, chain[:, 0] - 1))
                 acc.add(target, pix, Le, tp)
+                if lpass is not None:
+                    lpass.met(pix, Le, tp, None, lightpasses.EMISSION)
                 if feat is not None:
                     datapasses.add_light(acc, pix, np.arange(len(pix)), tp, ftp, feat, Le)
         if want_data:
@@ -2883,6 +2943,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             counters.count("shaded", bounce, nd)
             sg = (np.zeros(nd, np.bool_) if shades is not None and bounce < depth_limit
                   and g.any() else None)
+            # The glossy lobes' part of direct, for the light passes.
+            g_part = np.zeros((nd, 3)) if lpass is not None and g.any() else None
             direct, caustic, indirect = shade_diffuse(
                 ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
@@ -2891,14 +2953,25 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 rows=None if every else dsel, bounce=bounce,
                 extra=None if bounce == 0 else _chain_counts(chain if every else chain[dsel]),
                 clamp_tp=(tp if every else np.take(tp, dsel, axis=0)) if clamping else None,
-                shade_glossy=sg)
+                shade_glossy=sg, glossy_out=g_part)
             if sg is not None and sg.any():
                 shade_rows = np.zeros(n, np.bool_)
                 shade_rows[dsel[sg]] = True
+            direct_raw = direct
             if clamping:
                 # (A new array: direct may be the direct stage's buffers.)
                 direct = sampleclamp.clamp(direct, tp, dsel, sampleclamp.bounce_limits(
                     s, np.take(chain[:, 0], dsel)))
+            if lpass is not None:
+                # Direct light by lobe at a path's first bent bounce, the photon
+                # estimates (light that bounced before) Diffuse Indirect; past it all
+                # the path's Indirect. (Before the adds below: direct_raw may be the
+                # direct stage's buffers, valid until its next use.)
+                d_part, g_part = lightpasses.split_direct(
+                    direct_raw, g_part, direct if clamping else None)
+                lpass.shaded(pix, d_part, tp, dsel, lightpasses.DIFFUSE_DIRECT)
+                if g_part is not None:
+                    lpass.shaded(pix, g_part, tp, dsel, lightpasses.GLOSSY_DIRECT)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:
@@ -2915,6 +2988,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         indirect[past] = 0.0
                 acc.add("specular", pix, direct if caustic is None
                         else direct + caustic + indirect, tp, dsel)
+            if lpass is not None and caustic is not None:
+                lpass.shaded(pix, caustic + indirect, tp, dsel, lightpasses.DIFFUSE_INDIRECT)
         if GLASS_LIGHT_SAMPLING:
             # Rough glass hits sample the lights behind their surface too (Cycles' light
             # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:
@@ -2955,6 +3030,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     Lt = sampleclamp.clamp(Lt, tp, gl, sampleclamp.bounce_limits(
                         s, np.take(chain[:, 0], gl)))
                 acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
+                if lpass is not None:
+                    lpass.shaded(pix, Lt, tp, gl, lightpasses.TRANSMISSION_DIRECT)
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
@@ -2990,6 +3067,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         dk = np.take(d_in, keep, axis=0)
         bent = (d[:, 0] != dk[:, 0]) | (d[:, 1] != dk[:, 1]) | (d[:, 2] != dk[:, 2])
         chain[:, 0] += bent
+        if lpass is not None:
+            lpass.take(keep)
+            lpass.bend(bent, ray_cls)
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)

@@ -57,8 +57,8 @@ CYCLES_DEFAULT_BOUNCES = (12, 4, 4, 12)
 
 
 # RenderSettings.data_passes' values (engine/datapasses.py)
-DATA_PASSES = ("color", "denoising", "material_index", "mist", "object_index", "position",
-               "uv")
+DATA_PASSES = ("color", "denoising", "light", "material_index", "mist", "object_index",
+               "position", "uv")
 # RenderSettings.cryptomatte's values (engine/cryptomatte.py KINDS)
 CRYPTOMATTE_KINDS = ("asset", "material", "object")
 
@@ -175,7 +175,8 @@ class RenderSettings:
     film_transparent: bool = False  # background not drawn (alpha 0), as Blender's option
     # Cycles' data passes to make besides the image (engine/datapasses.py): "denoising"
     # (Denoising Normal / Albedo / Depth), "color" (Diffuse / Glossy / Transmission Color),
-    # "object_index", "material_index", "position", "uv", "mist" (one pass each).
+    # "object_index", "material_index", "position", "uv", "mist" (one pass each), "light"
+    # (Cycles' light passes, engine/lightpasses.py; it brings "color").
     # Extra outputs: the image's bits do not depend on them.
     data_passes: tuple = ()
     # Cryptomatte ID mattes to make (engine/cryptomatte.py): any of "object", "material",
@@ -299,6 +300,10 @@ class RenderSettings:
                              f"number from 0 (off) to {FILTER_GLOSSY_MAX:g}, got {v!r}")
         self.cycles_filter_glossy = fg
         self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
+        if "light" in self.data_passes and "color" not in self.data_passes:
+            # Blender shows the light passes divided by the Color passes (Cycles adds
+            # them to its buffer when a light pass is asked for): made with them.
+            self.data_passes = tuple(sorted(self.data_passes + ("color",)))
         self.cryptomatte = _word_set("cryptomatte", self.cryptomatte, CRYPTOMATTE_KINDS)
         lv = self.cryptomatte_levels
         if isinstance(lv, bool) or not isinstance(lv, (int, np.integer)) or not 1 <= lv <= 16:

@@ -35,7 +35,7 @@ def scenes():
 
     base = dict(workers=1, spp=2, photons=3000, caustic_photons=1000, seed=3)
     yield ("cornell box, data passes", cornell_box(24, 18),
-           RenderSettings(data_passes=("denoising", "color"), **base))
+           RenderSettings(data_passes=("denoising", "color", "light"), **base))
     s = PaperScene(24, 18)
     rng = np.random.default_rng(1)
     px = rng.random((8, 16, 3)) ** 3
@@ -64,7 +64,8 @@ def scenes():
            RenderSettings(**base))
     yield ("same, adaptive sampling, transparent film, data passes", s,
            RenderSettings(adaptive_threshold=0.05, film_transparent=True,
-                          data_passes=("denoising", "color"), **dict(base, spp=4)))
+                          data_passes=("denoising", "color", "light"),
+                          **dict(base, spp=4)))
     # A room with a window of one glass plane (engine/panelight.py: the pane's shadow
     # rays, engine/panekernels.py): a sun and an HDRI world, then a constant world.
     for world in ("sun and HDRI", "constant world"):

@@ -159,8 +159,9 @@ def test_unmade_passes_one_warning(bpy_addon, tmp_path):
     cheap(scene, width=16, height=12, spp=1, photons=2_000, caustic_photons=200)
     vl = scene.view_layers[0]
     vl.use_pass_vector = vl.use_pass_ambient_occlusion = True
-    vl.use_pass_diffuse_direct = True
+    vl.use_pass_diffuse_direct = True  # (made: engine/lightpasses.py)
     vl.use_pass_emit = True
+    vl.cycles.use_pass_volume_direct = True
     vl.aovs.add().name = "rust"
     seen = []
     listener = (lambda event, value: seen.append(value) if event == "warning" else None)
@@ -172,13 +173,15 @@ def test_unmade_passes_one_warning(bpy_addon, tmp_path):
         vl.use_pass_vector = vl.use_pass_ambient_occlusion = False
         vl.use_pass_diffuse_direct = False
         vl.use_pass_emit = False
+        vl.cycles.use_pass_volume_direct = False
         vl.aovs.remove(vl.aovs[0])
     unmade = [w for w in seen if "does not make" in w]
     assert len(unmade) == 1, seen
-    for name in ("Vector", "Ambient Occlusion", "Diffuse Direct",
-                 "Emission", "'rust'"):
+    for name in ("Vector", "Ambient Occlusion", "'rust'"):
         assert name in unmade[0], (name, unmade[0])
-    for name in ("Denoising", "Color", "Normal", "Depth"):
+    # (Volume Direct: made at the scene's Volume bounces 0)
+    for name in ("Denoising", "Color", "Normal", "Depth", "Diffuse Direct", "Emission",
+                 "Volume Direct"):
         assert name not in unmade[0], (name, unmade[0])
     assert unmade[0] in addon.engine.last_render["warnings"]
 
