@@ -18,8 +18,9 @@ Accel calls) by kind.
 Columns: wall and CPU seconds of the render (engine.render.render, kernels cached),
 rays per camera sample, rays per CPU second (all rays over the render's CPU time: the
 engine's rate against Embree's ~2.3-2.7 M/s on 1M triangles, docs/design.md, Embree
-(embreex) facts), our wall time over Cycles', whole-image luminance over Cycles', the 10 x 10-pixel blocks' mean
-|ours / Cycles - 1| (block error), and the film's SHA-1 (same for the same image).
+(embreex) facts), our wall time over Cycles', whole-image luminance over Cycles', the
+10 x 10-pixel blocks' mean |ours / Cycles - 1| (block error), and the film's SHA-1 (same
+for the same image).
 """
 from __future__ import annotations
 
