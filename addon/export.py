@@ -302,17 +302,11 @@ def extract_particle_hair(pm, obj, background: bool = True,
     Cycles does) as triangle tubes in its local space, each system's strands in its
     Render > Material slot; None when it has none to render. Raises ExportCancelled when
     should_cancel() turns True while the keys are read."""
-    cancelled = []
-
-    def stop():
+    def poll():
         if should_cancel is not None and should_cancel():
-            cancelled.append(True)
-            return True
-        return False
+            raise ExportCancelled()
 
-    strands = particle_strands(obj, background, stop)
-    if cancelled:
-        raise ExportCancelled()
+    strands = particle_strands(obj, background, poll)
     if strands is None:
         return None
     geo = hair_tubes(pm, obj, strands.points, strands.radius, strands.offsets,

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-# Strands read between two polls of should_cancel (co_hair is ~2 us a key).
+# Strands read between two polls of the caller's cancel (co_hair is ~2 us a key).
 CANCEL_POLL_STRANDS = 2048
 
 
@@ -71,16 +71,16 @@ def shape_radius(shape: float, root: float, tip: float, time) -> np.ndarray:
     return falloff * (root - tip) + tip
 
 
-def strand_keys(psys, obj, first: int, last: int, keys: int, should_cancel=None):
+def strand_keys(psys, obj, first: int, last: int, keys: int, poll=None):
     """(last - first, keys, 3) float64 world-space keys of particles first..last-1 of
-    psys (co_hair: parents are 0..len(particles)-1, children follow). should_cancel() is
-    polled every CANCEL_POLL_STRANDS strands; when True, None is returned."""
+    psys (co_hair: parents are 0..len(particles)-1, children follow). poll() is called
+    every CANCEL_POLL_STRANDS strands (it raises to cancel)."""
     co_hair = psys.co_hair
     out = np.empty((last - first, keys, 3))
     steps = range(keys)
     for start in range(first, last, CANCEL_POLL_STRANDS):
-        if should_cancel is not None and should_cancel():
-            return None
+        if poll is not None:
+            poll()
         stop = min(start + CANCEL_POLL_STRANDS, last)
         out[start - first:stop - first] = [[co_hair(obj, particle_no=p, step=s) for s in steps]
                                            for p in range(start, stop)]
@@ -100,11 +100,11 @@ def root_uvs(mod, psys, first: int, last: int, uv_no: int) -> np.ndarray:
     return out
 
 
-def particle_strands(obj, background: bool = True, should_cancel=None) -> Strands | None:
+def particle_strands(obj, background: bool = True, poll=None) -> Strands | None:
     """The strands of obj's hair systems (hair_systems) in obj's object space, as Cycles
     exports them (module docstring); None when there is none. obj: an evaluated object
-    (a depsgraph instance's). should_cancel() is polled while the keys are read; when it
-    returns True, None is returned (the caller raises its own cancel)."""
+    (a depsgraph instance's). poll() is called while the keys are read (it raises the
+    caller's cancel)."""
     systems = hair_systems(obj, background)
     if not systems:
         return None
@@ -128,9 +128,7 @@ def particle_strands(obj, background: bool = True, should_cancel=None) -> Strand
         keys = (1 << int(part.render_step if background else part.display_step)) + 1
         if part.kink == "SPIRAL":
             keys += int(part.kink_extra_steps)
-        world = strand_keys(psys, obj, first, last, keys, should_cancel)
-        if world is None:
-            return None
+        world = strand_keys(psys, obj, first, last, keys, poll)
         local = world @ to_object[:3, :3].T + to_object[:3, 3]
         seg = np.linalg.norm(np.diff(local, axis=1), axis=2)  # (C, keys-1)
         run = np.concatenate([np.zeros((len(local), 1)), np.cumsum(seg, axis=1)], axis=1)

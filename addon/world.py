@@ -274,6 +274,11 @@ class _WorldColours(MaterialConverter):
             return leaf
         return super()._node_output(n, out, depth)
 
+    def colour(self, node, socket):
+        """What feeds the colour socket of node: a constant, an _EnvLeaf, or a colour
+        node graph over leaves (MaterialConverter._input)."""
+        return self._input(node, socket, 0)
+
     def told(self) -> list:
         """The converter's warnings, naming the world."""
         prefix = f"material '{self._world.name}'"
@@ -292,7 +297,7 @@ def _background_color(pm, world, node, warnings, memo):
     color = np.asarray(tuple(col_socket.default_value)[:3], dtype=np.float64)
     colours = _WorldColours(pm, world, warnings)
     colours.fallback = color
-    val = colours._input(node, col_socket, 0)
+    val = colours.colour(node, col_socket)
     term = None
     if isinstance(val, _EnvLeaf):
         term = EnvTerm(val.make, val.env)

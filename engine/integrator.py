@@ -2660,9 +2660,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 d_miss = np.take(d, missed, axis=0)
                 # (black beyond a world volume: engine/worldmedium.py; camera rays see
                 # the camera world where the world has one: Is Camera Ray)
+                missed_camera = np.take(np.broadcast_to(ray_cls, (len(o),)), missed) == CAMERA
                 radiance = worldmedium.background(
-                    ctx.scene, d_miss, np.take(np.broadcast_to(ray_cls, (len(o),)), missed)
-                    == CAMERA)
+                    ctx.scene, d_miss,
+                    missed_camera if worldmedium.has_camera_world(ctx.scene) else None)
                 if bounce > 0 and world:
                     li = world[0]
                     radiance = radiance * _mis_weight(ctx, li, ctx.lights[li],
@@ -2681,9 +2682,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     if bounce > 0 or light.ray_kinds & CAMERA:
                         sun = light.seen_at_infinity(d_miss)
                         if sun is not None and link_prim is not None and bounce > 0:
-                            seen = (np.take(np.broadcast_to(ray_cls, (len(o),)), missed)
-                                    == CAMERA) | links.lights_hit(
-                                        li, ctx.geo, np.take(link_prim, missed))
+                            seen = missed_camera | links.lights_hit(
+                                li, ctx.geo, np.take(link_prim, missed))
                             sun = sun * seen[:, None]
                         if sun is not None:
                             if bounce > 0 and modes[li] == MODE_MIS:

@@ -133,6 +133,11 @@ def test_particle_hair_exports_with_its_emitter(bpy_addon):
         assert "Emitter" in [m.name for m in out.meshes]
         assert not [w for w in out.all_warnings() if "particle" in w or "hair" in w], \
             out.all_warnings()
+    from addon import export
+    from addon.core import load_engine
+    ob = emitter.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    with pytest.raises(export.ExportCancelled):  # Esc while the keys are read
+        export.extract_particle_hair(load_engine(), ob, False, should_cancel=lambda: True)
     emitter.show_instancer_for_viewport = False
     names = [m.name for m in _export(bpy).meshes]
     assert "Emitter/particle hair" in names and "Emitter" not in names
