@@ -19,34 +19,39 @@ a homogeneous stand-in: the material table's rows are set to the field's mean
 light crosses the medium, the stand-in's factor is turned into an unbiased estimate of
 the true one (Cycles 5.0 renders heterogeneous volumes unbiased too: null scattering
 and Kettunen et al. 2021's unbiased ray-marching transmittance against octree
-majorants, volume_integrate_heterogeneous in kernel/integrator/shade_volume.h):
+majorants, volume_integrate_heterogeneous in kernel/integrator/shade_volume.h), walking
+a majorant grid of each object (engine/majorant.py: per cell a control density and a
+bound on the field's distance from it, and a majorant for drawing distances):
 
 - transmittance along a part [a, b] of a ray inside the medium: residual ratio tracking
-  about the mean (Novak et al. 2014, "Residual ratio tracking for estimating attenuation
-  in participating media"): tentative collisions x_i at the rate
-  mu = max|f - f_mean| x max_c sigma_t_unit,c, and correction_c = prod_i (1 - (f(x_i) -
-  f_mean) sigma_t_unit,c / mu), whose expectation is exp(-int (sigma_t - sigma_t_mean)),
-  T_true / T_stand-in itself (correction(); RESIDUAL False: plain ratio tracking against
-  the majorant f_max, the stand-in's exponential divided out).
+  (Novak et al. 2014, "Residual ratio tracking for estimating attenuation in
+  participating media") about the grid's piecewise-constant control density c(x): the
+  control's optical depth integrated exactly cell by cell, tentative collisions x_i at
+  each cell's rate mu = rad x max_c sigma_t_unit,c (none in cells whose neighbourhood is
+  constant: empty space, saturated puffs), factors 1 - (f(x_i) - c(x_i)) sigma_t_unit,c
+  / mu: T = exp(-int c sigma_t_unit) prod_i(...), divided by the stand-in's
+  exp(-f_mean sigma_t_unit (b - a)) (correction()).
 - camera segments and final-gather rays (integrator, through attenuated()), shadow rays
   (shadowtransmittance.ShadowTransmittance.transmittance, volumescatter.in_scattered's
   rays to a lamp inside the fog, directlight._dim_in_medium's rays of a surface inside
   the medium), photons (photons._bounces) and the camera walks' surface term
   (volumewalk): x correction over the parts inside such a medium.
-- scattering (volumescatter.CameraScattering.radiance and walk, photonmedium's free
-  flights): the distance is drawn as for the stand-in (any pdf is unbiased) and the
-  weight T(s) sigma_s(s) / pdf(s) takes the field: w x correction(0, s) x f(p) / f_mean
+- the camera segments' single scattering (volumescatter.CameraScattering.radiance):
+  the distance is drawn along the grid's majorant (pdf sig(s) exp(-int sig), sig the
+  cell's majorant density x the channels' mean sigma_t_unit), so samples land in and
+  around the puffs, with the weight T(s) sigma_s(s) / pdf(s) (T(s) ratio-tracked as
+  above) (scatter()); the camera walks' later scatters and the photons' free flights
+  keep the stand-in's distances with the weight w x correction(0, s) x f(p) / f_mean
   (scatter_weights).
 
-The bound: the field's largest and smallest values and its mean over FIELD_SAMPLES points
-(a jittered grid) in the bounds of the objects that carry the material, the range x
-MAJORANT_MARGIN. A field beyond it somewhere (a peak between the samples) stays unbiased
-(a factor below 0 there) but noisier.
+The stand-in's mean: the field's mean over FIELD_SAMPLES points (a jittered grid) in the
+bounds of the objects that carry the material.
 
 Random numbers: the tracking steps draw from a counter-based hash of the render's seed
 and the ray itself (its origin and direction bits and the part's start, splitmix64):
 the same seed gives the same image for any worker count, and no stream's draws shift
-(a scene without a density texture renders exactly as before).
+(a scene without a density texture renders exactly as before). The camera segments'
+distances take the camera pass's stratified numbers (its ("volume",) dimension).
 
 Not heterogeneous (the stand-in at the mean density, warned: `limits`): an emitting
 medium's emission integral (engine/volumeemission.py). The World Volume and objects with
@@ -58,13 +63,9 @@ import math
 
 import numpy as np
 
-FIELD_SAMPLES = 32 ** 3  # points per object for the majorant and the mean
-MAJORANT_MARGIN = 1.25
-# Residual ratio tracking (Novak et al. 2014) about the stand-in's mean density: the
-# tentative collisions at the rate of the largest |f - f_mean| (x MAJORANT_MARGIN) and
-# the factors 1 - (f(x) - f_mean) sigma_t_unit / mu, whose product is T / T_mean itself
-# (the correction, nothing divided out); False: plain ratio tracking against the majorant.
-RESIDUAL = True
+from .majorant import MajorantGrid, sample_distances, track_collisions
+
+FIELD_SAMPLES = 32 ** 3  # points per object for the stand-in's mean
 MAX_CROSSINGS = 8  # medium intervals followed along one ray
 MAX_STEPS = 4096  # tracking steps per interval (a runaway majorant guard)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -132,8 +133,8 @@ class PointGeometry:
 
 
 class Field:
-    """One material's density field: node, sigma_t_unit (3,), sigma_s_unit (3,), f_max,
-    f_mean, mu (the majorant extinction, 1/m)."""
+    """One material's density field: node, sigma_t_unit (3,), sigma_s_unit (3,), f_max
+    (the largest value sampled in its objects' bounds) and f_mean (the stand-in's)."""
 
     def __init__(self, node, sigma_t_unit, sigma_s_unit):
         self.node = node
@@ -141,13 +142,6 @@ class Field:
         self.sigma_s_unit = np.asarray(sigma_s_unit, np.float64)
         self.f_max = 0.0
         self.f_mean = 0.0
-        self.f_range = 0.0  # bound on |f - f_mean| (residual tracking's)
-
-    @property
-    def mu(self) -> float:
-        """The tracking rate (1/m): the majorant's, or with RESIDUAL the residual's."""
-        bound = self.f_range if RESIDUAL else self.f_max
-        return bound * float(np.max(self.sigma_t_unit))
 
 
 class HeterogeneousMedia:
@@ -264,28 +258,48 @@ class HeterogeneousMedia:
             return str(k)
 
     def _measure(self, corners):
-        """f_max (x MAJORANT_MARGIN) and f_mean of each field over FIELD_SAMPLES jittered
-        grid points in the bounds of each object that carries it."""
+        """f_max and f_mean of each field over FIELD_SAMPLES jittered grid points in the
+        bounds of each object that carries it; the majorant grids (engine/majorant.py)
+        of each (object, material) pair over its triangles' bounds."""
         rng = np.random.default_rng([self.seed, 39, 14])
         n = round(FIELD_SAMPLES ** (1.0 / 3.0))
         g = (np.arange(n) + 0.5) / n
         grid = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+        pairs, bounds = [], []
         for m, f in self.fields.items():
-            tot, cnt, top, low = 0.0, 0, 0.0, math.inf
+            tot, cnt, top = 0.0, 0, 0.0
             for k in np.unique(self.object[self.material == m]):
                 sel = (self.object == k) & (self.material == m)
                 P = corners[sel].reshape(-1, 3)
                 lo, hi = P.min(axis=0), P.max(axis=0)
+                pairs.append((int(k), int(m)))
+                bounds.append((lo, hi))
                 jit = (rng.random(grid.shape) - 0.5) / n
                 pts = lo + (hi - lo) * np.clip(grid + jit, 0.0, 1.0)
                 vals = self._density(f, pts, np.full(len(pts), k))
                 tot += float(vals.sum())
                 cnt += len(vals)
                 top = max(top, float(vals.max()) if len(vals) else 0.0)
-                low = min(low, float(vals.min()) if len(vals) else 0.0)
             f.f_mean = tot / max(cnt, 1)
-            f.f_max = top * MAJORANT_MARGIN
-            f.f_range = max(top - f.f_mean, f.f_mean - low, 0.0) * MAJORANT_MARGIN
+            f.f_max = top
+        n_obj = int(self.object.max()) + 1 if len(self.object) else 1
+        n_mat = max(self.fields) + 1
+        self.grid = MajorantGrid.build(
+            pairs, bounds, lambda m, p, o: self._density(self.fields[int(m)], p, o),
+            n_obj, n_mat)
+        # per material row: the tracking's coefficients (0 for rows without a field)
+        self._unit_t = np.zeros((n_mat, 3))
+        self._unit_s = np.zeros((n_mat, 3))
+        self._f_mean = np.zeros(n_mat)
+        for m, f in self.fields.items():
+            self._unit_t[m] = f.sigma_t_unit
+            self._unit_s[m] = f.sigma_s_unit
+            self._f_mean[m] = f.f_mean
+        # per grid: the largest channel of sigma_t at density 1 (the tracking rate's
+        # scale) and the channels' mean (the distance sampling's, as the stand-in's)
+        unit = self._unit_t[np.array([m for _, m in pairs], np.int64)].reshape(-1, 3)
+        self._smax = np.ascontiguousarray(unit.max(axis=1))
+        self._sbar = np.ascontiguousarray(unit.mean(axis=1))
 
     def _density(self, f: Field, points, obj) -> np.ndarray:
         """(n,) the field f at points (n,3) (re-centred world) of objects obj (n,)."""
@@ -341,40 +355,51 @@ class HeterogeneousMedia:
             return e, np.zeros(0), np.zeros(0), e, e
         return tuple(np.concatenate(x) for x in out)
 
-    def ratio_tracking(self, o, u, keys, a, b, m, obj):
-        """(K,3) per part ray o + s u, s in [a, b] (K,) of material m, object obj: the
-        ratio-tracking estimate of exp(-integral sigma_t) per channel, from each part's
-        key stream (keys (K,) uint64)."""
+    def track(self, o, u, keys, a, b, m, obj):
+        """Residual ratio tracking over parts o + s u, s in [a, b] (K,) of material m,
+        object obj (K,) against the majorant grids (engine/majorant.py): (P (K,3), D (K,))
+        with T_c = exp(-sigma_t_unit,c D) P_c the estimate of exp(-integral sigma_t)
+        per channel, D the control density's integral (m), P the product of the
+        tentative collisions' factors, from each part's key stream (keys (K,) uint64)."""
         K = len(a)
-        T = np.ones((K, 3))
-        mu = np.array([self.fields[int(x)].mu for x in m]) if K else np.zeros(0)
-        unit = (np.array([self.fields[int(x)].sigma_t_unit for x in m]).reshape(-1, 3))
-        centre = (np.array([self.fields[int(x)].f_mean for x in m]) if RESIDUAL
-                  else np.zeros(K))
+        P = np.ones((K, 3))
+        D = np.zeros(K)
+        slot = self.grid.slots(obj, m)
+        o = np.ascontiguousarray(o, np.float64)
+        u = np.ascontiguousarray(u, np.float64)
         x = np.array(a, np.float64)
-        alive = np.flatnonzero(mu > 0.0)
+        b = np.ascontiguousarray(b, np.float64)
+        alive = np.flatnonzero((slot >= 0) & (b > x))
+        g = self.grid
         step = 0
         while len(alive) and step < MAX_STEPS:
-            r = uniforms(keys[alive], step)
-            x[alive] += -np.log1p(-r) / mu[alive]
-            alive = alive[x[alive] < b[alive]]
+            E = -np.log1p(-uniforms(keys[alive], step))
+            xa, Da = x[alive], D[alive]
+            hit = np.zeros(len(alive), np.bool_)
+            c_at = np.zeros(len(alive))
+            mu_at = np.ones(len(alive))
+            track_collisions(o[alive], u[alive], xa, b[alive], slot[alive], E, g.origin,
+                             g.cell, g.dims, g.offset, g.ctrl, g.rad, self._smax, Da, hit,
+                             c_at, mu_at)
+            x[alive], D[alive] = xa, Da
             step += 1
-            if not len(alive):
+            h = alive[hit]
+            if not len(h):
                 break
-            pts = o[alive] + u[alive] * x[alive, None]
-            f = np.zeros(len(alive))
-            for mm in np.unique(m[alive]):
-                sel = m[alive] == mm
-                f[sel] = self.density(mm, pts[sel], obj[alive][sel])
-            T[alive] *= 1.0 - (f - centre[alive])[:, None] * unit[alive] / mu[alive, None]
+            pts = o[h] + u[h] * x[h, None]
+            f = np.zeros(len(h))
+            for mm in np.unique(m[h]):
+                sel = m[h] == mm
+                f[sel] = self.density(mm, pts[sel], obj[h][sel])
+            P[h] *= 1.0 - (f - c_at[hit])[:, None] * self._unit_t[m[h]] / mu_at[hit, None]
             # (a part whose estimate reached 0 stays 0: stop tracking it)
-            alive = alive[np.any(T[alive] != 0.0, axis=1)]
-        return T
+            alive = h[np.any(P[h] != 0.0, axis=1)]
+        return P, D
 
     def correction(self, o, d, tmax, salt: int = 0) -> np.ndarray:
         """(n,3) the factor that turns the homogeneous stand-in's transmittance of the
         segments o + t d, t in [0, tmax] (units of |d|; o, d (n,3)) into the
-        heterogeneous media's (ratio tracking over each part inside one, divided by the
+        heterogeneous media's (the tracked T over each part inside one, divided by the
         stand-in's exp(-sigma_t_mean (b - a)) there); 1 for segments outside them."""
         o = np.asarray(o, np.float64)
         d = np.asarray(d, np.float64)
@@ -390,15 +415,74 @@ class HeterogeneousMedia:
         if not len(ray):
             return out
         keys = ray_keys(self.seed, o[ray], d[ray], salt) ^ (a.view(np.uint64))
-        T = self.ratio_tracking(o[ray], u[ray], keys, a, b, m, obj)
-        if not RESIDUAL:
-            # the stand-in's factor, divided out (it is at least exp(-700) in any scene
-            # whose mean optical depth is below 700)
-            mean = np.array([self.fields[int(x)].f_mean * self.fields[int(x)].sigma_t_unit
-                             for x in m]).reshape(-1, 3)
-            T = T * np.exp(np.minimum(mean * (b - a)[:, None], 700.0))
-        np.multiply.at(out, ray, T)
+        P, D = self.track(o[ray], u[ray], keys, a, b, m, obj)
+        # exp(-sigma (D - f_mean (b - a))): the control's depth against the stand-in's
+        # (at most exp(700): the stand-in's mean optical depth is far below 700)
+        depth = self._unit_t[m] * (D - self._f_mean[m] * (b - a))[:, None]
+        np.multiply.at(out, ray, P * np.exp(np.minimum(-depth, 700.0)))
         return out
+
+    def scatter(self, o, d, tseg, pts, seg_m, w, uu):
+        """The camera segments' single-scattering points drawn along the majorant grid:
+        for segments (rays o, d (K,3), lengths tseg (K,) in units of |d|, in media seg_m
+        (K,)) that lie in one heterogeneous part, the point pts (K,3) and weight w (K,3)
+        drawn for the stand-in (volumescatter.sample_segments) are replaced, in place, by
+        a distance s from the grid's majorant (majorant.sample_distances, from uu (K,):
+        the stand-in's numbers) and T(s) sigma_s(s) / pdf(s) (T ratio-tracked, the field
+        at the point); the others take scatter_weights. Returns (pts, w)."""
+        het = np.flatnonzero(np.isin(seg_m, list(self.fields)))
+        if not len(het):
+            return pts, w
+        o_i = np.asarray(o, np.float64)[het]
+        d_i = np.asarray(d, np.float64)[het]
+        dl = np.linalg.norm(d_i, axis=1)
+        ok = dl > 0
+        u_i = np.where(ok[:, None], d_i / np.where(ok, dl, 1.0)[:, None], 0.0)
+        S = np.where(ok, np.maximum(np.asarray(tseg, np.float64)[het], 0.0) * dl, 0.0)
+        ray, a, b, m, obj = self.intervals(o_i, u_i, S)
+        count = np.bincount(ray, minlength=len(het))
+        one = count[ray] == 1
+        ray, a, b, m, obj = ray[one], a[one], b[one], m[one], obj[one]
+        slot = self.grid.slots(obj, m)
+        good = (slot >= 0) & (m == np.asarray(seg_m)[het][ray])
+        ray, a, b, m, obj, slot = ray[good], a[good], b[good], m[good], obj[good], slot[good]
+        rest = np.ones(len(het), np.bool_)
+        rest[ray] = False
+        if rest.any():
+            r = het[rest]
+            w[r] = self.scatter_weights(np.asarray(o)[r], np.asarray(d)[r], pts[r],
+                                        np.asarray(seg_m)[r], w[r].copy())
+        if not len(ray):
+            return pts, w
+        K = len(ray)
+        s = np.zeros(K)
+        sig, tau, tot = np.zeros(K), np.zeros(K), np.zeros(K)
+        g = self.grid
+        oo = np.ascontiguousarray(o_i[ray])
+        uu_ = np.ascontiguousarray(u_i[ray])
+        sample_distances(oo, uu_, a, b, slot, np.ascontiguousarray(np.asarray(uu)[het][ray],
+                                                                    np.float64),
+                         g.origin, g.cell, g.dims, g.offset, g.sup, self._sbar, s, sig, tau,
+                         tot)
+        rows = het[ray]
+        w[rows] = 0.0
+        lit = np.flatnonzero(s >= 0.0)
+        if not len(lit):
+            return pts, w
+        o_l, u_l, s_l = oo[lit], uu_[lit], s[lit]
+        p = o_l + u_l * s_l[:, None]
+        pts[rows[lit]] = p
+        keys = ray_keys(self.seed, o_l, d_i[ray][lit], 1) ^ (a[lit].view(np.uint64))
+        P, D = self.track(o_l, u_l, keys, a[lit], s_l, m[lit], obj[lit])
+        f = np.zeros(len(lit))
+        for mm in np.unique(m[lit]):
+            sel = m[lit] == mm
+            f[sel] = self.density(mm, p[sel], obj[lit][sel])
+        # T_c(s) sigma_s,c(s) / pdf(s), pdf = sig exp(-tau) / (1 - exp(-tot))
+        log_t = tau[lit, None] - self._unit_t[m[lit]] * D[:, None]
+        w[rows[lit]] = (P * self._unit_s[m[lit]] * (f * -np.expm1(-tot[lit]) / sig[lit])[:, None]
+                        * np.exp(np.minimum(log_t, 700.0)))
+        return pts, w
 
     def scatter_weights(self, o, d, pts, seg_m, w):
         """Single scattering's weights w (K,3) at points pts (K,3) (rays from o along d
@@ -434,9 +518,10 @@ class HeterogeneousMedia:
         """The effect report's line: each textured medium's density range."""
         return "; ".join(
             f"density texture of '{self.table.names[m]}': mean {f.f_mean:.3g}, largest "
-            f"{f.f_max / MAJORANT_MARGIN:.3g} over its objects' bounds (the homogeneous "
-            "stand-in at the mean, corrected by residual ratio tracking along camera "
-            "segments, shadow rays and photons; single scattering at the field's value)"
+            f"{f.f_max:.3g} over its objects' bounds (the homogeneous stand-in at the mean, "
+            "corrected by residual ratio tracking against a majorant grid along camera "
+            "segments, shadow rays and photons; single scattering's distances drawn along "
+            "the grid)"
             for m, f in self.fields.items())
 
     def limits(self, settings=None) -> list[str]:

@@ -253,7 +253,7 @@ def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
     from . import (camerakernels, camerarays, directlight, gatherkernels,  # noqa: F401
                    hashgrid, normalmap,
-                   kdtree, media, panekernels, photonkernels, photonmap,  # (warm-ups)
+                   kdtree, majorant, media, panekernels, photonkernels, photonmap,  # (warm-ups)
                    photonvisibility,
                    procedural, rayoffset, shadowtransmittance, toplevel, volumeemission,
                    volumescatter)

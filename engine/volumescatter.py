@@ -630,16 +630,18 @@ class CameraScattering:
         n = len(prim)
         if n == 0:
             return np.zeros(0, np.int64), np.zeros((0, 3))
-        src, pts, w, seg_m = self._scatter_points(prim, o, d, t, medium, rng, uv)
+        src, pts, w, seg_m, u_src = self._scatter_points(prim, o, d, t, medium, rng, uv)
         if len(src) == 0:
             return np.zeros(0, np.int64), np.zeros((0, 3))
         het = getattr(self.ctx, "hetero", None)
         if het is not None and het.fields:
-            # Density textures (engine/heterogeneous.py): the weights drawn for the mean
-            # density's stand-in take the ratio-tracked T(s) and the field at the point.
-            w = het.scatter_weights(np.take(np.asarray(o, np.float64), src, axis=0),
-                                    np.take(np.asarray(d, np.float64), src, axis=0), pts,
-                                    seg_m, w)
+            # Density textures (engine/heterogeneous.py): the distance drawn again along
+            # the majorant grid (from the same number), its weight from the ratio-tracked
+            # T(s) and the field at the point.
+            pts, w = het.scatter(np.take(np.asarray(o, np.float64), src, axis=0),
+                                 np.take(np.asarray(d, np.float64), src, axis=0),
+                                 np.take(np.asarray(t, np.float64), src), pts, seg_m, w,
+                                 u_src)
         wo = np.take(np.asarray(d, np.float64), src, axis=0)
         wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
         Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
@@ -653,8 +655,8 @@ class CameraScattering:
     def _scatter_points(self, prim, o, d, t, medium, rng, uv=None):
         """One distance sample on each ray's segment (sample_segments; rays src of o, d
         (n,3), t (n,) in units of |d|, ending on triangles prim (n,), in media medium
-        (n,)): (src (K,) int64, points (K,3), weights (K,3), media (K,)) for the K that
-        scatter, in order. rng: n pairs of numbers."""
+        (n,)): (src (K,) int64, points (K,3), weights (K,3), media (K,), the distances'
+        numbers (K,)) for the K that scatter, in order. rng: n pairs of numbers."""
         rows, (material, e1, e2) = self.ctx.geo.hit_tables(prim, "material", "e1", "e2")
         n = len(prim)
         src = np.empty(n, np.int64)
@@ -673,7 +675,7 @@ class CameraScattering:
                             np.ascontiguousarray(t, np.float64), u, u_pick,
                             self.eq_pos, float(EXP_SHARE_THIN), float(EXP_SHARE_THICK),
                             src, pts, w, seg_m)
-        return src[:k], pts[:k], w[:k], seg_m[:k]
+        return src[:k], pts[:k], w[:k], seg_m[:k], u[src[:k]]
 
     def walk(self, L, pts, wo, beta, seg_m, rng, counters=None):
         """Volume bounces: from each first scatter point pts (K,3) (the path arriving
@@ -709,7 +711,7 @@ class CameraScattering:
             rows, Ls = self.segment_end_light(x, d_new, t, prim, u, v, m)
             if len(rows):
                 L[idx[rows]] += beta[rows] * Ls
-            src, p2, w2, m2 = self._scatter_points(prim, x, d_new, t, m, rng)
+            src, p2, w2, m2, _ = self._scatter_points(prim, x, d_new, t, m, rng)
             het = getattr(self.ctx, "hetero", None)
             if het is not None and het.fields and len(src):
                 # (density textures: as radiance's first scatter, engine/heterogeneous.py)
