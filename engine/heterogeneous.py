@@ -419,7 +419,9 @@ class HeterogeneousMedia:
         # exp(-sigma (D - f_mean (b - a))): the control's depth against the stand-in's
         # (at most exp(700): the stand-in's mean optical depth is far below 700)
         depth = self._unit_t[m] * (D - self._f_mean[m] * (b - a))[:, None]
-        np.multiply.at(out, ray, P * np.exp(np.minimum(-depth, 700.0)))
+        fac = P * np.exp(np.minimum(-depth, 700.0))
+        fac[self.grid.slots(obj, m) < 0] = 1.0  # (a part outside every grid: the stand-in)
+        np.multiply.at(out, ray, fac)
         return out
 
     def scatter(self, o, d, tseg, pts, seg_m, w, uu):
