@@ -36,13 +36,13 @@ bound on the field's distance from it, and a majorant for drawing distances):
   rays to a lamp inside the fog, directlight._dim_in_medium's rays of a surface inside
   the medium), photons (photons._bounces) and the camera walks' surface term
   (volumewalk): x correction over the parts inside such a medium.
-- the camera segments' single scattering (volumescatter.CameraScattering.radiance):
-  the distance is drawn along the grid's majorant (pdf sig(s) exp(-int sig), sig the
-  cell's majorant density x the channels' mean sigma_t_unit), so samples land in and
-  around the puffs, with the weight T(s) sigma_s(s) / pdf(s) (T(s) ratio-tracked as
-  above) (scatter()); the camera walks' later scatters and the photons' free flights
-  keep the stand-in's distances with the weight w x correction(0, s) x f(p) / f_mean
-  (scatter_weights).
+- the camera segments' scattering (volumescatter.CameraScattering.radiance, and the
+  walks' later scatters at Volume bounces > 0): the distance is drawn along the grid's
+  majorant (pdf sig(s) exp(-int sig), sig the cell's majorant density x the channels'
+  mean sigma_t_unit), so samples land in and around the puffs, with the weight T(s)
+  sigma_s(s) / pdf(s) (T(s) ratio-tracked as above) (scatter()); the photons' free
+  flights keep the stand-in's distances with the weight w x correction(0, s) x f(p) /
+  f_mean (scatter_weights).
 
 The stand-in's mean: the field's mean over FIELD_SAMPLES points (a jittered grid) in the
 bounds of the objects that carry the material.
@@ -425,8 +425,8 @@ class HeterogeneousMedia:
         return out
 
     def scatter(self, o, d, tseg, pts, seg_m, w, uu):
-        """The camera segments' single-scattering points drawn along the majorant grid:
-        for segments (rays o, d (K,3), lengths tseg (K,) in units of |d|, in media seg_m
+        """Scattering points of camera-path segments (radiance's first scatter, the walks'
+        later ones) drawn along the majorant grid: for segments (rays o, d (K,3), lengths tseg (K,) in units of |d|, in media seg_m
         (K,)) that lie in one heterogeneous part, the point pts (K,3) and weight w (K,3)
         drawn for the stand-in (volumescatter.sample_segments) are replaced, in place, by
         a distance s from the grid's majorant (majorant.sample_distances, from uu (K,):

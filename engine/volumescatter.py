@@ -711,11 +711,12 @@ class CameraScattering:
             rows, Ls = self.segment_end_light(x, d_new, t, prim, u, v, m)
             if len(rows):
                 L[idx[rows]] += beta[rows] * Ls
-            src, p2, w2, m2, _ = self._scatter_points(prim, x, d_new, t, m, rng)
+            src, p2, w2, m2, u2 = self._scatter_points(prim, x, d_new, t, m, rng)
             het = getattr(self.ctx, "hetero", None)
             if het is not None and het.fields and len(src):
                 # (density textures: as radiance's first scatter, engine/heterogeneous.py)
-                w2 = het.scatter_weights(x[src], d_new[src], p2, m2, w2)
+                p2, w2 = het.scatter(x[src], d_new[src], np.take(np.asarray(t, np.float64),
+                                                                 src), p2, m2, w2, u2)
             idx, x, d_in, m = idx[src], p2, d_new[src], m2
             beta = beta[src] * w2
             if len(src) == 0:

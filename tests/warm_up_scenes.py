@@ -26,7 +26,7 @@ def signatures() -> dict:
 def scenes():
     """(name, scene, settings) small scenes covering the light kinds, a world HDRI,
     textures, a normal map, instances, data passes, adaptive sampling, transparent film,
-    a glass pane's shadow rays, absorbing media."""
+    a glass pane's shadow rays, absorbing media, fog, a textured density."""
     from engine.api import PaperScene, cornell_box
     from engine.normalmap import NormalMap
     from engine.scene import Material
@@ -115,6 +115,19 @@ def scenes():
     f.add_point_light((0.3, 0.2, 1.0), power=20.0)
     f.set_camera((0.0, -4.0, 1.5), (0.0, 0.0, 0.8), view_angle=50.0)
     yield ("scattering fog", f, RenderSettings(**base))
+    # A textured density (engine/heterogeneous.py, engine/majorant.py): the majorant
+    # grid's tracking and distance kernels, with Volume bounces (the walks) and photons.
+    from engine.shadernodes import Math, ObjectSpacePosition, SeparateChannel
+    h = PaperScene(24, 18)
+    h.add_plane((0, 0, 0), (0, 0, 1), 6.0, "white_diffuse", name="floor")
+    h.add_material(Material("cloud", volume_only=True, absorption=(0.1, 0.1, 0.1),
+                            scattering=(0.8, 0.8, 0.8), density_texture=Math(
+                                "MULTIPLY", SeparateChannel(ObjectSpacePosition(np.eye(4)),
+                                                            2), 2.0)))
+    h.add_box((0.0, 0.0, 1.0), (1.6, 1.6, 1.2), "cloud", name="cloud")
+    h.add_spot_light((0.0, 0.0, 2.5), (0, 0, 0), power=300.0, spot_size_degrees=40.0)
+    h.set_camera((0.0, -4.0, 1.5), (0.0, 0.0, 0.8), view_angle=50.0)
+    yield ("textured density", h, RenderSettings(volume_bounces=2, **base))
 
 
 def main():
