@@ -1872,6 +1872,7 @@ class ViewportExport:
         self.meshes: dict = {}     # instance name -> (key, engine Mesh)
         self.prototypes: dict = {}  # geometry key -> (LocalGeometry, engine Prototype)
         self.light_names: list = []
+        self.worlds = None  # (export_worlds' answer, its warnings) of the last update
 
 
 def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height: int,
@@ -1997,7 +1998,13 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     for gkey in [k for k in cache.geometry if k not in seen]:
         del cache.geometry[gkey]
         cache.prototypes.pop(gkey, None)
-    (background, environment), seen = export_worlds(pm, scene_eval.world, warnings)
+    if first or updates.world or cache.worlds is None:
+        # (a world baked along directions or from maps and colours takes seconds: an
+        # update that leaves the world as it was reuses the last one)
+        world_warnings: list = []
+        cache.worlds = (export_worlds(pm, scene_eval.world, world_warnings), world_warnings)
+    (background, environment), seen = cache.worlds[0]
+    warnings.extend(cache.worlds[1])
     lights, portals = split_portals(pm, lights)
     resolve_light_links(lights, meshes, info.pop("owners", {}))
     lights = lights + sky_sun_lights(pm, environment, seen)  # a Sky Texture's sun disc

@@ -2259,6 +2259,49 @@ def world_mix_constant():
 
 
 @case("world", ours=dict(spp=64))
+def world_gradient_sky():
+    """A gradient sky made of nodes (Texture Coordinate Generated -> Separate XYZ's Z ->
+    Color Ramp: warm at the horizon, blue overhead, dark below) lighting the stage: the
+    engine bakes the tree along world directions into a map."""
+    _hdri_scene()
+    world = bpy.data.worlds.new("Gradient sky")
+    bpy.context.scene.world = world
+    nt = world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    stops = ramp.color_ramp.elements
+    stops[0].position, stops[0].color = 0.0, (1.0, 0.85, 0.6, 1.0)
+    stops[1].position, stops[1].color = 0.7, (0.15, 0.35, 1.0, 1.0)
+    low = stops.new(-0.05)  # (a Color Ramp clamps its factor: below the horizon reads stop 0)
+    low.color = (0.05, 0.04, 0.03, 1.0)
+    nt.links.new(coord.outputs["Generated"], sep.inputs[0])
+    nt.links.new(sep.outputs["Z"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 1.5
+
+
+@case("world", ours=dict(spp=64))
+def world_mix_texture():
+    """The HDRI mixed with a warm colour by a Gradient Texture of the direction (Linear,
+    Generated coordinates turned by a Mapping: the warm side to one side of the sky): the
+    factor baked along the map's directions."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.0)
+    _mix_world_background(0.0, rgb=(1.0, 0.55, 0.25), strength=1.5)
+    nt = bpy.context.scene.world.node_tree
+    mix = next(n for n in nt.nodes if n.type == "MIX_SHADER")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(60.0))
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], grad.inputs["Vector"])
+    nt.links.new(grad.outputs["Fac"], mix.inputs["Fac"])
+
+
+@case("world", ours=dict(spp=64))
 def world_hdri_color_nodes():
     """The HDRI graded in the world tree (Hue/Saturation: hue 0.45, saturation 1.6, then
     Bright/Contrast: contrast 0.2) before its Background, whose Strength is 1.2: the
