@@ -331,6 +331,11 @@ def hold_still(moved, still, names: set, camera_name: str | None):
 # The bar's share of the export (before the render's settings are known); the render's
 # stages share the rest in proportion to their work (engine/stagespans.py).
 EXPORT_SHARE = 0.02
+# The first render on a machine compiles the kernels (minutes): the progress bar's first
+# COMPILE_SHARE follows the compile (kernels done / all), the render's own work the rest;
+# a render with the kernels cached uses the whole bar. (The bar stood at 0 % through the
+# whole compile: newuser39.)
+COMPILE_SHARE = 0.5
 
 
 class PhotonMapRenderEngine(bpy.types.RenderEngine):
@@ -346,6 +351,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         self._last_stats = 0.0
         self._last_stage = None  # a new stage's first text is always shown (not throttled)
         self._progress_stage = None  # the stage of the last progress told the listeners
+        self._bar_start = 0.0  # where the render's own work starts on the bar (compile)
         self._listeners = []
         self._viewport = None  # rendered viewport (addon/viewport.py)
 
@@ -406,7 +412,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self._last_stats = now
             self._stats(text)
 
-    def _progress(self, fraction, stage=None):
+    def _progress(self, fraction, stage=None, raw=False):
+        """The bar at the render's fraction of its own work (raw: at fraction of the whole
+        bar, the compile's share); the listeners hear the bar's position."""
+        if not raw:
+            fraction = self._bar_start + (1.0 - self._bar_start) * fraction
         self.update_progress(fraction)
         if stage is not None and stage != self._progress_stage:
             self._progress_stage = stage
@@ -510,8 +520,13 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self._stats(pm.jit.COMPILE_MESSAGE)  # stats line and the batch command's bar
             if not self._listeners:  # the batch's bar shows it; a print would split the bar
                 print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
-        compile_seconds = pm.jit.ensure_compiled(
-            lambda stage, fraction, text: self._stats(text))
+        self._bar_start = 0.0
+
+        def compile_progress(stage, fraction, text):
+            self._stats(text)
+            self._progress(COMPILE_SHARE * fraction, stage, raw=True)
+        compile_seconds = pm.jit.ensure_compiled(compile_progress)
+        self._bar_start = COMPILE_SHARE if compiling else 0.0
 
         width, height = export.render_size(render)
         region = export.border_region(render, width, height)
