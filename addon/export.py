@@ -37,10 +37,12 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace", "tangents", "uv_name", "attributes", "named_tangents")
+                 "texspace", "tangents", "uv_name", "attributes", "named_tangents",
+                 "generated")
 
     def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
-                 tangents=None, uv_name="", attributes=None, named_tangents=None):
+                 tangents=None, uv_name="", attributes=None, named_tangents=None,
+                 generated=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -57,6 +59,9 @@ class LocalGeometry:
         # MikkTSpace tangents of the UV maps nodes name (named_tangent_maps):
         # name -> (F,3,4) as `tangents`
         self.named_tangents = named_tangents or {}
+        # None (Generated from the corners' positions in `texspace`) or (F,3,3) per corner
+        # (particle hair: each strand's root in its emitter's texture space)
+        self.generated = generated
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -309,8 +314,17 @@ def extract_particle_hair(pm, obj, background: bool = True,
     strands = particle_strands(obj, background, poll)
     if strands is None:
         return None
+    # Generated: each strand's root key in the emitter mesh's texture space, the same on
+    # the whole strand (Cycles' blender/curves.cpp: co * size - loc of the first key,
+    # mesh_texture_space; "ideally from Blender", its comment says).
+    me = obj.data
+    loc = np.array(me.texspace_location, np.float64)
+    size = np.array(me.texspace_size, np.float64)
+    size = np.where(np.abs(size) > 1e-12, size, 1.0)
+    roots = np.asarray(strands.points, np.float64)[np.asarray(strands.offsets[:-1], np.int64)]
     geo = hair_tubes(pm, obj, strands.points, strands.radius, strands.offsets,
-                     strands.slot, strands.uv)
+                     strands.slot, strands.uv,
+                     strand_generated=(roots - loc) / (2.0 * size) + 0.5)
     if geo is not None and geo.uvs is not None:  # (the emitter's render UV map)
         geo.uv_name = next((layer.name for layer in obj.data.uv_layers if layer.active_render),
                            obj.data.uv_layers[0].name)
@@ -318,10 +332,11 @@ def extract_particle_hair(pm, obj, background: bool = True,
 
 
 def hair_tubes(pm, obj, points, radius, offsets, slot=None,
-               strand_uv=None) -> LocalGeometry | None:
+               strand_uv=None, strand_generated=None) -> LocalGeometry | None:
     """Hair strands (points (P,3) and radius (P,) in object space, offsets (C+1,), slot
     (C,) material slot or None: the first; strand_uv (C,2) each strand's UV, on every
-    corner of its tubes, or None: no UVs) as smooth-shaded triangle tubes
+    corner of its tubes, or None: no UVs; strand_generated (C,3) each strand's Generated
+    coordinate, or None: the tubes' own bounds) as smooth-shaded triangle tubes
     (engine/hair.tube_mesh), with Curves Info's attributes when a material of obj reads
     them. None when no strand has 2 points."""
     # Curves Info, and the Principled Hair BSDF's Random Color / Random Roughness (the
@@ -340,8 +355,12 @@ def hair_tubes(pm, obj, points, radius, offsets, slot=None,
     uvs = None
     if strand_uv is not None:
         uvs = np.repeat(np.asarray(strand_uv, np.float64)[curve][:, None, :], 3, axis=1)
+    generated = None
+    if strand_generated is not None:
+        generated = np.repeat(np.asarray(strand_generated, np.float64)[curve][:, None, :], 3,
+                              axis=1)
     return LocalGeometry(verts, faces, normals, uvs, mat_index, texspace=texspace,
-                         attributes=attributes)
+                         attributes=attributes, generated=generated)
 
 
 # Object types whose own data is rendered geometry (the depsgraph yields curves, text,
@@ -512,7 +531,10 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     local = g.co[g.faces]
     loc, size = g.texspace
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
-    out = {"object": local, "generated": (local - loc) / (2.0 * size) + 0.5,
+    generated = getattr(g, "generated", None)
+    if generated is None:
+        generated = (local - loc) / (2.0 * size) + 0.5
+    out = {"object": local, "generated": generated,
            "normal": object_normals(g)}
     for name, (vec, fac, alpha) in (getattr(g, "attributes", None) or {}).items():
         out[f"attr:{name}"] = vec
