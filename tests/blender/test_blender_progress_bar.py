@@ -43,20 +43,27 @@ def test_spans_cover_the_bar_in_proportion_to_the_work(bpy_addon):
     assert "photons" not in off
 
 
+def _render_events(bpy, kinds) -> list:
+    """[(event, value)] of the add-on's status events of those kinds during one F12."""
+    from addon import engine
+    events = []
+    listener = (lambda event, value: events.append((event, value))
+                if event in kinds else None)
+    engine.status_listeners.append(listener)
+    try:
+        bpy.ops.render.render()
+    finally:
+        engine.status_listeners.remove(listener)
+    return events
+
+
 def test_a_render_reports_progress_that_never_goes_back(bpy_addon):
     bpy = bpy_addon
     scene = open_blend(bpy, "figure6_box.blend")
     cheap(scene, width=48, height=36, pct=100, spp=4, photons=20_000,
           caustic_photons=5_000)
     from addon import engine
-    events = []
-    listener = (lambda event, value: events.append((event, value))
-                if event in ("progress", "stage") else None)
-    engine.status_listeners.append(listener)
-    try:
-        bpy.ops.render.render()
-    finally:
-        engine.status_listeners.remove(listener)
+    events = _render_events(bpy, ("progress", "stage"))
     values = [v for e, v in events if e == "progress"]
     # Each stage told once, before its first progress (the batch bar's time left is
     # measured in the camera pass alone: engine/eta.py).
@@ -94,14 +101,7 @@ def test_a_first_render_fills_the_bar_while_the_kernels_compile(bpy_addon, monke
         return 2.0
     monkeypatch.setattr(pm.jit, "needs_compile", lambda: True)
     monkeypatch.setattr(pm.jit, "ensure_compiled", compile_steps)
-    events = []
-    listener = (lambda event, value: events.append((event, value))
-                if event in ("progress", "stats") else None)
-    engine.status_listeners.append(listener)
-    try:
-        bpy.ops.render.render()
-    finally:
-        engine.status_listeners.remove(listener)
+    events = _render_events(bpy, ("progress", "stats"))
     values = [v for e, v in events if e == "progress"]
     assert values[:4] == pytest.approx([0.125, 0.25, 0.375, 0.5])
     assert all(b >= a - 1e-9 for a, b in zip(values, values[1:]))
@@ -110,11 +110,5 @@ def test_a_first_render_fills_the_bar_while_the_kernels_compile(bpy_addon, monke
     # Cached kernels: the render's work from 0.
     monkeypatch.setattr(pm.jit, "needs_compile", lambda: False)
     monkeypatch.setattr(pm.jit, "ensure_compiled", lambda progress=None: 0.0)
-    events.clear()
-    engine.status_listeners.append(listener)
-    try:
-        bpy.ops.render.render()
-    finally:
-        engine.status_listeners.remove(listener)
-    values = [v for e, v in events if e == "progress"]
+    values = [v for e, v in _render_events(bpy, ("progress",))]
     assert values[0] < 0.1 and values[-1] == pytest.approx(1.0)
