@@ -33,6 +33,8 @@ import traceback
 import bpy
 import numpy as np
 
+from .aovs import material_aovs
+
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
                      "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN",
@@ -487,7 +489,9 @@ class MaterialConverter:
             # the coefficients above are then at density 1)
             density_texture=self._density_field,
             # true displacement (Displacement Only / and Bump): vertices moved at prepare
-            displacement=self._displace[0], displacement_method=self._displace[1])
+            displacement=self._displace[0], displacement_method=self._displace[1],
+            # AOV Output nodes: the Shader AOV passes (addon/aovs.py)
+            aovs=self._aovs(mat, warnings))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -798,6 +802,23 @@ class MaterialConverter:
                    f"'{node.name}' varies per point, which a homogeneous medium does not; "
                    f"using its own value {_value_text(own)}")
         return np.full(3, float(own)) if np.ndim(own) == 0 else np.asarray(own, np.float64)
+
+    def _aovs(self, mat, warnings) -> dict:
+        """Material.aovs of mat (addon/aovs.py); {} when it has none or its AOV nodes
+        cannot be read (warned)."""
+        if mat is None:
+            return {}
+        try:
+            return material_aovs(self, mat)
+        except Exception as exc:  # noqa: BLE001 - an AOV must not stop the render
+            warnings.append(f"material '{mat.name}': its AOV Output nodes could not be read "
+                            f"({type(exc).__name__}: {exc}); its Shader AOVs stay 0")
+            return {}
+
+    def aov_input(self, node, socket):
+        """An AOV Output node's Color or Value input for the material just converted: an
+        engine node or a constant (addon/aovs.py)."""
+        return self._input(node, socket, 0)
 
     def _warn(self, text):
         if text not in self._warned:

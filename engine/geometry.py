@@ -69,6 +69,8 @@ class MaterialTable:
     density_textures: list = None      # per material: its medium's density field
                                        # (Material.density_texture, a node; None: none;
                                        # engine/heterogeneous.py)
+    aovs: list = None                  # per material: Material.aovs ({} without AOV
+                                       # Output nodes; engine/datapasses.py)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -104,6 +106,7 @@ class MaterialTable:
                                          for m in materials], np.bool_),
                    density_textures=[getattr(m, "density_texture", None)
                                      for m in materials],
+                   aovs=[getattr(m, "aovs", None) or {} for m in materials],
                    **cols)
 
     @property

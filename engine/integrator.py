@@ -2103,7 +2103,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
                 progress("render", end / total,
                          f"Rendering pixels {short_count(end // spp)}/{short_count(npix)}")
     finally:
-        _write_film(film, acc, spp, rh, rw, s.data_passes)
+        _write_film(film, acc, spp, rh, rw, datapasses.wanted(s))
     return counters
 
 
@@ -2198,7 +2198,7 @@ def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
                 active = np.nonzero(~converged)[0]
     finally:
         _write_film(film, acc, np.maximum(count, 1).astype(np.float64)[:, None], rh, rw,
-                    s.data_passes)
+                    datapasses.wanted(s))
         film.sample_count = count.reshape(rh, rw).astype(np.float32)
         film.stats["adaptive_mean_spp"] = float(count.mean()) if npix else 0.0
         film.stats["adaptive_min_samples"] = schedule.min_effective
@@ -2525,7 +2525,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     left_p = None  # the point each path left (its previous hit), while coincident
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
-    want_data = s.data_passes
+    want_data = datapasses.wanted(s)
     feat = np.ones(len(o), bool) if "denoising" in want_data else None
     ftp = np.ones((len(o), 3)) if feat is not None else None
     to_camera = None

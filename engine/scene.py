@@ -90,6 +90,32 @@ def _names(value, what: str) -> list:
     return names
 
 
+def _aov_outputs(aovs, who) -> dict:
+    """Material.aovs checked: {name: {"color": node or (3,) float64, "value": node or
+    float}} (either key may be missing). Raises SceneError naming the material."""
+    out = {}
+    for name, outputs in dict(aovs or {}).items():
+        if not isinstance(name, str) or not name:
+            raise SceneError(f"{who} aovs: an AOV name must be a non-empty string, got "
+                             f"{name!r}")
+        checked = {}
+        for kind, value in dict(outputs).items():
+            if kind not in ("color", "value"):
+                raise SceneError(f"{who} aovs '{name}': expected 'color' or 'value' "
+                                 f"outputs, got {kind!r}")
+            if hasattr(value, "evaluate"):
+                checked[kind] = value
+            elif kind == "color":
+                checked[kind] = _vec3(value, f"{who} aovs '{name}' color")
+            else:
+                checked[kind] = float(value)
+                if not math.isfinite(checked[kind]):
+                    raise SceneError(f"{who} aovs '{name}' value: must be finite, got "
+                                     f"{value!r}")
+        out[name] = checked
+    return out
+
+
 @dataclass
 class Material:
     """A Principled-v2 surface with Cycles' meaning (engine/closures/principled.py builds
@@ -178,6 +204,9 @@ class Material:
     mesh vertices (engine/displacement.displace_meshes; "DISPLACEMENT" recomputes the
     normals, "BOTH" keeps them and bumps through `normal_map`); "BUMP" (Blender's
     default) moves nothing: the bump is `normal_map`'s DisplacedNormals alone.
+    `aovs`: Cycles' AOV Output nodes: {AOV name: {"color": node or RGB (3,), "value":
+    node or float}}, what the material writes into the Shader AOV passes of that name
+    (engine/datapasses.py); a node is an engine/shadernodes node evaluated at the hits.
     """
 
     name: str = "default"
@@ -222,6 +251,7 @@ class Material:
     density_texture: object | None = None
     displacement: object | None = None
     displacement_method: str = "BUMP"
+    aovs: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -348,6 +378,7 @@ class Material:
             raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap, Bump, "
                              "engine.bevel.Bevel or engine.displacement.DisplacedNormals, got "
                              f"{type(self.normal_map).__name__}")
+        self.aovs = _aov_outputs(self.aovs, who)
 
     @property
     def is_emissive(self) -> bool:
