@@ -29,8 +29,8 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, heterogeneous, lightpasses, media,
-               photonvisibility, sampleclamp, shadelight, volumeemission, volumescatter,
-               volumewalk, worldmedium)
+               photonvisibility, raymaterials, sampleclamp, shadelight, volumeemission,
+               volumescatter, volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -2837,11 +2837,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # nodes with the surface data in the same kernel (bsdf.surface_hit_lobes).
         bufs = buffers.take(n)
         prm, sel, p, q, psum, glossy, dsel, wd = bufs
+        # The material each ray class meets (Light Path in a material: camera rays and
+        # the chain's glossy / transmission rays may meet a variant; engine/raymaterials.py;
+        # None: every hit its triangle's own).
+        cls_mat = raymaterials.path_materials(ctx.geo, ctx.table, prim, ray_cls)
         if plain:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs)
+                                        bufs, material=cls_mat)
         else:
-            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat)
             per_hit = hit.params is not None
             nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
                              hit.params if per_hit else ctx.table.closure_params, per_hit,

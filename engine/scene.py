@@ -178,6 +178,11 @@ class Material:
     mesh vertices (engine/displacement.displace_meshes; "DISPLACEMENT" recomputes the
     normals, "BOTH" keeps them and bumps through `normal_map`); "BUMP" (Blender's
     default) moves nothing: the bump is `normal_map`'s DisplacedNormals alone.
+    `ray_variants`: {"camera" | "glossy" | "transmission" | "shadow": Material} the
+    surface other ray classes meet (Cycles' Light Path node in the material: a window
+    transparent to shadow rays, a lamp the camera does not see); this material is what
+    diffuse rays, photons and light sampling meet (engine/raymaterials.py). None: one
+    material for every ray.
     """
 
     name: str = "default"
@@ -222,6 +227,7 @@ class Material:
     density_texture: object | None = None
     displacement: object | None = None
     displacement_method: str = "BUMP"
+    ray_variants: dict | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -242,6 +248,18 @@ class Material:
         if self.emission_texture is not None and not hasattr(self.emission_texture, "evaluate"):
             raise SceneError(f"{who} emission_texture: expected a node with evaluate(geo, "
                              f"prim, u, v), got {type(self.emission_texture).__name__}")
+        if self.ray_variants:
+            from .raymaterials import VARIANT_CLASSES
+            for key, var in self.ray_variants.items():
+                if key not in VARIANT_CLASSES:
+                    raise SceneError(f"{who} ray_variants: unknown ray class {key!r} "
+                                     f"(expected one of {', '.join(VARIANT_CLASSES)})")
+                if not isinstance(var, Material) or var.ray_variants:
+                    raise SceneError(f"{who} ray_variants[{key!r}]: expected an engine "
+                                     "Material without variants of its own")
+            self.ray_variants = dict(self.ray_variants)
+        else:
+            self.ray_variants = None
         self.base_color = _vec3(self.base_color, f"{who} base_color")
         self.emission = _vec3(self.emission, f"{who} emission")
         if np.any(self.emission < 0):
