@@ -338,7 +338,8 @@ class Session:
         empty = ctx is not None and ctx.geo.count == 0
         if self._scene_dirty or ctx is None or empty:
             self._photons.clear()
-            same_names = ctx is not None and expanded_names(table_materials(scene)) == ctx.table.names
+            same_names = (ctx is not None
+                          and expanded_names(table_materials(scene)) == ctx.table.names)
             if self._geometry_dirty or not same_names or ctx is None or empty:
                 geo, table = prepare(scene, self._cancel.is_set)
                 self.counters.geometry_builds += 1

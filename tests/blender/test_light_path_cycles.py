@@ -1,0 +1,151 @@
+"""The Light Path node inside materials against live Cycles (lightpath40: addon/lightpath.py,
+engine/raymaterials.py).
+
+1. A window of Mix Shader(Is Shadow Ray, Glass, Transparent): a 2 cm glass slab 1.5 m
+   over a grey floor, a 1 m area light above to one side, seen straight down
+   (orthographic). Shadow rays see the Transparent BSDF: the patch of floor the light
+   reaches through the window is lit as if the window were not there, and the floor seen
+   through the glass is dimmed by the glass's two refractions only. Cycles with Light
+   Paths > Caustics > Refractive off: with it on (its default) Cycles adds the refractive
+   caustic through the glass on top of the shadow rays' light (x1.9 on the lit patch,
+   docs/compatibility.md, lightpath40), light this trick is used to replace.
+2. A lamp the camera looks through: Mix Shader(Is Camera Ray, Emission, Transparent) on a
+   1 m plane 1 m over the floor, the only light: the camera sees the floor under it, lit.
+3. A screen that glows only for the camera: Emission Strength = 7 x Is Camera Ray, beside
+   an area light: the camera sees it glow, the floor gets none of its light (and the
+   screen, black to every other ray, shadows the area light's).
+"""
+import numpy as np
+import pytest
+from blender_helpers import (black_world, cycles_plain, glass_or_diffuse_material,
+                             looking_down_camera, node_material, read_rgba, render_exr)
+
+pytestmark = pytest.mark.blender
+
+RES = 40  # px over 4 m: 10 px per metre, pixel i at x = (i + 0.5) / 10 - 2
+
+
+def _px(x):
+    return int(round((x + 2.0) * 10.0 - 0.5))
+
+
+def _region(img, x0, x1, y0=-0.3, y1=0.3):
+    """Mean of an (H,W) image over world x in [x0, x1], y in [y0, y1] (row 0 at +y)."""
+    return float(img[_px(-y1):_px(-y0) + 1, _px(x0):_px(x1) + 1].mean())
+
+
+def _light_path_material(bpy, name, fac_output, a, b):
+    """Mix Shader(Fac = Light Path's fac_output, a, b): a and b callables making the two
+    shader nodes in the tree."""
+    m, nt, out = node_material(bpy, name)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    path = nt.nodes.new("ShaderNodeLightPath")
+    nt.links.new(path.outputs[fac_output], mix.inputs[0])
+    nt.links.new(a(nt).outputs[0], mix.inputs[1])
+    nt.links.new(b(nt).outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _glass(nt):
+    g = nt.nodes.new("ShaderNodeBsdfGlass")
+    g.inputs["Roughness"].default_value = 0.0
+    return g
+
+
+def _emission(nt, strength=4.0):
+    e = nt.nodes.new("ShaderNodeEmission")
+    e.inputs["Strength"].default_value = strength
+    return e
+
+
+def _base(bpy):
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    black_world(bpy, scene)
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    bpy.context.object.data.materials.append(
+        glass_or_diffuse_material(bpy, "Floor", "diffuse", (0.8,) * 3))
+    looking_down_camera(bpy, scene, 6.0, ortho_scale=4.0)
+    scene.render.resolution_x = scene.render.resolution_y = RES
+    return scene
+
+
+def _area(bpy, scene, x, power=300.0):
+    light = bpy.data.objects.new("Area", bpy.data.lights.new("Area", "AREA"))
+    light.data.energy, light.data.size = power, 1.0
+    light.location = (x, 0.0, 3.0)
+    scene.collection.objects.link(light)
+
+
+def _both(bpy, scene, tmp_path, cycles_spp=512, spp=16, caustics_refractive=True):
+    """(ours, Cycles) luminance (H,W) of scene."""
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, cycles_spp, 8)
+    scene.cycles.caustics_refractive = caustics_refractive
+    ref = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "c.exr")))[..., :3].mean(-1)
+    scene.render.engine = "PHOTONMAP"
+    scene.photonmap.spp = spp
+    ours = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "o.exr")))[..., :3].mean(-1)
+    return ours, ref
+
+
+def test_window_transparent_to_shadow_rays_lights_the_floor_as_cycles(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene = _base(bpy)
+    window = _light_path_material(bpy, "Window", "Is Shadow Ray", _glass,
+                                  lambda nt: nt.nodes.new("ShaderNodeBsdfTransparent"))
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.5))
+    slab = bpy.context.object
+    slab.name, slab.scale = "Window", (1.2, 1.2, 0.02)
+    slab.data.materials.append(window)
+    _area(bpy, scene, 0.8)
+    scene.render.engine = "PHOTONMAP"
+    from blender_helpers import export_warnings
+    assert not [w for w in export_warnings(bpy) if "Window" in w]
+    ours, ref = _both(bpy, scene, tmp_path, caustics_refractive=False)
+    for x0, x1 in ((-1.4, -0.8), (-0.3, 0.3), (1.2, 1.8)):  # lit patch, glass, open floor
+        a, b = _region(ours, x0, x1), _region(ref, x0, x1)
+        assert abs(a / b - 1.0) < 0.04, ((x0, x1), a, b)
+
+
+def test_lamp_the_camera_looks_through_lights_the_floor_as_cycles(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene = _base(bpy)
+    lamp = _light_path_material(bpy, "Lamp", "Is Camera Ray", _emission,
+                                lambda nt: nt.nodes.new("ShaderNodeBsdfTransparent"))
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, 0.0, 1.0))
+    bpy.context.object.data.materials.append(lamp)
+    ours, ref = _both(bpy, scene, tmp_path)
+    under, beside = _region(ref, -0.3, 0.3), _region(ref, 1.2, 1.8)
+    assert under > 0.3 and beside > 0.02  # (lit: the camera sees no glowing plane)
+    for x0, x1 in ((-0.3, 0.3), (1.2, 1.8)):
+        a, b = _region(ours, x0, x1), _region(ref, x0, x1)
+        assert abs(a / b - 1.0) < 0.04, ((x0, x1), a, b)
+
+
+def test_screen_glowing_only_for_the_camera_lights_nothing(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene = _base(bpy)
+    m, nt, out = node_material(bpy, "Screen")
+    e = _emission(nt)
+    mul = nt.nodes.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    mul.inputs[1].default_value = 7.0
+    path = nt.nodes.new("ShaderNodeLightPath")
+    nt.links.new(path.outputs["Is Camera Ray"], mul.inputs[0])
+    nt.links.new(mul.outputs[0], e.inputs["Strength"])
+    nt.links.new(e.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-1.0, 0.0, 1.0))
+    bpy.context.object.data.materials.append(m)
+    _area(bpy, scene, 1.0, power=100.0)
+    ours, ref = _both(bpy, scene, tmp_path, cycles_spp=64, spp=4)
+    # The camera sees the screen's 7 W/m^2/sr (white emission); the floor beside it only
+    # the area light's light.
+    assert abs(_region(ours, -1.3, -0.7) - 7.0) < 0.01 and abs(_region(ref, -1.3, -0.7)
+                                                              - 7.0) < 0.01
+    # The floor under the light, lit alike; the floor the screen hides from the light
+    # black in both (the screen is an opaque black surface to every other ray).
+    a, b = _region(ours, 0.7, 1.3), _region(ref, 0.7, 1.3)
+    assert abs(a / b - 1.0) < 0.05, (a, b)
+    assert _region(ours, -1.9, -1.6) < 1e-3 and _region(ref, -1.9, -1.6) < 1e-3
