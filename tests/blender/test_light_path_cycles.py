@@ -8,7 +8,8 @@ engine/raymaterials.py).
    through the glass is dimmed by the glass's two refractions only. Cycles with Light
    Paths > Caustics > Refractive off: with it on (its default) Cycles adds the refractive
    caustic through the glass on top of the shadow rays' light (x1.9 on the lit patch,
-   docs/compatibility.md, lightpath40), light this trick is used to replace.
+   docs/compatibility.md, lightpath40), light this trick is used to replace. The same
+   window as a single plane matches Cycles with it on (our photons' caustic through it).
 2. A lamp the camera looks through: Mix Shader(Is Camera Ray, Emission, Transparent) on a
    1 m plane 1 m over the floor, the only light: the camera sees the floor under it, lit.
 3. A screen that glows only for the camera: Emission Strength = 7 x Is Camera Ray, beside
@@ -90,20 +91,29 @@ def _both(bpy, scene, tmp_path, cycles_spp=512, spp=16, caustics_refractive=True
     return ours, ref
 
 
-def test_window_transparent_to_shadow_rays_lights_the_floor_as_cycles(bpy_addon, tmp_path):
+@pytest.mark.parametrize("shape, caustics", [("slab", False), ("plane", True)])
+def test_window_transparent_to_shadow_rays_lights_the_floor_as_cycles(bpy_addon, tmp_path,
+                                                                      shape, caustics):
+    """A slab: ours is Cycles with Caustics > Refractive off (the photons crossing thin
+    flat glass keep their path's kind: shadow rays carry the light). A single plane: ours
+    is Cycles with it on (the photons refracted into the plane's far side are caustic
+    photons, on top of the shadow rays' light)."""
     bpy = bpy_addon
     scene = _base(bpy)
     window = _light_path_material(bpy, "Window", "Is Shadow Ray", _glass,
                                   lambda nt: nt.nodes.new("ShaderNodeBsdfTransparent"))
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.5))
-    slab = bpy.context.object
-    slab.name, slab.scale = "Window", (1.2, 1.2, 0.02)
-    slab.data.materials.append(window)
+    if shape == "slab":
+        bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.5))
+        bpy.context.object.scale = (1.2, 1.2, 0.02)
+    else:
+        bpy.ops.mesh.primitive_plane_add(size=1.2, location=(0.0, 0.0, 1.5))
+    bpy.context.object.name = "Window"
+    bpy.context.object.data.materials.append(window)
     _area(bpy, scene, 0.8)
     scene.render.engine = "PHOTONMAP"
     from blender_helpers import export_warnings
     assert not [w for w in export_warnings(bpy) if "Window" in w]
-    ours, ref = _both(bpy, scene, tmp_path, caustics_refractive=False)
+    ours, ref = _both(bpy, scene, tmp_path, caustics_refractive=caustics)
     for x0, x1 in ((-1.4, -0.8), (-0.3, 0.3), (1.2, 1.8)):  # lit patch, glass, open floor
         a, b = _region(ours, x0, x1), _region(ref, x0, x1)
         assert abs(a / b - 1.0) < 0.04, ((x0, x1), a, b)
@@ -149,3 +159,47 @@ def test_screen_glowing_only_for_the_camera_lights_nothing(bpy_addon, tmp_path):
     a, b = _region(ours, 0.7, 1.3), _region(ref, 0.7, 1.3)
     assert abs(a / b - 1.0) < 0.05, (a, b)
     assert _region(ours, -1.9, -1.6) < 1e-3 and _region(ref, -1.9, -1.6) < 1e-3
+
+
+def test_wall_red_to_the_camera_white_to_bounces_bleeds_white_as_cycles(bpy_addon, tmp_path):
+    """4. Colour bleeding control: a Diffuse wall whose Color is Mix(Factor = Is Camera
+    Ray, white, red): the camera sees it red, the light it bounces onto the floor is
+    white (Cycles and ours: the floor's red / green ratio near the wall within 5 %)."""
+    bpy = bpy_addon
+    scene = _base(bpy)
+    m, nt, out = node_material(bpy, "Wall")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.inputs["A"].default_value = (0.9, 0.9, 0.9, 1.0)
+    mix.inputs["B"].default_value = (0.9, 0.05, 0.05, 1.0)
+    path = nt.nodes.new("ShaderNodeLightPath")
+    nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Factor"])
+    nt.links.new(mix.outputs["Result"], d.inputs["Color"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0.6, 0.0, 1.0),
+                                     rotation=(0.0, np.pi / 2, 0.0))
+    bpy.context.object.data.materials.append(m)
+    _area(bpy, scene, -0.4, power=400.0)
+    cam = scene.camera
+    cam.data.type = "PERSP"
+    cam.location, cam.rotation_euler = (-3.0, 0.0, 1.6), (np.radians(70.0), 0.0,
+                                                          np.radians(-90.0))
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, 512, 8)
+    ref = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "c.exr")))[..., :3]
+    scene.render.engine = "PHOTONMAP"
+    scene.photonmap.spp = 16
+    ours = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "o.exr")))[..., :3]
+    from blender_helpers import project
+
+    def patch(img, point, r=2):
+        row, col = project(bpy, scene, point)
+        return img[row - r:row + r + 1, col - r:col + r + 1].reshape(-1, 3).mean(axis=0)
+
+    wall_o, wall_c = patch(ours, (0.6, 0.0, 1.2)), patch(ref, (0.6, 0.0, 1.2))
+    assert wall_c[0] > 5 * wall_c[1] and wall_o[0] > 5 * wall_o[1]  # red to the camera
+    assert abs(wall_o[0] / wall_c[0] - 1.0) < 0.04
+    floor_o, floor_c = patch(ours, (0.0, 0.0, 0.0), 1), patch(ref, (0.0, 0.0, 0.0), 1)
+    assert abs(floor_o.mean() / floor_c.mean() - 1.0) < 0.05
+    assert abs((floor_o[0] / floor_o[1]) / (floor_c[0] / floor_c[1]) - 1.0) < 0.05
