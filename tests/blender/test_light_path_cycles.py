@@ -203,3 +203,32 @@ def test_wall_red_to_the_camera_white_to_bounces_bleeds_white_as_cycles(bpy_addo
     floor_o, floor_c = patch(ours, (0.0, 0.0, 0.0), 1), patch(ref, (0.0, 0.0, 0.0), 1)
     assert abs(floor_o.mean() / floor_c.mean() - 1.0) < 0.05
     assert abs((floor_o[0] / floor_o[1]) / (floor_c[0] / floor_c[1]) - 1.0) < 0.05
+
+
+def test_conversion_keeps_the_classes_that_differ_and_warns_per_hit_outputs(bpy_addon):
+    """The converter's variants (addon/lightpath.py): a shadow-ray window has a shadow
+    variant only; Is Glossy Ray splits glossy and transmission rays (Cycles' glass
+    refraction carries PATH_RAY_GLOSSY); a material without Light Path has none; Ray Length
+    is warned by material and node name and reads 0."""
+    from blender_helpers import convert_material
+    bpy = bpy_addon
+    bpy.ops.wm.read_homefile(use_empty=True)
+    transparent = lambda nt: nt.nodes.new("ShaderNodeBsdfTransparent")  # noqa: E731
+    window = convert_material(_light_path_material(bpy, "W", "Is Shadow Ray", _glass,
+                                                   transparent))
+    assert set(window.ray_variants) == {"shadow"} and window.transmission == 1.0
+    assert window.ray_variants["shadow"].alpha == 0.0 and not window.warnings
+    glossy = convert_material(_light_path_material(bpy, "G", "Is Glossy Ray", _glass,
+                                                   transparent))
+    assert set(glossy.ray_variants) == {"glossy", "transmission"}
+    plain = convert_material(glass_or_diffuse_material(bpy, "P", "glass", (1.0,) * 3))
+    assert plain.ray_variants is None
+    m, nt, out = node_material(bpy, "Fade")
+    e = _emission(nt)
+    path = nt.nodes.new("ShaderNodeLightPath")
+    path.name = "Path"
+    nt.links.new(path.outputs["Ray Length"], e.inputs["Strength"])
+    nt.links.new(e.outputs[0], out.inputs["Surface"])
+    fade = convert_material(m)
+    assert fade.emission.max() == 0.0 and fade.ray_variants is None
+    assert any("'Fade'" in w and "'Path'" in w and "Ray Length" in w for w in fade.warnings)
