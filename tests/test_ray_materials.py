@@ -114,3 +114,30 @@ def test_no_variant_change_keeps_the_image_bitwise():
     assert np.array_equal(a, b)
     ctx = prepare_context(_card_scene(card(None)), RenderSettings(workers=1))
     assert path_materials(ctx.geo, ctx.table, np.arange(ctx.geo.count), CAMERA) is None
+
+
+def test_each_hit_reads_its_ray_class_row():
+    """path_materials picks, per hit, the row of the class that met it (camera, glossy,
+    transmission rows mixed in one batch, as a camera chain's bounce has them), and
+    hit_tables hands the compiled readers those rows with the hits' own geometry rows."""
+    from engine.geometry import DIFFUSE, GLOSSY, TRANSMISSION
+    from engine.raymaterials import hit_tables
+    card = Material("card", (0.5, 0.5, 0.5), ray_variants={
+        "camera": Material("card [camera]", (0.8, 0.0, 0.0)),
+        "glossy": Material("card [glossy]", (0.0, 0.8, 0.0))})
+    ctx = prepare_context(_card_scene(card), RenderSettings(workers=1))
+    geo, table = ctx.geo, ctx.table
+    names = table.names
+    card_tri = int(np.flatnonzero(np.asarray(geo.material) == names.index("card"))[0])
+    floor_tri = int(np.flatnonzero(np.asarray(geo.material) == names.index("matte"))[0])
+    prim = np.array([card_tri, card_tri, card_tri, card_tri, floor_tri])
+    cls = np.array([CAMERA, GLOSSY, TRANSMISSION, DIFFUSE, CAMERA])
+    rows = path_materials(geo, table, prim, cls)
+    assert [names[i] for i in rows] == ["card [camera]", "card [glossy]", "card", "card",
+                                        "matte"]
+    assert rows.dtype == geo.material.dtype
+    idx, tabs = hit_tables(geo, prim, rows, "v0", "e1", "corner_normals", "material")
+    assert idx.tolist() == [0, 1, 2, 3, 4]
+    assert np.array_equal(tabs[0], geo.v0[prim]) and np.array_equal(tabs[1], geo.e1[prim])
+    assert tabs[2] is geo.corner_normals or np.array_equal(tabs[2], geo.corner_normals[prim])
+    assert np.array_equal(tabs[3], rows)
