@@ -22,8 +22,8 @@ cut-outs), and a Normal Map node (tangent or world space) fed by an image or any
 Bump node on 'Normal' inputs (docs/textures.md). A Light Path node's outputs are constants
 per ray class: a surface that reads them is converted once per class, one engine material
 for each class that differs (addon/lightpath.py). Anything else falls back to its nearest
-approximation (another shader with a Color input: a Diffuse BSDF of that colour; the material's viewport colour
-when nothing else is known) and is reported once per material
+approximation (another shader with a Color input: a Diffuse BSDF of that colour; the
+material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both; an input whose feeding node is not supported
 takes the socket's own value, and the warning says which value.
 """
