@@ -25,6 +25,8 @@ meets which). The constants, from Cycles:
   emission      light sampling's evaluation of an emitter (PATH_RAY_EMISSION): every
                 Is ... Ray output 0; the engine samples mesh lights with the diffuse rays'
                 emission, so a difference is warned
+A Holdout that the camera class picks (Mix Shader(Is Camera Ray, Emission, Holdout)) is a
+camera variant that holds out (engine Material.holdout), as an object's holdout does.
 Outputs that are not one constant per class (Ray Length, Is Backfacing, the depths past
 the first bounce, Is Singular Ray on rough lobes) read their first bounce's value,
 warned naming the material and the node.
@@ -120,7 +122,7 @@ def same_material(pm, a, b) -> bool:
     ta, tb = (pm.geometry.MaterialTable.build([m]) for m in (a, b))
     for col in ("base_color", "emission", "alpha", "closure_params", "transmission",
                 "metallic", "roughness", "ior", "specular", "coat_weight", "sheen_weight",
-                "translucent", "emission_sides"):
+                "translucent", "emission_sides", "holdout"):
         x, y = getattr(ta, col), getattr(tb, col)
         if x is None and y is None:
             continue
@@ -129,20 +131,70 @@ def same_material(pm, a, b) -> bool:
     return True
 
 
+def _class_value(node, output: str, cls: str):
+    """A Light Path output's value for class cls when it is one of the exact flags, else
+    None."""
+    if node.type != "LIGHT_PATH" or output not in EXACT:
+        return None
+    return 1.0 if output in _FLAGS[cls] else 0.0
+
+
+def picks_holdout(mat, cls: str, output_node) -> bool:
+    """Whether the Surface of mat is, for ray class cls, a Holdout shader alone: reached
+    through Mix Shaders whose factor is a Light Path flag (0 picks the first shader, 1
+    the second), as Mix Shader(Is Camera Ray, Emission, Holdout)."""
+    out = output_node(mat.node_tree)
+    socket = out.inputs.get("Surface") if out is not None else None
+    for _ in range(32):
+        if socket is None or not socket.is_linked or getattr(socket.links[0], "is_muted",
+                                                             False):
+            return False
+        node = socket.links[0].from_node
+        while node.type == "REROUTE" and node.inputs[0].is_linked:
+            node = node.inputs[0].links[0].from_node
+        if node.type == "HOLDOUT":
+            return True
+        if node.type != "MIX_SHADER" or not node.inputs[0].is_linked:
+            return False
+        link = node.inputs[0].links[0]
+        fac = _class_value(link.from_node, link.from_socket.name, cls)
+        if fac is None:
+            return False
+        socket = node.inputs[2] if fac >= 0.5 else node.inputs[1]
+    return False
+
+
 def convert_per_ray_class(converter, mat, key: str, convert_once):
     """The engine Material of Blender material mat (named key) whose Surface reads Light
     Path: the diffuse rays' conversion, with the other classes' that differ as its
     ray_variants ("<key> [camera rays]", ...). convert_once(mat, name) converts with
     converter._ray_class set. Warnings: the diffuse conversion's, then the others' new
     ones."""
+    from .materials import output_node
     converted = {}
     try:
         for cls in RAY_CLASSES:
+            name = key if cls == "diffuse" else f"{key} [{cls} rays]"
+            if cls == "camera" and picks_holdout(mat, cls, output_node):
+                # Camera rays see a Holdout: a hole (engine Material.holdout), black and
+                # opaque otherwise (no ray but the camera's meets this row).
+                converted[cls] = converter.pm.Material(name=name, base_color=(0.0, 0.0, 0.0),
+                                                       holdout=True)
+                continue
             converter._ray_class = cls
-            converted[cls] = convert_once(mat, key if cls == "diffuse" else f"{key} [{cls} rays]")
+            converted[cls] = convert_once(mat, name)
     finally:
         converter._ray_class = "diffuse"
     base = converted["diffuse"]
+    if (converted["camera"].holdout
+            and sum(n.type == "HOLDOUT" for n in mat.node_tree.nodes) == 1
+            and not any(picks_holdout(mat, c, output_node) for c in RAY_CLASSES
+                        if c != "camera")):
+        # The one Holdout is the camera's (a Light Path factor of 0 or 1 gave it weight 0
+        # for the other classes): the "not supported" line their conversion wrote for it
+        # does not apply.
+        for m in converted.values():
+            m.warnings[:] = [w for w in m.warnings if "(HOLDOUT) is not supported" not in w]
     variants = {cls: converted[cls] for cls in VARIANT_CLASSES
                 if not same_material(converter.pm, converted[cls], base)}
     for cls in VARIANT_CLASSES:

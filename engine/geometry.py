@@ -70,6 +70,7 @@ class MaterialTable:
     density_textures: list = None      # per material: its medium's density field
                                        # (Material.density_texture, a node; None: none;
                                        # engine/heterogeneous.py)
+    holdout: np.ndarray = None         # (M,) bool: camera rays see a hole (Material.holdout)
     ray_remap: dict = None             # {ray class bit: (M,) int64 row that class meets}
                                        # for the classes a Light Path variant changes
                                        # (engine/raymaterials.py; None / {}: none)
@@ -111,6 +112,8 @@ class MaterialTable:
                                          for m in materials], np.bool_),
                    density_textures=[getattr(m, "density_texture", None)
                                      for m in materials],
+                   holdout=np.array([bool(getattr(m, "holdout", False))
+                                     for m in materials], np.bool_),
                    ray_remap=ray_remap, **cols)
 
     @property

@@ -2462,7 +2462,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     shade_from = lamp_w = None
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
-    has_holdout = bool(ctx.geo.holdout.any())
+    # (objects' holdout, and materials' that camera rays see: a Holdout shader chosen by
+    # Light Path's Is Camera Ray, engine/raymaterials.py)
+    mat_holdout = ctx.table.holdout if (ctx.table.holdout is not None
+                                        and ctx.table.holdout.any()) else None
+    has_holdout = bool(ctx.geo.holdout.any()) or mat_holdout is not None
     # (O,) bool: the shadow catcher objects (None: none; engine/shadowcatcher.py).
     catchers = getattr(ctx, "catcher_objects", None)
     # No material emits: no emission rows to gather or test (surface_hit's are zeros).
@@ -2717,6 +2721,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
             hole = np.zeros(len(prim), bool)
             hole[hitm] = np.take(ctx.geo.holdout, prim[hitm]) & (ray_cls[hitm] == CAMERA)
+            if mat_holdout is not None:
+                rows_h = raymaterials.hit_materials(ctx.geo, ctx.table, prim[hitm],
+                                                    ray_cls[hitm])
+                hole[hitm] |= mat_holdout[rows_h] & (ray_cls[hitm] == CAMERA)
             if hole.any():
                 prim = np.where(hole, -3, prim)
                 hitm &= ~hole

@@ -115,6 +115,16 @@ def path_materials(geo, table, prim, ray_cls):
     return out.astype(np.asarray(tab).dtype)
 
 
+def hit_materials(geo, table, prim, ray_cls) -> np.ndarray:
+    """(N,) int64 the material row each hit prim (N,) (>= 0) shows its ray of class ray_cls:
+    path_materials' rows, or the triangles' own."""
+    rows = path_materials(geo, table, prim, ray_cls)
+    if rows is not None:
+        return np.asarray(rows, np.int64)
+    idx, (tab,) = geo.hit_tables(np.ascontiguousarray(prim, np.int64), "material")
+    return np.take(np.asarray(tab), idx).astype(np.int64)
+
+
 def hit_tables(geo, prim, material, *names):
     """geo.hit_tables(prim, *names) with the "material" table replaced by the per-hit rows
     `material` (N,) (path_materials; None: geo.hit_tables itself). The compiled readers

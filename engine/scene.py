@@ -183,6 +183,9 @@ class Material:
     transparent to shadow rays, a lamp the camera does not see); this material is what
     diffuse rays, photons and light sampling meet (engine/raymaterials.py). None: one
     material for every ray.
+    `holdout`: camera rays that meet the surface see a hole (alpha 0, no colour), as an
+    object's holdout (Mesh.holdout) does: Cycles' Holdout shader, as the camera variant
+    of Mix Shader(Is Camera Ray, Emission, Holdout) (addon/lightpath.py).
     """
 
     name: str = "default"
@@ -228,6 +231,7 @@ class Material:
     displacement: object | None = None
     displacement_method: str = "BUMP"
     ray_variants: dict | None = None
+    holdout: bool = False
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):

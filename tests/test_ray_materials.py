@@ -141,3 +141,17 @@ def test_each_hit_reads_its_ray_class_row():
     assert np.array_equal(tabs[0], geo.v0[prim]) and np.array_equal(tabs[1], geo.e1[prim])
     assert tabs[2] is geo.corner_normals or np.array_equal(tabs[2], geo.corner_normals[prim])
     assert np.array_equal(tabs[3], rows)
+
+
+def test_holdout_for_the_camera_lamp_for_the_rest():
+    """Mix Shader(Is Camera Ray, Emission, Holdout): camera rays meeting the lamp see a
+    hole (no colour, holdout 1), while it lights the floor around it."""
+    lamp = Material("lamp", (0.0, 0.0, 0.0), emission=(5.0, 5.0, 5.0), ray_variants={
+        "camera": Material("lamp [camera]", (0.0, 0.0, 0.0), holdout=True)})
+    s = _card_scene(lamp)
+    s.lights.clear()
+    film = render(s, RenderSettings(spp=4, photon_mapping=False, workers=1, seed=3))
+    h = film.combined.shape[0]
+    c = slice(h // 2 - 2, h // 2 + 2)
+    assert np.all(film.combined[c, c] == 0.0) and np.all(film.holdout[c, c] == 1.0)
+    assert film.combined[1:3, 1:3].min() > 0.0 and np.all(film.holdout[1:3, 1:3] == 0.0)

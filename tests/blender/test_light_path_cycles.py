@@ -11,7 +11,8 @@ engine/raymaterials.py).
    docs/compatibility.md, lightpath40), light this trick is used to replace. The same
    window as a single plane matches Cycles with it on (our photons' caustic through it).
 2. A lamp the camera looks through: Mix Shader(Is Camera Ray, Emission, Transparent) on a
-   1 m plane 1 m over the floor, the only light: the camera sees the floor under it, lit.
+   1 m plane 1 m over the floor, the only light: the camera sees the floor under it, lit;
+   with a Holdout for the Transparent, a hole (no colour, alpha 0) where the lamp is.
 3. A screen that glows only for the camera: Emission Strength = 7 x Is Camera Ray, beside
    an area light: the camera sees it glow, the floor gets none of its light (and the
    screen, black to every other ray, shadows the area light's).
@@ -79,16 +80,20 @@ def _area(bpy, scene, x, power=300.0):
     scene.collection.objects.link(light)
 
 
-def _both(bpy, scene, tmp_path, cycles_spp=512, spp=16, caustics_refractive=True):
-    """(ours, Cycles) luminance (H,W) of scene."""
+def _both(bpy, scene, tmp_path, cycles_spp=512, spp=16, caustics_refractive=True,
+          alpha=False):
+    """(ours, Cycles) mean of RGB (H,W) of scene; alpha: (H,W,2) mean of RGB and alpha."""
+    def read(path):
+        rgba = read_rgba(bpy, render_exr(bpy, scene, str(path)))
+        grey = rgba[..., :3].mean(-1)
+        return np.stack([grey, rgba[..., 3]], axis=-1) if alpha else grey
     scene.render.engine = "CYCLES"
     cycles_plain(scene, cycles_spp, 8)
     scene.cycles.caustics_refractive = caustics_refractive
-    ref = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "c.exr")))[..., :3].mean(-1)
+    ref = read(tmp_path / "c.exr")
     scene.render.engine = "PHOTONMAP"
     scene.photonmap.spp = spp
-    ours = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "o.exr")))[..., :3].mean(-1)
-    return ours, ref
+    return read(tmp_path / "o.exr"), ref
 
 
 @pytest.mark.parametrize("shape, caustics", [("slab", False), ("plane", True)])
@@ -119,18 +124,32 @@ def test_window_transparent_to_shadow_rays_lights_the_floor_as_cycles(bpy_addon,
         assert abs(a / b - 1.0) < 0.04, ((x0, x1), a, b)
 
 
-def test_lamp_the_camera_looks_through_lights_the_floor_as_cycles(bpy_addon, tmp_path):
+@pytest.mark.parametrize("other", ["ShaderNodeBsdfTransparent", "ShaderNodeHoldout"])
+def test_lamp_the_camera_does_not_see_lights_the_floor_as_cycles(bpy_addon, tmp_path, other):
+    """Mix Shader(Is Camera Ray, Emission, Transparent or Holdout): the camera sees the
+    floor under the lamp (Transparent) or a hole there (Holdout: no colour, alpha 0)."""
     bpy = bpy_addon
     scene = _base(bpy)
     lamp = _light_path_material(bpy, "Lamp", "Is Camera Ray", _emission,
-                                lambda nt: nt.nodes.new("ShaderNodeBsdfTransparent"))
+                                lambda nt: nt.nodes.new(other))
     bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, 0.0, 1.0))
     bpy.context.object.data.materials.append(lamp)
-    ours, ref = _both(bpy, scene, tmp_path)
-    under, beside = _region(ref, -0.3, 0.3), _region(ref, 1.2, 1.8)
-    assert under > 0.3 and beside > 0.02  # (lit: the camera sees no glowing plane)
-    for x0, x1 in ((-0.3, 0.3), (1.2, 1.8)):
-        a, b = _region(ours, x0, x1), _region(ref, x0, x1)
+    scene.render.engine = "PHOTONMAP"
+    from blender_helpers import export_warnings
+    assert not [w for w in export_warnings(bpy) if "Lamp" in w]
+    ours, ref = _both(bpy, scene, tmp_path, alpha=True)
+    beside = _region(ref[..., 0], 1.2, 1.8)
+    assert beside > 0.02
+    if other == "ShaderNodeHoldout":
+        for img in (ours, ref):
+            assert _region(img[..., 0], -0.3, 0.3) < 1e-6  # no colour
+            assert _region(img[..., 1], -0.3, 0.3) < 1e-6  # alpha 0
+        regions = ((1.2, 1.8),)
+    else:
+        assert _region(ref[..., 0], -0.3, 0.3) > 0.3  # lit: no glowing plane seen
+        regions = ((-0.3, 0.3), (1.2, 1.8))
+    for x0, x1 in regions:
+        a, b = _region(ours[..., 0], x0, x1), _region(ref[..., 0], x0, x1)
         assert abs(a / b - 1.0) < 0.04, ((x0, x1), a, b)
 
 
