@@ -96,17 +96,29 @@ def _both(bpy, scene, tmp_path, cycles_spp=512, spp=16, caustics_refractive=True
     return read(tmp_path / "o.exr"), ref
 
 
-@pytest.mark.parametrize("shape, caustics", [("slab", False), ("plane", True)])
+@pytest.mark.parametrize("shape, caustics, fac", [("slab", False, "Is Shadow Ray"),
+                                                 ("plane", True, "Is Shadow Ray"),
+                                                 ("slab", False, "shadow + diffuse")])
 def test_window_transparent_to_shadow_rays_lights_the_floor_as_cycles(bpy_addon, tmp_path,
-                                                                      shape, caustics):
+                                                                      shape, caustics, fac):
     """A slab: ours is Cycles with Caustics > Refractive off (the photons crossing thin
     flat glass keep their path's kind: shadow rays carry the light). A single plane: ours
     is Cycles with it on (the photons refracted into the plane's far side are caustic
-    photons, on top of the shadow rays' light)."""
+    photons, on top of the shadow rays' light). "shadow + diffuse": the factor Is Shadow
+    Ray + Is Diffuse Ray (Math Add), transparent to bounces and photons too."""
     bpy = bpy_addon
     scene = _base(bpy)
     window = _light_path_material(bpy, "Window", "Is Shadow Ray", _glass,
                                   lambda nt: nt.nodes.new("ShaderNodeBsdfTransparent"))
+    if fac == "shadow + diffuse":
+        nt = window.node_tree
+        mix = next(n for n in nt.nodes if n.type == "MIX_SHADER")
+        path = next(n for n in nt.nodes if n.type == "LIGHT_PATH")
+        add = nt.nodes.new("ShaderNodeMath")
+        add.operation = "ADD"
+        nt.links.new(path.outputs["Is Shadow Ray"], add.inputs[0])
+        nt.links.new(path.outputs["Is Diffuse Ray"], add.inputs[1])
+        nt.links.new(add.outputs[0], mix.inputs[0])
     if shape == "slab":
         bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.5))
         bpy.context.object.scale = (1.2, 1.2, 0.02)
