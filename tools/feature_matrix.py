@@ -1917,6 +1917,17 @@ def transparency_light_path_invisible_lamp():
                         ("ShaderNodeBsdfTransparent", {}))
     mb.plane("Lamp", 1.5, 1.5, m, (-0.6, -0.6, 2.0), (0.5, 0, 0))
 
+
+@case("transparency")
+def transparency_light_path_holdout_lamp():
+    """The lamp panel as Mix Shader(Is Camera Ray, Emission, Holdout): it lights the stage,
+    the camera sees a hole where it is (no colour, alpha 0)."""
+    _stage()
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.3, 0.4))
+    m = _light_path_mix("holdlamp", "Is Camera Ray", ("ShaderNodeEmission", {"Strength": 6.0}),
+                        ("ShaderNodeHoldout", {}))
+    mb.plane("Lamp", 1.5, 1.5, m, (-0.6, -0.6, 2.0), (0.5, 0, 0))
+
 def _window_room(pane):
     """A closed 4 x 4 x 2.5 m room lit only through a 1.2 x 1 m window in its +x wall by
     an area light outside. pane: None (an open window), "plane" (single-plane Glass) or
