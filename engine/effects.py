@@ -554,8 +554,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                if shades is not None and all(n in shades.names
                                                              for n in tl_reached) else ""))
             if plan.window_glass:
+                # (thin flat glass, or glass a Light Path makes transparent to shadow rays)
+                why = ("thin flat glass" if not shadow_passed(geo, table).any()
+                       else "thin flat glass, or transparent to them by Light Path")
                 glow.append("the reflections of window glass "
-                            + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
+                            + _quoted(plan.window_glass) + f" (passed by shadow rays: {why})")
             if plan.pane_glass:
                 glow.append("the reflections of single-plane glass "
                             + _quoted(plan.pane_glass) + f" ({pane_lights} through it "

@@ -155,3 +155,21 @@ def test_holdout_for_the_camera_lamp_for_the_rest():
     c = slice(h // 2 - 2, h // 2 + 2)
     assert np.all(film.combined[c, c] == 0.0) and np.all(film.holdout[c, c] == 1.0)
     assert film.combined[1:3, 1:3].min() > 0.0 and np.all(film.holdout[1:3, 1:3] == 0.0)
+
+
+def test_effects_call_shadow_transparent_glass_window_glass():
+    """Glass that shadow rays see as a Transparent BSDF needs no caustic photons for its
+    direct light: the effect analysis lists it as window glass, not a caster, and says why."""
+    glass = Material("glass", (1.0, 1.0, 1.0), transmission=1.0, specular=1.0,
+                     roughness=0.0, node="glass", ray_variants={
+                         "shadow": Material("glass [shadow]", alpha=0.0)})
+    ctx = prepare_context(_card_scene(glass), RenderSettings(workers=1))
+    assert "card" in ctx.plan.window_glass and "card" not in ctx.plan.casters
+    line = next(x for x in ctx.plan.report() if x.startswith("Light Path in materials"))
+    assert "shadow rays see another surface on 'card'" in line
+    assert "no caustic photons aimed at it" in line
+    plain = prepare_context(_card_scene(Material("glass", (1.0, 1.0, 1.0), transmission=1.0,
+                                                 specular=1.0, roughness=0.0, node="glass")),
+                            RenderSettings(workers=1))
+    assert "card" not in plain.plan.window_glass
+    assert not any(x.startswith("Light Path") for x in plain.plan.report())
