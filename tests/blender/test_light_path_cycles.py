@@ -263,3 +263,45 @@ def test_conversion_keeps_the_classes_that_differ_and_warns_per_hit_outputs(bpy_
     fade = convert_material(m)
     assert fade.emission.max() == 0.0 and fade.ray_variants is None
     assert any("'Fade'" in w and "'Path'" in w and "Ray Length" in w for w in fade.warnings)
+
+
+def test_floor_blue_to_transmission_rays_as_cycles(bpy_addon, tmp_path):
+    """5. The camera chain's own classes: a floor of Mix Shader(Is Transmission Ray, white
+    Diffuse, blue Diffuse) under a clear glass slab (Glass BSDF alone) seen straight down:
+    through the glass (transmission rays) it is blue, beside it (camera rays) white, in
+    Cycles and ours; the blue patch's channels within 5 % of Cycles'."""
+    bpy = bpy_addon
+    scene = _base(bpy)
+
+    def diffuse(rgb):
+        def make(nt):
+            n = nt.nodes.new("ShaderNodeBsdfDiffuse")
+            n.inputs["Color"].default_value = (*rgb, 1.0)
+            return n
+        return make
+
+    floor = _light_path_material(bpy, "TFloor", "Is Transmission Ray", diffuse((0.8,) * 3),
+                                 diffuse((0.1, 0.2, 0.8)))
+    bpy.data.objects["Plane"].data.materials[0] = floor
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.5))
+    bpy.context.object.scale = (1.2, 1.2, 0.02)
+    bpy.context.object.data.materials.append(
+        glass_or_diffuse_material(bpy, "Clear", "glass", (1.0,) * 3))
+    _area(bpy, scene, 1.5)
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, 256, 8)
+    ref = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "c.exr")))[..., :3]
+    scene.render.engine = "PHOTONMAP"
+    scene.photonmap.spp = 16
+    ours = read_rgba(bpy, render_exr(bpy, scene, str(tmp_path / "o.exr")))[..., :3]
+
+    def rgb(img, x0, x1):
+        return np.array([_region(img[..., c], x0, x1) for c in range(3)])
+
+    for img in (ours, ref):
+        through, beside = rgb(img, -0.3, 0.3), rgb(img, 1.2, 1.8)
+        assert through[2] > 2.0 * through[0]  # blue through the glass
+        assert abs(beside[2] / beside[0] - 1.0) < 0.05  # white beside it
+    for x0, x1 in ((-0.3, 0.3), (1.2, 1.8)):
+        a, b = rgb(ours, x0, x1), rgb(ref, x0, x1)
+        assert np.all(np.abs(a / b - 1.0) < 0.05), ((x0, x1), a, b)
