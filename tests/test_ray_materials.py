@@ -173,3 +173,40 @@ def test_effects_call_shadow_transparent_glass_window_glass():
                             RenderSettings(workers=1))
     assert "card" not in plain.plan.window_glass
     assert not any(x.startswith("Light Path") for x in plain.plan.report())
+
+
+def test_scene_file_reads_ray_class_materials(tmp_path):
+    """[materials.NAME.shadow_rays] (camera_rays, glossy_rays, transmission_rays) in a
+    scene file: the surface those rays meet; an unknown key inside it is an error naming
+    it."""
+    from engine.scenefile import load_scene
+    text = """
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+up = [0, 1, 0]
+[materials.window]
+transmission = 1.0
+specular = 1.0
+roughness = 0.0
+node = "glass"
+[materials.window.shadow_rays]
+alpha = 0.0
+transparent_tint = [0.5, 0.5, 0.5]
+[materials.window.camera_rays]
+holdout = true
+[[objects]]
+type = "plane"
+center = [0, 0, 1]
+size = 2
+material = "window"
+"""
+    path = tmp_path / "s.toml"
+    path.write_text(text.replace("transparent_tint = [0.5, 0.5, 0.5]\n", ""))
+    scene, _ = load_scene(str(path))
+    m = scene.materials["window"]
+    assert set(m.ray_variants) == {"shadow", "camera"}
+    assert m.ray_variants["shadow"].alpha == 0.0 and m.ray_variants["camera"].holdout
+    path.write_text(text)
+    with pytest.raises(Exception, match="transparent_tint"):
+        load_scene(str(path))
