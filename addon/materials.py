@@ -19,9 +19,11 @@ on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight,
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
 Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for
 cut-outs), and a Normal Map node (tangent or world space) fed by an image or any colour node tree, or a
-Bump node on 'Normal' inputs (docs/textures.md). Anything else falls back to its nearest approximation (another
-shader with a Color input: a Diffuse BSDF of that colour; the material's viewport colour
-when nothing else is known) and is reported once per material
+Bump node on 'Normal' inputs (docs/textures.md). A Light Path node's outputs are constants
+per ray class: a surface that reads them is converted once per class, one engine material
+for each class that differs (addon/lightpath.py). Anything else falls back to its nearest
+approximation (another shader with a Color input: a Diffuse BSDF of that colour; the
+material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both; an input whose feeding node is not supported
 takes the socket's own value, and the warning says which value.
 """
@@ -33,6 +35,7 @@ import traceback
 import bpy
 import numpy as np
 
+from . import lightpath
 from .aovs import material_aovs
 
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
@@ -424,6 +427,20 @@ class MaterialConverter:
         key = mat.name if mat is not None else "default"
         if key in self.cache:
             return self.cache[key]
+        if mat is not None and lightpath.reads_light_path(mat, output_node):
+            # Light Path in the surface: converted once per ray class, the classes that
+            # differ from the diffuse rays' as its ray_variants (addon/lightpath.py).
+            m = lightpath.convert_per_ray_class(self, mat, key, self._convert_once)
+        else:
+            m = self._convert_once(mat, key)
+        self.cache[key] = m
+        return m
+
+    # The ray class whose Light Path values a conversion reads (addon/lightpath.py).
+    _ray_class = "diffuse"
+
+    def _convert_once(self, mat, key):
+        """convert()'s engine Material of mat named key, for the ray class _ray_class."""
         warnings: list[str] = []
         # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
         self._medium = (np.zeros(3), False, np.zeros(3), 0.0, np.zeros(3))
@@ -493,7 +510,6 @@ class MaterialConverter:
             # AOV Output nodes: the Shader AOV passes (addon/aovs.py)
             aovs=self._aovs(mat, warnings))
         m.warnings[:0] = warnings
-        self.cache[key] = m
         return m
 
     # --- internals ----------------------------------------------------------------
@@ -1724,6 +1740,8 @@ class MaterialConverter:
             return np.asarray(tuple(out.default_value)[:3], dtype=np.float64)
         if t == "VALUE":
             return float(out.default_value)
+        if t == "LIGHT_PATH":  # a constant per ray class (addon/lightpath.py)
+            return lightpath.output_value(self, n, oname)
         if t == "VERTEX_COLOR":  # the Color Attribute node
             name = str(getattr(n, "layer_name", ""))
             if oname == "Color" and not name:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import raymaterials
 from .rayoffset import surface_offset, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
 from .parallel import Cancelled
@@ -71,9 +72,16 @@ class MaterialTable:
                                        # engine/heterogeneous.py)
     aovs: list = None                  # per material: Material.aovs ({} without AOV
                                        # Output nodes; engine/datapasses.py)
+    holdout: np.ndarray = None         # (M,) bool: camera rays see a hole (Material.holdout)
+    ray_remap: dict = None             # {ray class bit: (M,) int64 row that class meets}
+                                       # for the classes a Light Path variant changes
+                                       # (engine/raymaterials.py; None / {}: none)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
+        # The materials' Light Path variants become rows of their own after the given
+        # ones (engine/raymaterials.py; none: the rows are the materials as given).
+        materials, ray_remap = raymaterials.expand(materials)
         cols = {f: np.array([getattr(m, f) for m in materials], np.float64) for f in MAT_FIELDS}
         return cls(names=[m.name for m in materials],
                    base_color=np.array([m.base_color for m in materials], np.float64).reshape(-1, 3),
@@ -107,7 +115,9 @@ class MaterialTable:
                    density_textures=[getattr(m, "density_texture", None)
                                      for m in materials],
                    aovs=[getattr(m, "aovs", None) or {} for m in materials],
-                   **cols)
+                   holdout=np.array([bool(getattr(m, "holdout", False))
+                                     for m in materials], np.bool_),
+                   ray_remap=ray_remap, **cols)
 
     @property
     def has_scalar_textures(self) -> bool:

@@ -29,8 +29,8 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, heterogeneous, lightpasses, media,
-               photonvisibility, sampleclamp, shadelight, volumeemission, volumescatter,
-               volumewalk, worldmedium)
+               photonvisibility, raymaterials, sampleclamp, shadelight, volumeemission,
+               volumescatter, volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -2462,7 +2462,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     shade_from = lamp_w = None
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
-    has_holdout = bool(ctx.geo.holdout.any())
+    # (objects' holdout, and materials' that camera rays see: a Holdout shader chosen by
+    # Light Path's Is Camera Ray, engine/raymaterials.py)
+    mat_holdout = ctx.table.holdout if (ctx.table.holdout is not None
+                                        and ctx.table.holdout.any()) else None
+    has_holdout = bool(ctx.geo.holdout.any()) or mat_holdout is not None
     # (O,) bool: the shadow catcher objects (None: none; engine/shadowcatcher.py).
     catchers = getattr(ctx, "catcher_objects", None)
     # No material emits: no emission rows to gather or test (surface_hit's are zeros).
@@ -2717,6 +2721,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
             hole = np.zeros(len(prim), bool)
             hole[hitm] = np.take(ctx.geo.holdout, prim[hitm]) & (ray_cls[hitm] == CAMERA)
+            if mat_holdout is not None:
+                rows_h = raymaterials.hit_materials(ctx.geo, ctx.table, prim[hitm],
+                                                    ray_cls[hitm])
+                hole[hitm] |= mat_holdout[rows_h] & (ray_cls[hitm] == CAMERA)
             if hole.any():
                 prim = np.where(hole, -3, prim)
                 hitm &= ~hole
@@ -2837,11 +2845,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # nodes with the surface data in the same kernel (bsdf.surface_hit_lobes).
         bufs = buffers.take(n)
         prm, sel, p, q, psum, glossy, dsel, wd = bufs
+        # The material each ray class meets (Light Path in a material: camera rays and
+        # the chain's glossy / transmission rays may meet a variant; engine/raymaterials.py;
+        # None: every hit its triangle's own).
+        cls_mat = raymaterials.path_materials(ctx.geo, ctx.table, prim, ray_cls)
         if plain:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs)
+                                        bufs, material=cls_mat)
         else:
-            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat)
             per_hit = hit.params is not None
             nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
                              hit.params if per_hit else ctx.table.closure_params, per_hit,

@@ -207,6 +207,14 @@ class Material:
     `aovs`: Cycles' AOV Output nodes: {AOV name: {"color": node or RGB (3,), "value":
     node or float}}, what the material writes into the Shader AOV passes of that name
     (engine/datapasses.py); a node is an engine/shadernodes node evaluated at the hits.
+    `ray_variants`: {"camera" | "glossy" | "transmission" | "shadow": Material} the
+    surface other ray classes meet (Cycles' Light Path node in the material: a window
+    transparent to shadow rays, a lamp the camera does not see); this material is what
+    diffuse rays, photons and light sampling meet (engine/raymaterials.py). None: one
+    material for every ray.
+    `holdout`: camera rays that meet the surface see a hole (alpha 0, no colour), as an
+    object's holdout (Mesh.holdout) does: Cycles' Holdout shader, as the camera variant
+    of Mix Shader(Is Camera Ray, Emission, Holdout) (addon/lightpath.py).
     """
 
     name: str = "default"
@@ -252,6 +260,8 @@ class Material:
     displacement: object | None = None
     displacement_method: str = "BUMP"
     aovs: dict = field(default_factory=dict)
+    ray_variants: dict | None = None
+    holdout: bool = False
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -272,6 +282,18 @@ class Material:
         if self.emission_texture is not None and not hasattr(self.emission_texture, "evaluate"):
             raise SceneError(f"{who} emission_texture: expected a node with evaluate(geo, "
                              f"prim, u, v), got {type(self.emission_texture).__name__}")
+        if self.ray_variants:
+            from .raymaterials import VARIANT_CLASSES
+            for key, var in self.ray_variants.items():
+                if key not in VARIANT_CLASSES:
+                    raise SceneError(f"{who} ray_variants: unknown ray class {key!r} "
+                                     f"(expected one of {', '.join(VARIANT_CLASSES)})")
+                if not isinstance(var, Material) or var.ray_variants:
+                    raise SceneError(f"{who} ray_variants[{key!r}]: expected an engine "
+                                     "Material without variants of its own")
+            self.ray_variants = dict(self.ray_variants)
+        else:
+            self.ray_variants = None
         self.base_color = _vec3(self.base_color, f"{who} base_color")
         self.emission = _vec3(self.emission, f"{who} emission")
         if np.any(self.emission < 0):

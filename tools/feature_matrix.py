@@ -1876,6 +1876,58 @@ def transparency_tinted_transparent():
     _sun()
 
 
+def _light_path_mix(name, output, first, second):
+    """A material of Mix Shader(Fac = Light Path's `output`, first, second), each side a
+    (shader node type, {input: value}) pair (addon/lightpath.py)."""
+    m, nt, out = _nodes_material(name)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    path = nt.nodes.new("ShaderNodeLightPath")
+    nt.links.new(path.outputs[output], mix.inputs[0])
+    for i, (node_type, inputs) in enumerate((first, second)):
+        n = nt.nodes.new(node_type)
+        for k, v in inputs.items():
+            n.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
+        nt.links.new(n.outputs[0], mix.inputs[i + 1])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
+@case("transparency", cycles=dict(caustics_refractive=False))
+def transparency_light_path_shadow_window():
+    """A tilted 3 cm glass slab of Mix Shader(Is Shadow Ray, Glass, Transparent tinted
+    (0.9, 0.8, 0.6)) under the sun: the camera sees glass, its shadow is the tinted sun
+    light that shadow rays carry through the Transparent BSDF. Cycles with Light Paths >
+    Caustics > Refractive off: with it on, Cycles adds the refractive caustic through the
+    glass on top (docs/compatibility.md, lightpath40)."""
+    _stage()
+    m = _light_path_mix("shadowglass", "Is Shadow Ray",
+                        ("ShaderNodeBsdfGlass", {"Roughness": 0.0}),
+                        ("ShaderNodeBsdfTransparent", {"Color": (0.9, 0.8, 0.6)}))
+    mb.box("Window", 1.6, 1.6, 0.03, m, (0, 0, 1.2), (0.35, 0, 0))
+    _sun()
+
+
+@case("transparency")
+def transparency_light_path_invisible_lamp():
+    """A lamp panel of Mix Shader(Is Camera Ray, Emission, Transparent) over a red cube:
+    it lights the stage, the camera looks through it."""
+    _stage()
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.3, 0.4))
+    m = _light_path_mix("lamp", "Is Camera Ray", ("ShaderNodeEmission", {"Strength": 6.0}),
+                        ("ShaderNodeBsdfTransparent", {}))
+    mb.plane("Lamp", 1.5, 1.5, m, (-0.6, -0.6, 2.0), (0.5, 0, 0))
+
+
+@case("transparency")
+def transparency_light_path_holdout_lamp():
+    """The lamp panel as Mix Shader(Is Camera Ray, Emission, Holdout): it lights the stage,
+    the camera sees a hole where it is (no colour, alpha 0)."""
+    _stage()
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.3, 0.4))
+    m = _light_path_mix("holdlamp", "Is Camera Ray", ("ShaderNodeEmission", {"Strength": 6.0}),
+                        ("ShaderNodeHoldout", {}))
+    mb.plane("Lamp", 1.5, 1.5, m, (-0.6, -0.6, 2.0), (0.5, 0, 0))
+
 def _window_room(pane):
     """A closed 4 x 4 x 2.5 m room lit only through a 1.2 x 1 m window in its +x wall by
     an area light outside. pane: None (an open window), "plane" (single-plane Glass) or
