@@ -72,12 +72,24 @@ def _foreach(collection, attr, count, width, dtype):
 
 
 def _material_nodes(obj):
-    """Every shader node of the object's materials."""
+    """Every shader node of the object's materials, those inside their node groups too
+    (each group's tree once)."""
+    trees, seen = [], set()
     for slot in getattr(obj, "material_slots", ()):
         mat = slot.material
         tree = getattr(mat, "node_tree", None) if mat is not None else None
         if tree is not None:
-            yield from tree.nodes
+            trees.append(tree)
+    while trees:
+        tree = trees.pop()
+        if tree.as_pointer() in seen:
+            continue
+        seen.add(tree.as_pointer())
+        for node in tree.nodes:
+            yield node
+            inner = getattr(node, "node_tree", None) if node.type == "GROUP" else None
+            if inner is not None:
+                trees.append(inner)
 
 
 def _uses_tangent_normal_maps(obj) -> bool:

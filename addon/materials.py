@@ -35,7 +35,7 @@ import traceback
 import bpy
 import numpy as np
 
-from . import lightpath
+from . import lightpath, nodegroups
 from .aovs import material_aovs
 
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
@@ -114,16 +114,17 @@ def _value_text(v) -> str:
 def output_node(nt, fallback_type="OUTPUT_MATERIAL"):
     """The output node Cycles renders a node tree with: the active output for the Cycles
     target, else for All, else EEVEE's; else the first node of fallback_type
-    (OUTPUT_MATERIAL / OUTPUT_WORLD / OUTPUT_LIGHT); None when there is none."""
+    (OUTPUT_MATERIAL / OUTPUT_WORLD / OUTPUT_LIGHT); None when there is none. The node
+    is a proxy that reads node groups through (addon/nodegroups.py)."""
     for target in ("CYCLES", "ALL", "EEVEE"):
         try:
             out = nt.get_output_node(target)
         except Exception:  # noqa: BLE001 - older API
             out = None
         if out is not None:
-            return out
+            return nodegroups.wrap(out)
     outs = [n for n in nt.nodes if n.type == fallback_type]
-    return outs[0] if outs else None
+    return nodegroups.wrap(outs[0]) if outs else None
 
 
 def _fold(node, inputs):
@@ -447,7 +448,10 @@ class MaterialConverter:
         self._density_field = None  # a texture on the medium's Density (_medium_of)
         self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
-            closure = Closure()
+            # No material: Cycles (Blender 5.0) renders the default Principled BSDF, its
+            # specular layer included (measured: a sunlit plane without a material reads
+            # as a new material's Principled, 0.749; a Lambert 0.8 reads 0.784).
+            closure = Closure(specular=1.0)
         else:
             try:
                 closure = self._material_closure(mat, warnings)
@@ -545,7 +549,7 @@ class MaterialConverter:
         use_nodes = bpy.app.version >= (5, 0, 0) or getattr(mat, "use_nodes", True)
         if nt is None or not use_nodes:
             return Closure(base_color=tuple(mat.diffuse_color)[:3], roughness=mat.roughness)
-        out = output_node(nt)
+        out = output_node(nt)  # (node groups read through: addon/nodegroups.py)
         if out is None:
             self._warn(f"material '{mat.name}': no Material Output node; "
                        "using the viewport colour")
