@@ -2125,8 +2125,9 @@ class MaterialConverter:
         Interpolation, UDIM tiles), or None after a warning."""
         img = node.image
         if img is None:
-            self._warn(f"material '{self._mat.name}': image node '{node.name}' has no image")
-            return None
+            self._warn(f"material '{self._mat.name}': image node '{node.name}' has no image; "
+                       "it renders magenta, as in Cycles")
+            return self._missing_image()
         extension = str(getattr(node, "extension", "REPEAT"))
         interpolation = str(getattr(node, "interpolation", "Linear"))
         key = (img.name, extension, interpolation)
@@ -2151,10 +2152,20 @@ class MaterialConverter:
                                        name=img.name)
         except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
             self._warn(f"material '{self._mat.name}': image '{img.name}' in node "
-                       f"'{node.name}' could not be read ({exc}); using the input colour")
-            tex = None
+                       f"'{node.name}' could not be read ({exc}); it renders magenta, as "
+                       "in Cycles")
+            tex = self._missing_image()
         self.images[key] = tex
         return tex
+
+    def _missing_image(self):
+        """The texture Cycles shows for an image it cannot load (or no image): magenta
+        (TEX_IMAGE_MISSING_R/G/B 1, 0, 1), alpha 1, everywhere."""
+        if "missing" not in self.images:
+            self.images["missing"] = self.pm.ImageTexture(
+                np.array([[[1.0, 0.0, 1.0, 1.0]]], np.float32), extension="EXTEND",
+                interpolation="Closest", srgb=False, name="missing image")
+        return self.images["missing"]
 
     def _stored_as_srgb(self, img) -> bool:
         """True when Cycles keeps the image's texels sRGB-encoded (interpolates those as
