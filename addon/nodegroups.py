@@ -92,6 +92,8 @@ class GroupSockets:
         self._sockets, self._ctx = sockets, ctx
 
     def __getitem__(self, key):
+        if isinstance(key, slice):
+            return [GroupSocket(s, self._ctx) for s in self._sockets[key]]
         return GroupSocket(self._sockets[key], self._ctx)
 
     def get(self, key, default=None):
@@ -112,14 +114,15 @@ class GroupSockets:
 
 
 class GroupLink:
-    """A resolved link: from_node / from_socket proxies (valid, not muted)."""
+    """A resolved link: from_node / from_socket proxies; is_valid False when a link on
+    the way is (Blender flags a link into an unavailable socket so; the callers decide)."""
 
-    __slots__ = ("from_node", "from_socket", "to_socket")
-    is_valid = True
+    __slots__ = ("from_node", "from_socket", "to_socket", "is_valid")
     is_muted = False
 
-    def __init__(self, from_node, from_socket, to_socket):
+    def __init__(self, from_node, from_socket, to_socket, is_valid=True):
         self.from_node, self.from_socket, self.to_socket = from_node, from_socket, to_socket
+        self.is_valid = is_valid
 
 
 class GroupSocket:
@@ -162,8 +165,8 @@ class GroupSocket:
         found = self._resolve()
         if found[0] != "node":
             return []
-        _, node, out, ctx = found
-        return [GroupLink(GroupNode(node, ctx), GroupSocket(out, ctx), self)]
+        _, node, out, ctx, valid = found
+        return [GroupLink(GroupNode(node, ctx), GroupSocket(out, ctx), self, valid)]
 
     @property
     def default_value(self):
@@ -199,19 +202,21 @@ def _by_identifier(sockets, identifier):
 
 def resolve(socket, ctx: tuple):
     """Where an input socket's value comes from, seen from inside the groups ctx:
-    ("node", node, output socket, ctx') for the node producing it (reroutes and group
-    boundaries passed), or ("value", socket') when it ends unlinked: socket' is the socket
-    whose own value it takes (socket itself, or a Group node's input / a Group Output's
-    input at the boundary where the link ended). A muted or invalid link ends it as
-    unlinked (the consumer's own value, as Blender); a muted Group node or one without a
-    tree is a node like any other (the converters warn)."""
-    cur, value_socket = socket, socket
+    ("node", node, output socket, ctx', valid) for the node producing it (reroutes and
+    group boundaries passed; valid: every link on the way is valid), or ("value",
+    socket') when it ends unlinked: socket' is the socket whose own value it takes
+    (socket itself, or a Group node's input / a Group Output's input at the boundary
+    where the link ended). A muted link ends it as unlinked (the consumer's own value, as
+    Blender); a muted Group node or one without a tree is a node like any other (the
+    converters warn)."""
+    cur, value_socket, valid = socket, socket, True
     for _ in range(MAX_HOPS):
         if not cur.is_linked or not cur.links:
             return ("value", value_socket)
         link = cur.links[0]
-        if not getattr(link, "is_valid", True) or getattr(link, "is_muted", False):
+        if getattr(link, "is_muted", False):
             return ("value", value_socket)
+        valid = valid and bool(getattr(link, "is_valid", True))
         node, out = link.from_node, link.from_socket
         if node.type == "REROUTE":
             cur = node.inputs[0]
@@ -233,7 +238,7 @@ def resolve(socket, ctx: tuple):
                 return ("value", value_socket)
             cur, value_socket, ctx = outer, outer, ctx[:-1]
             continue
-        return ("node", node, out, ctx)
+        return ("node", node, out, ctx, valid)
     return ("value", value_socket)
 
 
