@@ -69,6 +69,9 @@ class MaterialTable:
     density_textures: list = None      # per material: its medium's density field
                                        # (Material.density_texture, a node; None: none;
                                        # engine/heterogeneous.py)
+    volume_emission_textures: list = None  # per material: its medium's emission field
+    albedo_textures: list = None       # and albedo field (Material.volume_emission_texture,
+                                       # .albedo_texture; engine/volumefields.py)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -104,6 +107,9 @@ class MaterialTable:
                                          for m in materials], np.bool_),
                    density_textures=[getattr(m, "density_texture", None)
                                      for m in materials],
+                   volume_emission_textures=[getattr(m, "volume_emission_texture", None)
+                                             for m in materials],
+                   albedo_textures=[getattr(m, "albedo_texture", None) for m in materials],
                    **cols)
 
     @property
