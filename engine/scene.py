@@ -1455,6 +1455,7 @@ class Scene:
         self._check_links()
         # (emitting media glow too: engine/volumeemission.py)
         has_emitter = any(m.is_emissive or np.any(m.volume_emission > 0)
+                          or getattr(m, "volume_emission_texture", None) is not None
                           for m in self.materials.values())
         if self.world_medium is not None and np.any(self.world_medium.emission > 0):
             has_emitter = True
