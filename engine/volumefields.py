@@ -64,8 +64,11 @@ from .heterogeneous import PointGeometry, ray_keys, uniforms
 from .shadernodes import _eval
 
 # Stratified distances per segment in a textured medium (each a ratio-tracked
-# transmittance where the density is textured).
-EMISSION_SAMPLES = 2
+# transmittance where the density is textured). Measured on a 32 x 32 px, 16 spp "fire"
+# slab (tests/test_volume_fields.py's, density and emission one ramp): per-pixel relative
+# std 0.173 / 0.082 / 0.054 / 0.047 at 1 / 2 / 4 / 8, render 0.51 / 0.63 / 0.72 / 1.22 s:
+# variance x time least at 4.
+EMISSION_SAMPLES = 4
 # The hash salts: the transmittance's tracking (heterogeneous.correction's salts 1-6 are
 # the other ray kinds') and the distances' own numbers, which must not be the tracking's
 # (the same key and step would place the first collision where the distance falls).

@@ -73,7 +73,7 @@ def test_material_rejects_a_texture_that_is_not_a_node():
 
 def test_a_linear_emission_ramp_in_a_clear_slab():
     """e(z) = E0 A z, no extinction: the camera sees int_0^H e dz = E0 A H^2 / 2
-    (uniform distances, two strata a segment; the ramp's linear part integrates to
+    (uniform distances, stratified along each segment; the ramp's linear part integrates to
     within noise). The stand-in (the mean E0 A H / 2 over the slab) is the same integral
     here; the ramp's own samples decide it: within 1 %."""
     tex = VectorMath("MULTIPLY", _ramp(), E0)

@@ -191,3 +191,44 @@ def test_a_cube_whose_colour_is_a_gradient_matches_cycles(bpy_addon, tmp_path):
     ratio = ours.reshape(-1, 3).sum(axis=0) / ref.reshape(-1, 3).sum(axis=0)
     print("image sum ratio", ratio.round(4))
     np.testing.assert_allclose(ratio, 1.0, rtol=0.02)
+
+
+def test_a_textured_blackbody_exports_cycles_formula(bpy_addon):
+    """Principled Volume's Temperature from a texture (Generated x times 3000 K),
+    Blackbody Intensity 0.7, Blackbody Tint (1, 0.8, 0.6): the exported emission field
+    at a point equals svm_node_principled_volume's sigma_SB 1e-6 / pi x mix(1, T^4, b) x
+    tint x the blackbody colour of T there; an Emission shader's textured Strength
+    exports a field too."""
+    bpy = bpy_addon
+    from blender_helpers import convert_material, node_material
+    from engine.heterogeneous import PointGeometry
+    from engine.shadernodes import _eval, blackbody_rec709
+    m, nt, out = node_material(bpy, "fire export")
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(tc.outputs["Generated"], sep.inputs[0])
+    v = nt.nodes.new("ShaderNodeVolumePrincipled")
+    v.inputs["Blackbody Intensity"].default_value = 0.7
+    v.inputs["Blackbody Tint"].default_value = (1.0, 0.8, 0.6, 1.0)
+    nt.links.new(_times(nt, sep.outputs[0], 3000.0), v.inputs["Temperature"])
+    nt.links.new(v.outputs[0], out.inputs["Volume"])
+    fire = convert_material(m)
+    assert fire.volume_emission_texture is not None and not fire.warnings, fire.warnings
+    x = np.array([0.3, 0.5, 0.9])
+    pts = np.column_stack([x, np.zeros(3), np.zeros(3)])
+    pg = PointGeometry(pts, np.zeros(3, np.int64),
+                       {(0, "generated"): np.vstack([np.eye(3), np.zeros(3)])}, np.zeros(3))
+    got = _eval(fire.volume_emission_texture, pg, np.arange(3), np.zeros(3), np.zeros(3), 3)
+    T = 3000.0 * x
+    expect = (5.670373e-8 * 1e-6 / np.pi * (0.3 + 0.7 * T ** 4))[:, None] \
+        * np.array([1.0, 0.8, 0.6]) * np.maximum(blackbody_rec709(T), 0.0)
+    np.testing.assert_allclose(got, expect, rtol=1e-5)
+    m2, nt2, out2 = node_material(bpy, "emission shader export")
+    tc2 = nt2.nodes.new("ShaderNodeTexCoord")
+    noise = nt2.nodes.new("ShaderNodeTexNoise")
+    nt2.links.new(tc2.outputs["Generated"], noise.inputs["Vector"])
+    e = nt2.nodes.new("ShaderNodeEmission")
+    nt2.links.new(noise.outputs["Fac"], e.inputs["Strength"])
+    nt2.links.new(e.outputs[0], out2.inputs["Volume"])
+    glow = convert_material(m2)
+    assert glow.volume_emission_texture is not None and not glow.warnings, glow.warnings
