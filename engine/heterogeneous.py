@@ -174,6 +174,11 @@ class HeterogeneousMedia:
         self.object = np.asarray(geo.object_id)[rows].astype(np.int64)
         corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (R,3,3)
         self._fit_maps(corners)
+        # Textured emission and albedo (engine/volumefields.py): their means, and the
+        # fields' sigma_s_unit at the mean albedo, before anything reads the fields.
+        from .volumefields import MediumTextures
+        self.textures = MediumTextures(self, table, corners)
+        self.warnings.extend(self.textures.warnings)
         self._measure(corners)
         verts = corners.reshape(-1, 3)
         from .accel import Accel
@@ -185,10 +190,6 @@ class HeterogeneousMedia:
         for m, f in fields.items():
             table.absorption[m] = f.f_mean * (f.sigma_t_unit - f.sigma_s_unit)
             table.scattering[m] = f.f_mean * f.sigma_s_unit
-        # Textured emission and albedo (engine/volumefields.py): their stand-in rows.
-        from .volumefields import MediumTextures
-        self.textures = MediumTextures(self, table, corners)
-        self.warnings.extend(self.textures.warnings)
 
     @classmethod
     def for_scene(cls, geo, table, seed: int = 0):
@@ -249,9 +250,10 @@ class HeterogeneousMedia:
 
     @property
     def tracked(self) -> bool:
-        """Whether some field varies (a density texture: ratio tracking runs); fields of
-        constant density carry only emission / albedo textures (volumefields)."""
-        return any(f.mu > 0.0 for f in self.fields.values())
+        """Whether some field has a density texture (the tracking has work); fields of
+        constant density (node 1.0) carry only emission / albedo textures
+        (volumefields)."""
+        return any(hasattr(f.node, "evaluate") for f in self.fields.values())
 
     # -- setup ---------------------------------------------------------------------
     def _fit_maps(self, corners):

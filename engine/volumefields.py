@@ -114,12 +114,19 @@ def _values(node, pg, n, width) -> np.ndarray:
     return np.nan_to_num(val, nan=0.0, posinf=0.0, neginf=0.0)
 
 
+def _textured(field) -> bool:
+    """Whether a heterogeneous.Field has a density texture (its transmittance needs
+    tracking; a field of constant density 1.0 carries only emission / albedo)."""
+    return hasattr(field.node, "evaluate")
+
+
 class MediumTextures:
     """The emission and albedo fields of one render's heterogeneous media (het:
     heterogeneous.HeterogeneousMedia, whose fields hold every material with a density,
-    emission or albedo texture). Sets the table's stand-in rows (emission mean, albedo
-    mean) and the fields' sigma_s_unit to match; `integrate` and `albedo_ratio` are the
-    transport's (module docstring)."""
+    emission or albedo texture; made once its coordinate maps are fitted, before its
+    density is measured). Sets the table's stand-in emission (the mean) and the fields'
+    sigma_s_unit at the mean albedo (het's stand-in rows follow from them); `integrate`
+    and `albedo_ratio` are the transport's (module docstring)."""
 
     def __init__(self, het, table, corners):
         self.het = het
@@ -169,9 +176,8 @@ class MediumTextures:
             if m in self.albedo:
                 mean = np.maximum(a_sum / cnt, MIN_ALBEDO)
                 self.albedo_mean[m] = mean
+                # (the stand-in's rows follow: f_mean x these, heterogeneous.py)
                 f.sigma_s_unit = f.sigma_t_unit * mean
-                self.table.absorption[m] = f.f_mean * (f.sigma_t_unit - f.sigma_s_unit)
-                self.table.scattering[m] = f.f_mean * f.sigma_s_unit
                 if a_top > 1.0 + 1e-6:
                     self.warnings.append(
                         f"material '{self.table.names[m]}': its Color texture exceeds 1 "
@@ -211,7 +217,7 @@ class MediumTextures:
         texture, or a density texture (a tracked field) under a constant emission."""
         emit = np.asarray(self.table.volume_emission, np.float64)
         return {m for m, f in self.het.fields.items()
-                if m in self.emission or (f.mu > 0.0 and np.any(emit[m] > 0.0))}
+                if m in self.emission or (_textured(f) and np.any(emit[m] > 0.0))}
 
     # -- transport -----------------------------------------------------------------
     def integrate(self, o, d, t, src, L, sigma) -> None:
@@ -263,7 +269,7 @@ class MediumTextures:
         s_abs = (a[:, None] + s).ravel()
         w = np.exp(-sig[r] * s_abs[:, None]) * inv_pdf.ravel()[:, None]
         pts = o_s[ray][r] + u[ray][r] * s_abs[:, None]
-        tracked = np.array([het.fields[int(x)].mu > 0.0 for x in m[r]], np.bool_)
+        tracked = np.array([_textured(het.fields[int(x)]) for x in m[r]], np.bool_)
         if tracked.any():
             i = np.flatnonzero(tracked)
             w[i] *= het.correction(o_s[ray][r[i]], u[ray][r[i]], s_abs[i],
