@@ -193,3 +193,20 @@ def test_the_same_image_for_any_worker_count_and_no_nan():
     # an albedo texture above 1 is warned (read as 1 there)
     film = render(scene(), RenderSettings(workers=1, spp=1, photon_mapping=False))
     assert any("exceeds 1" in w for w in film.stats.get("warnings", [])), film.stats
+
+
+def test_volume_bounces_and_photons_through_textured_media():
+    """Volume bounces 2 with photons (the walks' glow segments, the photons' free
+    flights with the albedo's weight) over a floor: finite, non-negative, workers 1 and
+    2 bitwise."""
+    def scene():
+        s = _slab(absorption=SIGMA_A, scattering=0.5 * SIGMA_A, density=_ramp(),
+                  emission_texture=VectorMath("MULTIPLY", _ramp(), E0),
+                  albedo=VectorMath("MULTIPLY", _z(), (1.0, 0.5, 1.5)), light=LIGHT)
+        s.add_plane((0, 0, -0.3), (0, 0, 1), 30.0, "white_diffuse", name="floor")
+        return s
+    kw = dict(spp=2, seed=3, photon_mapping=True, photons=5000, volume_bounces=2)
+    a = _image(scene(), **kw)
+    b = _image(scene(), workers=2, **kw)
+    assert np.isfinite(a).all() and a.min() >= 0.0 and a.max() > 0.0
+    np.testing.assert_array_equal(a, b)
