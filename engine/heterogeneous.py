@@ -221,7 +221,8 @@ class HeterogeneousMedia:
             return _Warned([f"material '{table.names[m]}': a texture on its volume "
                             "(Density, Color or Emission) on objects with shared instances "
                             "(instanced copies) is not supported; rendered as a homogeneous "
-                            "medium (density 1, the emission and colour sockets' own values)"
+                            "medium (density 1, the Color socket's own value, no textured "
+                            "emission)"
                             for m in fields])
         used = set(np.unique(np.asarray(geo.material)).tolist())
         fields = {m: f for m, f in fields.items() if m in used}

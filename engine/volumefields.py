@@ -138,11 +138,27 @@ class MediumTextures:
         for m in het.fields:
             e = (getattr(table, "volume_emission_textures", None) or [None] * (m + 1))[m]
             a = (getattr(table, "albedo_textures", None) or [None] * (m + 1))[m]
-            if e is not None:
+            if e is not None and self._evaluates(m, e, "emission"):
                 self.emission[m] = e
-            if a is not None:
+            if a is not None and self._evaluates(m, a, "Color (albedo)"):
                 self.albedo[m] = a
         self._measure(corners)
+
+    def _evaluates(self, m, node, what) -> bool:
+        """Whether node evaluates at points inside a volume (a tree reading a surface's
+        normal or the camera's view does not): else warned, naming the material, and
+        left out (the emission then the export's constant, 0 for a textured one; the
+        albedo the Color socket's own value)."""
+        try:
+            _values(node, self._geometry(np.zeros((2, 3)), np.zeros(2, np.int64)), 2, 3)
+            return True
+        except Exception as exc:  # noqa: BLE001 - any node's failure, reported
+            self.warnings.append(
+                f"material '{self.table.names[m]}': its {what} texture cannot be evaluated "
+                f"inside the volume ({type(exc).__name__}: {exc}); "
+                + ("rendered without it" if what == "emission"
+                   else "the Color socket's own value used"))
+            return False
 
     # -- setup ---------------------------------------------------------------------
     def _measure(self, corners):

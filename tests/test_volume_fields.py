@@ -210,3 +210,16 @@ def test_volume_bounces_and_photons_through_textured_media():
     b = _image(scene(), workers=2, **kw)
     assert np.isfinite(a).all() and a.min() >= 0.0 and a.max() > 0.0
     np.testing.assert_array_equal(a, b)
+
+
+def test_a_texture_that_cannot_be_read_inside_a_volume_is_warned():
+    """An emission texture reading the surface's normal (nothing inside a volume has
+    one): warned naming the material, rendered without it; finite."""
+    from engine.shadernodes import Coordinates, ObjectNormal
+    film = render(_slab(absorption=SIGMA_A, emission=E0,
+                        emission_texture=ObjectNormal(Coordinates("normal"))),
+                  RenderSettings(workers=1, spp=1, photon_mapping=False))
+    warnings = film.stats.get("warnings", [])
+    assert any("'fog'" in w and "emission texture cannot be evaluated" in w
+               for w in warnings), warnings
+    assert np.isfinite(np.asarray(film.combined)).all()
