@@ -260,3 +260,38 @@ def test_a_textured_blackbody_exports_cycles_formula(bpy_addon):
     nt2.links.new(e.outputs[0], out2.inputs["Volume"])
     glow = convert_material(m2)
     assert glow.volume_emission_texture is not None and not glow.warnings, glow.warnings
+
+
+def test_a_textured_emission_mixed_with_a_scatter_exports_the_mix(bpy_addon):
+    """Mix Shader (Fac 0.25) of a Volume Scatter (Density 0.5) and an Emission whose
+    Strength is Generated x x 2 (Color (1, 0.5, 0.2)): the emission field is 0.25 x 2x x
+    the colour (Cycles' mix weights scale the emission closure), the scattering 0.75 x
+    0.5 x its Color; no warning."""
+    bpy = bpy_addon
+    from blender_helpers import convert_material, node_material
+    from engine.heterogeneous import PointGeometry
+    from engine.shadernodes import _eval
+    m, nt, out = node_material(bpy, "mixed glow export")
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(tc.outputs["Generated"], sep.inputs[0])
+    e = nt.nodes.new("ShaderNodeEmission")
+    e.inputs["Color"].default_value = (1.0, 0.5, 0.2, 1.0)
+    nt.links.new(_times(nt, sep.outputs[0], 2.0), e.inputs["Strength"])
+    sc = nt.nodes.new("ShaderNodeVolumeScatter")
+    sc.inputs["Density"].default_value = 0.5
+    sc.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.25
+    nt.links.new(sc.outputs[0], mix.inputs[1])
+    nt.links.new(e.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Volume"])
+    mat = convert_material(m)
+    assert mat.volume_emission_texture is not None and not mat.warnings, mat.warnings
+    np.testing.assert_allclose(mat.scattering, 0.75 * 0.5 * 0.8, rtol=1e-6)
+    x = np.array([0.2, 0.7])
+    pg = PointGeometry(np.column_stack([x, np.zeros(2), np.zeros(2)]), np.zeros(2, np.int64),
+                       {(0, "generated"): np.vstack([np.eye(3), np.zeros(3)])}, np.zeros(3))
+    got = _eval(mat.volume_emission_texture, pg, np.arange(2), np.zeros(2), np.zeros(2), 3)
+    np.testing.assert_allclose(got, 0.25 * 2.0 * x[:, None] * np.array([1.0, 0.5, 0.2]),
+                               rtol=1e-6)
