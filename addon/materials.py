@@ -250,6 +250,21 @@ def _weighted(sn, wa, xa, wb, xb):
     return sn.Math("ADD", terms[0], terms[1])
 
 
+def _field_mul(pm, a, b):
+    """a x b for a volume's coefficients: numbers / (3,) arrays, or engine nodes (a
+    textured emission, engine/volumefields.py) combined by a Vector Math node."""
+    if hasattr(a, "evaluate") or hasattr(b, "evaluate"):
+        return pm.shadernodes.VectorMath("MULTIPLY", a, b)
+    return a * b
+
+
+def _field_add(pm, a, b):
+    """a + b as _field_mul."""
+    if hasattr(a, "evaluate") or hasattr(b, "evaluate"):
+        return pm.shadernodes.VectorMath("ADD", a, b)
+    return a + b
+
+
 def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
     """(emission, emission texture or None) of wa * emission(a) + wb * emission(b), a
     side's emission being its constant times its texture (a Mix Color per hit)."""
@@ -446,6 +461,8 @@ class MaterialConverter:
         # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
         self._medium = (np.zeros(3), False, np.zeros(3), 0.0, np.zeros(3))
         self._density_field = None  # a texture on the medium's Density (_medium_of)
+        self._emission_field = None  # textures on its emission (_medium_of; volemit40)
+        self._albedo_field = None  # a texture on its Principled Volume's Color
         self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
             # No material: Cycles (Blender 5.0) renders the default Principled BSDF, its
@@ -509,6 +526,9 @@ class MaterialConverter:
             # a texture on the Density: a heterogeneous medium (engine/heterogeneous.py;
             # the coefficients above are then at density 1)
             density_texture=self._density_field,
+            # textures on its emission and on its Color (the albedo): engine/volumefields.py
+            volume_emission_texture=self._emission_field,
+            albedo_texture=self._albedo_field,
             # true displacement (Displacement Only / and Bump): vertices moved at prepare
             displacement=self._displace[0], displacement_method=self._displace[1],
             # AOV Output nodes: the Shader AOV passes (addon/aovs.py)
@@ -667,9 +687,12 @@ class MaterialConverter:
         plus its blackbody (_blackbody); an Emission shader Color x Strength
         (svm_node_closure_emission); Add Shader sums, Mix Shader weighs by its factor
         (the mix weight scales the density and the emission). The anisotropy g is
-        clamped to +-0.999 as Cycles' volume_henyey_greenstein_setup does. A phase
-        function other than Henyey-Greenstein and a texture on an input (the socket's own
-        value used: a homogeneous medium) are warned."""
+        clamped to +-0.999 as Cycles' volume_henyey_greenstein_setup does. In a material's
+        medium a texture on the emission's inputs makes the emission an engine node
+        (evaluated inside the medium: engine/volumefields.py) and one on Principled
+        Volume's Color (black Absorption Color) its albedo field (_albedo_color); a phase
+        function other than Henyey-Greenstein and a texture on another input (the
+        socket's own value used: a homogeneous medium) are warned."""
         zero = (np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
         if src is None or depth > MAX_NODE_DEPTH:
             return zero
@@ -686,27 +709,29 @@ class MaterialConverter:
             return (self._density(node) * (1.0 - color), np.zeros(3),
                     np.zeros(3), np.zeros(3))
         if t == "PRINCIPLED_VOLUME":
-            color = np.clip(self._volume_color(node, "Color"), 0.0, None)
+            color = np.clip(self._albedo_color(node), 0.0, None)
             density = self._density(node)
             absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
             g = self._anisotropy_g(node)
             emit = np.zeros(3)
-            strength = self._float(node, "Emission Strength", 0.0)
-            if strength > 0:
-                emit = emit + strength * self._volume_color(node, "Emission Color")
-            emit = emit + self._blackbody(node)
+            strength = self._emission_input(node, "Emission Strength", 0.0, 1)
+            if hasattr(strength, "evaluate") or strength > 0:
+                emit = _field_mul(self.pm, strength,
+                                  self._emission_input(node, "Emission Color", None, 3))
+            emit = _field_add(self.pm, emit, self._blackbody(node))
             scatter = density * color
             return (density * np.clip(1.0 - color, 0.0, None)
                     * np.clip(1.0 - absorb, 0.0, None), scatter, scatter * g, emit)
         if t == "ADD_SHADER":
             a = self._volume(self._source(node.inputs[0]), depth + 1)
             b = self._volume(self._source(node.inputs[1]), depth + 1)
-            return tuple(x + y for x, y in zip(a, b))
+            return tuple(_field_add(self.pm, x, y) for x, y in zip(a, b))
         if t == "MIX_SHADER":
             fac = min(max(self._float_socket(node, node.inputs[0], 0.5), 0.0), 1.0)
             a = self._volume(self._source(node.inputs[1]), depth + 1)
             b = self._volume(self._source(node.inputs[2]), depth + 1)
-            return tuple((1.0 - fac) * x + fac * y for x, y in zip(a, b))
+            return tuple(_field_add(self.pm, _field_mul(self.pm, 1.0 - fac, x),
+                                    _field_mul(self.pm, fac, y)) for x, y in zip(a, b))
         if t == "VOLUME_SCATTER":
             phase = str(getattr(node, "phase", "HENYEY_GREENSTEIN") or "HENYEY_GREENSTEIN")
             if phase != "HENYEY_GREENSTEIN":
@@ -719,8 +744,8 @@ class MaterialConverter:
         if t == "EMISSION":
             # Cycles' emission closure in a volume shader: radiance per metre of ray
             # (svm_node_closure_emission x the object's volume density, 1 for a mesh).
-            emit = (self._float(node, "Strength", 1.0)
-                    * self._volume_color(node, "Color"))
+            emit = _field_mul(self.pm, self._emission_input(node, "Strength", 1.0, 1),
+                              self._emission_input(node, "Color", None, 3))
             return np.zeros(3), np.zeros(3), np.zeros(3), emit
         self._warn(f"material '{name}': volume node '{node.name}' ({t}) is not supported "
                    "and ignored")
@@ -733,12 +758,25 @@ class MaterialConverter:
         blackbody colour of T (svm_math_blackbody_color_rec709, luminance about 1;
         engine.shadernodes.blackbody_rec709), its negative channels (outside the gamut)
         clipped to 0 as an emission."""
-        b = self._float(node, "Blackbody Intensity", 0.0)
-        if not b > 0:
+        b = self._emission_input(node, "Blackbody Intensity", 0.0, 1)
+        if not hasattr(b, "evaluate") and not b > 0:
             return np.zeros(3)
-        T = max(self._float(node, "Temperature", 1000.0), 0.0)
-        intensity = 5.670373e-8 * 1e-6 / np.pi * ((1.0 - b) + b * T ** 4)
-        tint = self._volume_color(node, "Blackbody Tint")
+        T = self._emission_input(node, "Temperature", 1000.0, 1)
+        tint = self._emission_input(node, "Blackbody Tint", None, 3)
+        sigma = 5.670373e-8 * 1e-6 / np.pi
+        if any(hasattr(x, "evaluate") for x in (b, T, tint)):
+            # A textured intensity / temperature / tint (fire): the same formula as engine
+            # nodes, evaluated at points inside the medium (engine/volumefields.py).
+            sn = self.pm.shadernodes
+            T = sn.Math("MAXIMUM", T, 0.0)
+            mix = sn.Math("ADD", sn.Math("SUBTRACT", 1.0, b),
+                          sn.Math("MULTIPLY", b, sn.Math("POWER", T, 4.0)))
+            intensity = sn.Math("MULTIPLY", sn.Math("MULTIPLY", mix, sigma),
+                                sn.Math("GREATER_THAN", b, 0.0))
+            return sn.VectorMath("MULTIPLY", sn.VectorMath("MULTIPLY", sn.Blackbody(T), tint),
+                                 intensity)
+        T = max(T, 0.0)
+        intensity = sigma * ((1.0 - b) + b * T ** 4)
         rgb = self.pm.shadernodes.blackbody_rec709(np.array([T]))[0]
         return np.clip(intensity * tint * rgb, 0.0, None)
 
@@ -767,7 +805,18 @@ class MaterialConverter:
         nodes with a textured Density among them are warned and read at each socket's
         own value (a homogeneous medium)."""
         self._fields, self._volume_nodes = ([] if fields else None), 0
+        self._albedo_fields = []
         absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
+        if self._albedo_fields and not (len(self._albedo_fields) == 1
+                                        and self._volume_nodes == 1):
+            node = self._albedo_fields[0][0]
+            self._warn(f"material '{self._mat.name}': a texture on the Color of "
+                       f"'{node.name}' mixed with other scattering or absorbing volume "
+                       "shaders is not supported (one such node per textured medium); "
+                       "each Color read at its socket's own value")
+            self._fields = None  # (the second reading: every socket's own value)
+            self._volume_nodes = 0
+            absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
         if self._fields:
             if len(self._fields) == 1 and self._volume_nodes == 1:
                 self._density_field = self._fields[0][1]
@@ -779,8 +828,16 @@ class MaterialConverter:
                            "Density read at its socket's own value")
                 self._fields = None
                 self._volume_nodes = 0
+                self._albedo_fields = []
                 absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
         self._fields = None
+        if len(self._albedo_fields) == 1:
+            self._albedo_field = self._albedo_fields[0][1]
+        self._albedo_fields = []
+        if hasattr(emit, "evaluate"):
+            # (engine Material.volume_emission_texture; the engine's stand-in is its mean)
+            self._emission_field = emit
+            emit = np.zeros(3)
         scatter = np.clip(scatter, 0.0, None)
         g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
         return (np.clip(absorb, 0.0, None), scatter, min(max(g, -G_LIMIT), G_LIMIT),
@@ -839,6 +896,48 @@ class MaterialConverter:
         """An AOV Output node's Color or Value input for the material just converted: an
         engine node or a constant (addon/aovs.py)."""
         return self._input(node, socket, 0)
+
+    def _albedo_color(self, node) -> np.ndarray:
+        """Principled Volume's Color. A texture on it, in a material's medium (not the
+        world's) whose Absorption Color is black and unlinked, is the medium's albedo
+        (Cycles' sigma_t = density x (Color + max(1 - Color, 0)) = density there: the
+        texture moves only the split between scattering and absorption,
+        engine/volumefields.py): recorded in self._albedo_fields and the socket's own
+        colour (within 0..1) returned for the coefficients. Otherwise _volume_color (a
+        texture warned, its own value used)."""
+        rgb, tex = self._color(node, "Color")
+        if tex is None:
+            return np.asarray(rgb, np.float64)
+        ab = node.inputs.get("Absorption Color")
+        black = ab is None or (self._source(ab) is None
+                               and not np.any(np.asarray(self._default(ab)) > 0))
+        if self._fields is not None and black:
+            self._albedo_fields.append((node, tex))
+            own = self._default(node.inputs["Color"])
+            own = np.full(3, float(own)) if np.ndim(own) == 0 else np.asarray(own)
+            return np.clip(own, 0.0, 1.0)
+        if self._fields is not None:
+            own = self._default(node.inputs["Color"])
+            self._warn(f"material '{self._mat.name}': the texture on 'Color' of node "
+                       f"'{node.name}' with an Absorption Color changes the medium's "
+                       "extinction per point, which is not supported; using its own value "
+                       f"{_value_text(own)}")
+        return self._volume_color(node, "Color")
+
+    def _emission_input(self, node, name, default, width):
+        """A volume node's emission input (Emission Strength / Color, Blackbody
+        Intensity / Temperature / Tint, an Emission shader's Strength / Color): an engine
+        node when a texture drives it in a material's medium (evaluated at points inside
+        it: engine/volumefields.py), else one constant (a float for width 1, else (3,));
+        the world's textures are warned and read at the socket's own value."""
+        s = node.inputs.get(name)
+        if s is not None and self._fields is not None and self._source(s) is not None:
+            val = self._input(node, s, 0)
+            if hasattr(val, "evaluate"):
+                return val
+        if width == 1:
+            return self._float(node, name, default)
+        return self._volume_color(node, name)
 
     def _warn(self, text):
         if text not in self._warned:

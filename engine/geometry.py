@@ -76,6 +76,9 @@ class MaterialTable:
     ray_remap: dict = None             # {ray class bit: (M,) int64 row that class meets}
                                        # for the classes a Light Path variant changes
                                        # (engine/raymaterials.py; None / {}: none)
+    volume_emission_textures: list = None  # per material: its medium's emission field
+    albedo_textures: list = None       # and albedo field (Material.volume_emission_texture,
+                                       # .albedo_texture; engine/volumefields.py)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -117,6 +120,9 @@ class MaterialTable:
                    aovs=[getattr(m, "aovs", None) or {} for m in materials],
                    holdout=np.array([bool(getattr(m, "holdout", False))
                                      for m in materials], np.bool_),
+                   volume_emission_textures=[getattr(m, "volume_emission_texture", None)
+                                             for m in materials],
+                   albedo_textures=[getattr(m, "albedo_texture", None) for m in materials],
                    ray_remap=ray_remap, **cols)
 
     @property

@@ -48,9 +48,12 @@ and the ray itself (its origin and direction bits and the part's start, splitmix
 the same seed gives the same image for any worker count, and no stream's draws shift
 (a scene without a density texture renders exactly as before).
 
-Not heterogeneous (the stand-in at the mean density, warned: `limits`): an emitting
-medium's emission integral (engine/volumeemission.py). The World Volume and objects with
-shared instances keep a constant density (warned).
+An emitting medium's emission is integrated along the field, and textured emission and
+albedo (Principled Volume's Emission Strength / Color / Blackbody, its Color) are fields
+of their own: engine/volumefields.py (volemit40), which this module's fields carry (a
+material with only such textures is a field of constant density, whose tracking has
+nothing to do: `tracked`). The World Volume and objects with shared instances keep a
+constant density (warned).
 """
 from __future__ import annotations
 
@@ -171,6 +174,11 @@ class HeterogeneousMedia:
         self.object = np.asarray(geo.object_id)[rows].astype(np.int64)
         corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (R,3,3)
         self._fit_maps(corners)
+        # Textured emission and albedo (engine/volumefields.py): their means, and the
+        # fields' sigma_s_unit at the mean albedo, before anything reads the fields.
+        from .volumefields import MediumTextures
+        self.textures = MediumTextures(self, table, corners)
+        self.warnings.extend(self.textures.warnings)
         self._measure(corners)
         verts = corners.reshape(-1, 3)
         from .accel import Accel
@@ -187,23 +195,35 @@ class HeterogeneousMedia:
     def for_scene(cls, geo, table, seed: int = 0):
         """HeterogeneousMedia, or None when no material of the table has a density
         texture (table.density_textures) on a triangle of geo."""
-        textures = getattr(table, "density_textures", None)
-        if not textures or all(t is None for t in textures) or geo.count == 0:
+        from . import volumefields
+        textures = list(getattr(table, "density_textures", None) or [])
+        # (materials with an emission or albedo texture: a field of constant density,
+        # engine/volumefields.py)
+        textured = volumefields.textured_materials(table)
+        if (all(t is None for t in textures) and not textured) or geo.count == 0:
             return None
+        textures += [None] * (len(table.names) - len(textures))
         fields = {}
         for m, node in enumerate(textures):
             if node is None:
-                continue
+                if m not in textured:
+                    continue
+                node = 1.0
             a = np.asarray(table.absorption[m], np.float64)
             s = np.asarray(table.scattering[m], np.float64)
             fields[m] = Field(node, a + s, s)
         if getattr(geo, "shared", None) is not None:
             # (a shared instance's triangles are not in the flat tables this reads)
             for m in fields:
-                table.density_textures[m] = None
-            return _Warned([f"material '{table.names[m]}': a density texture on objects "
-                            "with shared instances (instanced copies) is not supported; "
-                            "rendered as a homogeneous medium of density 1" for m in fields])
+                if m < len(table.density_textures):
+                    table.density_textures[m] = None
+                volumefields.drop(table, m)
+            return _Warned([f"material '{table.names[m]}': a texture on its volume "
+                            "(Density, Color or Emission) on objects with shared instances "
+                            "(instanced copies) is not supported; rendered as a homogeneous "
+                            "medium (density 1, the Color socket's own value, no textured "
+                            "emission)"
+                            for m in fields])
         used = set(np.unique(np.asarray(geo.material)).tolist())
         fields = {m: f for m, f in fields.items() if m in used}
         if not fields:
@@ -221,12 +241,20 @@ class HeterogeneousMedia:
                                 f"be evaluated inside the volume ({type(exc).__name__}: "
                                 f"{exc}); rendered as a homogeneous medium of density 1")
                 table.density_textures[m] = None
+                volumefields.drop(table, m)
                 del fields[m]
         if not fields:
             return _Warned(warnings)
         het = cls(geo, table, fields, seed)
         het.warnings[:0] = warnings
         return het
+
+    @property
+    def tracked(self) -> bool:
+        """Whether some field has a density texture (the tracking has work); fields of
+        constant density (node 1.0) carry only emission / albedo textures
+        (volumefields)."""
+        return any(hasattr(f.node, "evaluate") for f in self.fields.values())
 
     # -- setup ---------------------------------------------------------------------
     def _fit_maps(self, corners):
@@ -380,7 +408,7 @@ class HeterogeneousMedia:
         d = np.asarray(d, np.float64)
         n = len(o)
         out = np.ones((n, 3))
-        if n == 0:
+        if n == 0 or not self.tracked:
             return out
         dl = np.linalg.norm(d, axis=1)
         ok = dl > 0
@@ -421,6 +449,8 @@ class HeterogeneousMedia:
             f = self.fields[int(mm)]
             dens = self.density(mm, p_i[sel], obj[sel])
             w[i[sel]] *= (dens / f.f_mean)[:, None] if f.f_mean > 0 else 0.0
+            # a textured albedo (engine/volumefields.py): a(p) / a_mean
+            w[i[sel]] *= self.textures.albedo_ratio(mm, p_i[sel], obj[sel])
         return w
 
     def _object_at(self, o, u, s):
@@ -432,25 +462,18 @@ class HeterogeneousMedia:
 
     def describe(self) -> str:
         """The effect report's line: each textured medium's density range."""
-        return "; ".join(
+        return "; ".join([
             f"density texture of '{self.table.names[m]}': mean {f.f_mean:.3g}, largest "
             f"{f.f_max / MAJORANT_MARGIN:.3g} over its objects' bounds (the homogeneous "
             "stand-in at the mean, corrected by residual ratio tracking along camera "
             "segments, shadow rays and photons; single scattering at the field's value)"
-            for m, f in self.fields.items())
+            for m, f in self.fields.items() if hasattr(f.node, "evaluate")]
+            + ([self.textures.describe()] if self.textures.describe() else []))
 
     def limits(self, settings=None) -> list[str]:
-        """Warnings for what renders at the stand-in's mean density in this render: an
-        emitting medium's emission integral; one per material, naming it."""
-        out = list(self.warnings)
-        emit = getattr(self.table, "volume_emission", None)
-        for m, f in self.fields.items():
-            if emit is not None and np.any(np.asarray(emit[m]) > 0):
-                out.append(f"material '{self.table.names[m]}': its density texture is "
-                           "followed by camera rays, scattering, shadow rays and photons, "
-                           "but its emission is integrated at its mean density "
-                           f"{f.f_mean:.4g} (a homogeneous glow)")
-        return out
+        """This render's warnings about its heterogeneous media (a deformed mesh's
+        coordinates, a tree that cannot be evaluated, an albedo texture above 1)."""
+        return list(self.warnings)
 
 
 def _field_values(node, pg, n) -> np.ndarray:

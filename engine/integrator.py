@@ -1069,7 +1069,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if glow is not None:
                     # The glow of an emitting medium along the ray (as a gather ray's
                     # radiance: x pi / G).
-                    src, Le = glow.along(prim, d, t, medium_h[idx])
+                    src, Le = glow.along(prim, d, t, medium_h[idx], o=o)
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Le / G
                 if scatter is not None:
@@ -1210,19 +1210,20 @@ def _gather_escaping(ctx, scatter, glow, world_row, prim, o, d, tp, idx, medium_
             rows = esc[src]
             E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Ls / G
     if glow is not None:
-        src, Le = glow.along(np.full(len(esc), -1, np.int64), esc_d, esc_t, esc_m)
+        src, Le = glow.along(np.full(len(esc), -1, np.int64), esc_d, esc_t, esc_m,
+                             o=np.take(o, esc, axis=0))
         if len(src):
             rows = esc[src]
             E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Le / G
 
 
-def _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium, world_row):
+def _glow_without_hit(ctx, glow, acc, target, pix, prim, o, d, t, tp, medium, world_row):
     """The camera paths' glow (glow: volumeemission.MediumEmission) along the segments
     that meet no surface: those ending on a lamp (prim (n,) -2, t (n,) the lamp's
     distance in units of |d| (n,3)) in a known medium (medium (n,) int64 >= 0), and those
     escaping (prim -1) through the world volume (medium == world_row >= 0;
     worldmedium.escaping's length); into pass `target` of acc at pixels pix (n,),
-    weighted by tp (n,3)."""
+    weighted by tp (n,3); o (n,3) the segments' origins."""
     lamp = np.flatnonzero((prim == -2) & (np.asarray(medium) >= 0))
     esc, _, esc_t = worldmedium.escaping(ctx, prim, d, medium, world_row)
     rows = np.concatenate([lamp, esc])
@@ -1230,7 +1231,7 @@ def _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium, world
         return
     seg_t = np.concatenate([np.take(t, lamp), esc_t])
     src, Le = glow.along(np.full(len(rows), -1, np.int64), np.take(d, rows, axis=0), seg_t,
-                         np.take(medium, rows))
+                         np.take(medium, rows), o=np.take(o, rows, axis=0))
     if len(src):
         acc.add(target, pix, Le, tp, rows[src])
         if acc.light is not None:
@@ -2612,7 +2613,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if glow is not None:
             # The glow along the segments that end on a lamp, or escape through the world
             # volume (its length until the transmittance is 1e-13: e / sigma_t).
-            _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium,
+            _glow_without_hit(ctx, glow, acc, target, pix, prim, o, d, t, tp, medium,
                               world_row)
         if link_prim is not None and bounce > 0 and links.shadow_groups:
             # Shadow Linking: a shadow-linked sun seen past its non-blockers by the rays
@@ -2795,7 +2796,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             tp = heterogeneous.attenuated(ctx, tp, o, d, t, prim)  # (density textures)
             if glow is not None:
                 # The glow of an emitting medium along the segment (engine/volumeemission.py).
-                src, Le = glow.along(prim, d, t, medium)
+                src, Le = glow.along(prim, d, t, medium, o=o)
                 if len(src):
                     acc.add(target, pix, Le, tp_seg, src)
                     if lpass is not None:

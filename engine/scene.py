@@ -196,6 +196,15 @@ class Material:
     value at a point inside the object scales the medium: sigma(p) = max(value, 0) x
     absorption / scattering, which are then the coefficients at density 1 (a textured
     Density socket: clouds, smoke; engine/heterogeneous.py). None: homogeneous.
+    `volume_emission_texture`: a node whose value at a point inside the object is the
+    medium's emission there ((N,3) or (N,), W m^-2 sr^-1 per metre, clipped at 0; a
+    textured Emission Strength / Color / Blackbody: a glowing cloud, fire); it replaces
+    `volume_emission` (engine/volumefields.py). None: `volume_emission` everywhere.
+    `albedo_texture`: a node whose value at a point is the medium's single-scattering
+    albedo sigma_s / sigma_t there ((N,3), clipped to 0..1; Principled Volume's textured
+    Color with a black Absorption Color: a coloured cloud); the extinction stays
+    absorption + scattering (x the density texture), only its split between them varies
+    (engine/volumefields.py). None: scattering / (absorption + scattering) everywhere.
     `displacement`, `displacement_method`: Cycles' true displacement (Material > Settings >
     Displacement): with "DISPLACEMENT" (Displacement Only) or "BOTH" (Displacement and
     Bump), the vertices of this material's faces move by the world-space vectors (m) of
@@ -257,6 +266,8 @@ class Material:
     volume_emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     volume_only: bool = False
     density_texture: object | None = None
+    volume_emission_texture: object | None = None
+    albedo_texture: object | None = None
     displacement: object | None = None
     displacement_method: str = "BUMP"
     aovs: dict = field(default_factory=dict)
@@ -362,6 +373,11 @@ class Material:
                                                             "evaluate"):
             raise SceneError(f"{who} density_texture: expected a node with evaluate(), got "
                              f"{type(self.density_texture).__name__}")
+        for name in ("volume_emission_texture", "albedo_texture"):
+            tex = getattr(self, name)
+            if tex is not None and not hasattr(tex, "evaluate"):
+                raise SceneError(f"{who} {name}: expected a node with evaluate(), got "
+                                 f"{type(tex).__name__}")
         if self.volume_only:
             # No surface: every ray passes it unbent and untinted (a transparent pass).
             self.alpha = 0.0
@@ -1492,6 +1508,7 @@ class Scene:
         self._check_links()
         # (emitting media glow too: engine/volumeemission.py)
         has_emitter = any(m.is_emissive or np.any(m.volume_emission > 0)
+                          or getattr(m, "volume_emission_texture", None) is not None
                           for m in self.materials.values())
         if self.world_medium is not None and np.any(self.world_medium.emission > 0):
             has_emitter = True

@@ -2509,6 +2509,49 @@ def volume_cloud():
              spot_size=math.radians(40.0), spot_blend=0.2, shadow_soft_size=0.0)
 
 
+@case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))
+def volume_glow_cloud():
+    """A glowing cloud whose colour is a gradient: a volume-only cube, Principled Volume
+    with Density 3 x and Emission Strength 3 x one Color Ramp (black below 0.4, white
+    above 0.65) of a Noise Texture (Scale 2.5, Detail 2, Generated), Emission Color
+    orange, its Color a Color Ramp (blue .. white) of a Gradient Texture along Generated
+    x; floating over the floor before the back wall, a sun: its puffs glowing (the
+    emission integrated along the density field), the sun scattered by them in the
+    gradient's colour, the floor and the wall lit by the glow through the final gather
+    (engine/volumefields.py, docs/compatibility.md volemit40), at Cycles' default Volume
+    bounces 0. (It was warned: the emission at the mean density, the Color and Emission
+    Strength at their sockets' own values.)"""
+    _stage()
+    m, nt, out = _nodes_material("glow cloud")
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    noise.inputs["Detail"].default_value = 2.0
+    nt.links.new(tc.outputs["Generated"], noise.inputs["Vector"])
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = 0.4
+    ramp.color_ramp.elements[1].position = 0.65
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    v = nt.nodes.new("ShaderNodeVolumePrincipled")
+    v.inputs["Emission Color"].default_value = (1.0, 0.45, 0.15, 1.0)
+    for socket in ("Density", "Emission Strength"):
+        mul = nt.nodes.new("ShaderNodeMath")
+        mul.operation = "MULTIPLY"
+        mul.inputs[1].default_value = 3.0
+        nt.links.new(ramp.outputs["Color"], mul.inputs[0])
+        nt.links.new(mul.outputs[0], v.inputs[socket])
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(tc.outputs["Generated"], grad.inputs["Vector"])
+    tint = nt.nodes.new("ShaderNodeValToRGB")
+    tint.color_ramp.elements[0].color = (0.15, 0.35, 0.9, 1.0)
+    tint.color_ramp.elements[1].color = (0.9, 0.9, 0.9, 1.0)
+    nt.links.new(grad.outputs["Fac"], tint.inputs["Fac"])
+    nt.links.new(tint.outputs["Color"], v.inputs["Color"])
+    nt.links.new(v.outputs[0], out.inputs["Volume"])
+    mb.box("Cloud", 1.4, 1.4, 1.0, m, (0.0, 0.3, 0.9))
+    _sun()
+
+
 # (No Sky Texture case: every sky type is simulated and checked against Cycles 5.0.1 by
 # tests/test_sky.py and tests/blender/test_sky_cycles.py; the warned Hosek / Wilkie case
 # that stood here went with its warning.)
