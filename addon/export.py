@@ -1334,6 +1334,25 @@ def _geometry_key(obj):
     return (obj.name, data.as_pointer() if data is not None else 0)
 
 
+# Object types whose triangles Blender generates (text, curves, surfaces, metaballs):
+# their zero-area triangles (a bevelled text's caps) are dropped without a word, as
+# Cycles renders them; a mesh's are warned (a broken mesh the user may want to fix).
+GENERATED_GEOMETRY = ("FONT", "CURVE", "SURFACE", "META")
+
+
+def quiet_generated_degenerates(inst, obj, mesh) -> None:
+    """Drop the engine Mesh's 'zero-area faces' warning for an object of a
+    GENERATED_GEOMETRY type (newuser40: every bevelled Text warned 'dropped 4 zero-area
+    faces'). Blender 5 hands a text's triangles over as a mesh instance of the text
+    object: its original's or instancer's type decides."""
+    kinds = {getattr(obj, "type", "MESH"),
+             getattr(getattr(obj, "original", None), "type", None),
+             getattr(getattr(inst, "parent", None), "type", None) if inst.is_instance
+             else None}
+    if kinds & set(GENERATED_GEOMETRY):
+        mesh.warnings[:] = [w for w in mesh.warnings if "zero-area faces" not in w]
+
+
 def _instance_name(inst, obj, info) -> str:
     """The engine mesh name of a depsgraph instance (counts instances in info; notes
     its object and instancer in info["owners"] for resolve_light_links)."""
@@ -1345,7 +1364,14 @@ def _instance_name(inst, obj, info) -> str:
         owners[obj.name] = (obj.name, None, own)
         return obj.name
     parent = inst.parent.name if inst.parent is not None else "instance"
-    name = f"{parent}/{obj.name}#{info['instances']}"
+    # Numbered per instancer and object: 'Scatter/Chair#0', ...; an object whose own
+    # evaluated geometry comes as instances of itself (Geometry Nodes on a mesh, a Text
+    # in Blender 5) 'Text#0' (newuser40: a plain Text read 'Text/Text#360', numbered
+    # after another object's 360 instances).
+    numbers = info.setdefault("instance_numbers", {})
+    k = numbers.get((parent, obj.name), 0)
+    numbers[(parent, obj.name)] = k + 1
+    name = f"{obj.name}#{k}" if parent == obj.name else f"{parent}/{obj.name}#{k}"
     info["instances"] += 1
     owners[name] = (obj.name, inst.parent.name if inst.parent is not None else None, own)
     return name
@@ -1808,6 +1834,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                        **object_info(obj, inst, converter.object_attribute_names),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
+        quiet_generated_degenerates(inst, obj, mesh)
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)  # after dropping degenerate faces
 
@@ -2023,6 +2050,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             cache.meshes[iname] = (key, mesh)
         warn_unsupported_object_options(obj, warnings)
         uv_tangent_warnings(obj, geo, converter, names, warnings)
+        quiet_generated_degenerates(inst, obj, mesh)
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)
     current = {m.name for m in meshes}
