@@ -10,6 +10,7 @@ import bpy
 import numpy as np
 
 from . import export, viewport
+from .aovs import aov_passes, view_layer_aovs
 from .core import load_engine
 
 ENGINE_ID = "PHOTONMAP"
@@ -203,12 +204,27 @@ def unmade_passes_warning(view_layer, adaptive: bool = False, volume_bounces: in
     cyc = getattr(view_layer, "cycles", None)
     if not adaptive and bool(getattr(cyc, "pass_debug_sample_count", False)):
         names.append("Debug Sample Count (made with adaptive sampling only)")
-    names += [f"Shader AOV '{a.name}'" for a in getattr(view_layer, "aovs", ())]
     names += [f"Light Group '{g.name}'" for g in getattr(view_layer, "lightgroups", ())]
     if not names:
         return None
     return (f"view layer '{view_layer.name}' asks for passes Photon Mapping does not make "
             f"(left empty): {', '.join(names)}")
+
+
+def _aov_buffers(data, view_layer, h, w) -> dict:
+    """{pass name: (h, w, channels)} of the view layer's Shader AOVs from the film's
+    data (engine/datapasses.py keys): a colour AOV as RGBA (its alpha the writes' share,
+    Cycles' float4), a value AOV as one channel; zeros where the film has none."""
+    dp = _engine_module("datapasses")
+    out = {}
+    for name, kind in view_layer_aovs(view_layer):
+        if kind == "color":
+            rgb = data.get(dp.AOV_COLOR + name, np.zeros((h, w, 3), np.float32))
+            alpha = data.get(dp.AOV_ALPHA + name, np.zeros((h, w), np.float32))
+            out[name] = np.concatenate([rgb, alpha[:, :, None]], axis=2)
+        else:
+            out[name] = data.get(dp.AOV_VALUE + name, np.zeros((h, w), np.float32))[:, :, None]
+    return out
 
 
 def _adaptive(scene) -> bool:
@@ -331,6 +347,11 @@ def hold_still(moved, still, names: set, camera_name: str | None):
 # The bar's share of the export (before the render's settings are known); the render's
 # stages share the rest in proportion to their work (engine/stagespans.py).
 EXPORT_SHARE = 0.02
+# The first render on a machine compiles the kernels (minutes): the progress bar's first
+# COMPILE_SHARE follows the compile (kernels done / all), the render's own work the rest;
+# a render with the kernels cached uses the whole bar. (The bar stood at 0 % through the
+# whole compile: newuser39.)
+COMPILE_SHARE = 0.5
 
 
 class PhotonMapRenderEngine(bpy.types.RenderEngine):
@@ -346,6 +367,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         self._last_stats = 0.0
         self._last_stage = None  # a new stage's first text is always shown (not throttled)
         self._progress_stage = None  # the stage of the last progress told the listeners
+        self._bar_start = 0.0  # where the render's own work starts on the bar (compile)
         self._listeners = []
         self._viewport = None  # rendered viewport (addon/viewport.py)
 
@@ -406,7 +428,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self._last_stats = now
             self._stats(text)
 
-    def _progress(self, fraction, stage=None):
+    def _progress(self, fraction, stage=None, raw=False):
+        """The bar at the render's fraction of its own work (raw: at fraction of the whole
+        bar, the compile's share); the listeners hear the bar's position."""
+        if not raw:
+            fraction = self._bar_start + (1.0 - self._bar_start) * fraction
         self.update_progress(fraction)
         if stage is not None and stage != self._progress_stage:
             self._progress_stage = stage
@@ -447,6 +473,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.register_pass(scene, renderlayer, SAMPLE_COUNT_PASS, 1, "X", "VALUE")
         for _kind, name in cryptomatte_passes(renderlayer):
             self.register_pass(scene, renderlayer, name, 4, "rgba", "COLOR")
+        for name, channels, chan_id, kind in aov_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
 
     # --- render ---------------------------------------------------------------------
     def render(self, depsgraph):
@@ -510,8 +538,13 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self._stats(pm.jit.COMPILE_MESSAGE)  # stats line and the batch command's bar
             if not self._listeners:  # the batch's bar shows it; a print would split the bar
                 print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
-        compile_seconds = pm.jit.ensure_compiled(
-            lambda stage, fraction, text: self._stats(text))
+        self._bar_start = 0.0
+
+        def compile_progress(stage, fraction, text):
+            self._stats(text)
+            self._progress(COMPILE_SHARE * fraction, stage, raw=True)
+        compile_seconds = pm.jit.ensure_compiled(compile_progress)
+        self._bar_start = COMPILE_SHARE if compiling else 0.0
 
         width, height = export.render_size(render)
         region = export.border_region(render, width, height)
@@ -535,6 +568,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         if props.use_animated_seed:
             kwargs["seed"] = frame_seed(props.seed, scene.frame_current)
         kwargs["data_passes"] = data_passes(view_layer)
+        kwargs["shader_aovs"] = view_layer_aovs(view_layer)
         kwargs["cryptomatte"] = tuple(k for switch, k, _ in CRYPTOMATTE_LAYERS
                                       if getattr(view_layer, switch, False))
         kwargs["cryptomatte_levels"] = min(max(cryptomatte_levels(view_layer), 1), 16)
@@ -817,6 +851,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.add_pass(SAMPLE_COUNT_PASS, 1, "X", layer=layer)
         for _kind, name in cryptomatte_passes(view_layer):
             self.add_pass(name, 4, "rgba", layer=layer)  # lowercase: the Cryptomatte spec
+        for name, channels, chan_id, _ in aov_passes(view_layer):
+            self.add_pass(name, channels, chan_id, layer=layer)
 
     def _write_result(self, film, view_layer, transparent: bool):
         h, w = film.height, film.width
@@ -872,6 +908,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                     whole = self.get_result()
                     for key, value in meta.items():
                         whole.stamp_data_add_field(key, value)
+            buffers.update(_aov_buffers(data, view_layer, h, w))
             written = set()
             for p in layer.passes:
                 data = buffers.get(p.name)

@@ -37,10 +37,12 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace", "tangents", "uv_name", "attributes", "named_tangents")
+                 "texspace", "tangents", "uv_name", "attributes", "named_tangents",
+                 "generated")
 
     def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
-                 tangents=None, uv_name="", attributes=None, named_tangents=None):
+                 tangents=None, uv_name="", attributes=None, named_tangents=None,
+                 generated=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -57,6 +59,9 @@ class LocalGeometry:
         # MikkTSpace tangents of the UV maps nodes name (named_tangent_maps):
         # name -> (F,3,4) as `tangents`
         self.named_tangents = named_tangents or {}
+        # None (Generated from the corners' positions in `texspace`) or (F,3,3) per corner
+        # (particle hair: each strand's root in its emitter's texture space)
+        self.generated = generated
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -67,12 +72,24 @@ def _foreach(collection, attr, count, width, dtype):
 
 
 def _material_nodes(obj):
-    """Every shader node of the object's materials."""
+    """Every shader node of the object's materials, those inside their node groups too
+    (each group's tree once)."""
+    trees, seen = [], set()
     for slot in getattr(obj, "material_slots", ()):
         mat = slot.material
         tree = getattr(mat, "node_tree", None) if mat is not None else None
         if tree is not None:
-            yield from tree.nodes
+            trees.append(tree)
+    while trees:
+        tree = trees.pop()
+        if tree.as_pointer() in seen:
+            continue
+        seen.add(tree.as_pointer())
+        for node in tree.nodes:
+            yield node
+            inner = getattr(node, "node_tree", None) if node.type == "GROUP" else None
+            if inner is not None:
+                trees.append(inner)
 
 
 def _uses_tangent_normal_maps(obj) -> bool:
@@ -309,8 +326,17 @@ def extract_particle_hair(pm, obj, background: bool = True,
     strands = particle_strands(obj, background, poll)
     if strands is None:
         return None
+    # Generated: each strand's root key in the emitter mesh's texture space, the same on
+    # the whole strand (Cycles' blender/curves.cpp: co * size - loc of the first key,
+    # mesh_texture_space; "ideally from Blender", its comment says).
+    me = obj.data
+    loc = np.array(me.texspace_location, np.float64)
+    size = np.array(me.texspace_size, np.float64)
+    size = np.where(np.abs(size) > 1e-12, size, 1.0)
+    roots = np.asarray(strands.points, np.float64)[np.asarray(strands.offsets[:-1], np.int64)]
     geo = hair_tubes(pm, obj, strands.points, strands.radius, strands.offsets,
-                     strands.slot, strands.uv)
+                     strands.slot, strands.uv,
+                     strand_generated=(roots - loc) / (2.0 * size) + 0.5)
     if geo is not None and geo.uvs is not None:  # (the emitter's render UV map)
         geo.uv_name = next((layer.name for layer in obj.data.uv_layers if layer.active_render),
                            obj.data.uv_layers[0].name)
@@ -318,10 +344,11 @@ def extract_particle_hair(pm, obj, background: bool = True,
 
 
 def hair_tubes(pm, obj, points, radius, offsets, slot=None,
-               strand_uv=None) -> LocalGeometry | None:
+               strand_uv=None, strand_generated=None) -> LocalGeometry | None:
     """Hair strands (points (P,3) and radius (P,) in object space, offsets (C+1,), slot
     (C,) material slot or None: the first; strand_uv (C,2) each strand's UV, on every
-    corner of its tubes, or None: no UVs) as smooth-shaded triangle tubes
+    corner of its tubes, or None: no UVs; strand_generated (C,3) each strand's Generated
+    coordinate, or None: the tubes' own bounds) as smooth-shaded triangle tubes
     (engine/hair.tube_mesh), with Curves Info's attributes when a material of obj reads
     them. None when no strand has 2 points."""
     # Curves Info, and the Principled Hair BSDF's Random Color / Random Roughness (the
@@ -340,8 +367,12 @@ def hair_tubes(pm, obj, points, radius, offsets, slot=None,
     uvs = None
     if strand_uv is not None:
         uvs = np.repeat(np.asarray(strand_uv, np.float64)[curve][:, None, :], 3, axis=1)
+    generated = None
+    if strand_generated is not None:
+        generated = np.repeat(np.asarray(strand_generated, np.float64)[curve][:, None, :], 3,
+                              axis=1)
     return LocalGeometry(verts, faces, normals, uvs, mat_index, texspace=texspace,
-                         attributes=attributes)
+                         attributes=attributes, generated=generated)
 
 
 # Object types whose own data is rendered geometry (the depsgraph yields curves, text,
@@ -512,7 +543,10 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     local = g.co[g.faces]
     loc, size = g.texspace
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
-    out = {"object": local, "generated": (local - loc) / (2.0 * size) + 0.5,
+    generated = getattr(g, "generated", None)
+    if generated is None:
+        generated = (local - loc) / (2.0 * size) + 0.5
+    out = {"object": local, "generated": generated,
            "normal": object_normals(g)}
     for name, (vec, fac, alpha) in (getattr(g, "attributes", None) or {}).items():
         out[f"attr:{name}"] = vec
@@ -1300,6 +1334,25 @@ def _geometry_key(obj):
     return (obj.name, data.as_pointer() if data is not None else 0)
 
 
+# Object types whose triangles Blender generates (text, curves, surfaces, metaballs):
+# their zero-area triangles (a bevelled text's caps) are dropped without a word, as
+# Cycles renders them; a mesh's are warned (a broken mesh the user may want to fix).
+GENERATED_GEOMETRY = ("FONT", "CURVE", "SURFACE", "META")
+
+
+def quiet_generated_degenerates(inst, obj, mesh) -> None:
+    """Drop the engine Mesh's 'zero-area faces' warning for an object of a
+    GENERATED_GEOMETRY type (newuser40: every bevelled Text warned 'dropped 4 zero-area
+    faces'). Blender 5 hands a text's triangles over as a mesh instance of the text
+    object: its original's or instancer's type decides."""
+    kinds = {getattr(obj, "type", "MESH"),
+             getattr(getattr(obj, "original", None), "type", None),
+             getattr(getattr(inst, "parent", None), "type", None) if inst.is_instance
+             else None}
+    if kinds & set(GENERATED_GEOMETRY):
+        mesh.warnings[:] = [w for w in mesh.warnings if "zero-area faces" not in w]
+
+
 def _instance_name(inst, obj, info) -> str:
     """The engine mesh name of a depsgraph instance (counts instances in info; notes
     its object and instancer in info["owners"] for resolve_light_links)."""
@@ -1311,7 +1364,14 @@ def _instance_name(inst, obj, info) -> str:
         owners[obj.name] = (obj.name, None, own)
         return obj.name
     parent = inst.parent.name if inst.parent is not None else "instance"
-    name = f"{parent}/{obj.name}#{info['instances']}"
+    # Numbered per instancer and object: 'Scatter/Chair#0', ...; an object whose own
+    # evaluated geometry comes as instances of itself (Geometry Nodes on a mesh, a Text
+    # in Blender 5) 'Text#0' (newuser40: a plain Text read 'Text/Text#360', numbered
+    # after another object's 360 instances).
+    numbers = info.setdefault("instance_numbers", {})
+    k = numbers.get((parent, obj.name), 0)
+    numbers[(parent, obj.name)] = k + 1
+    name = f"{obj.name}#{k}" if parent == obj.name else f"{parent}/{obj.name}#{k}"
     info["instances"] += 1
     owners[name] = (obj.name, inst.parent.name if inst.parent is not None else None, own)
     return name
@@ -1774,6 +1834,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                        **object_info(obj, inst, converter.object_attribute_names),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
+        quiet_generated_degenerates(inst, obj, mesh)
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)  # after dropping degenerate faces
 
@@ -1872,6 +1933,7 @@ class ViewportExport:
         self.meshes: dict = {}     # instance name -> (key, engine Mesh)
         self.prototypes: dict = {}  # geometry key -> (LocalGeometry, engine Prototype)
         self.light_names: list = []
+        self.worlds = None  # (export_worlds' answer, its warnings) of the last update
 
 
 def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height: int,
@@ -1988,6 +2050,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             cache.meshes[iname] = (key, mesh)
         warn_unsupported_object_options(obj, warnings)
         uv_tangent_warnings(obj, geo, converter, names, warnings)
+        quiet_generated_degenerates(inst, obj, mesh)
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)
     current = {m.name for m in meshes}
@@ -1997,7 +2060,13 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     for gkey in [k for k in cache.geometry if k not in seen]:
         del cache.geometry[gkey]
         cache.prototypes.pop(gkey, None)
-    (background, environment), seen = export_worlds(pm, scene_eval.world, warnings)
+    if first or updates.world or cache.worlds is None:
+        # (a world baked along directions or from maps and colours takes seconds: an
+        # update that leaves the world as it was reuses the last one)
+        world_warnings: list = []
+        cache.worlds = (export_worlds(pm, scene_eval.world, world_warnings), world_warnings)
+    (background, environment), seen = cache.worlds[0]
+    warnings.extend(cache.worlds[1])
     lights, portals = split_portals(pm, lights)
     resolve_light_links(lights, meshes, info.pop("owners", {}))
     lights = lights + sky_sun_lights(pm, environment, seen)  # a Sky Texture's sun disc

@@ -19,9 +19,11 @@ on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight,
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
 Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for
 cut-outs), and a Normal Map node (tangent or world space) fed by an image or any colour node tree, or a
-Bump node on 'Normal' inputs (docs/textures.md). Anything else falls back to its nearest approximation (another
-shader with a Color input: a Diffuse BSDF of that colour; the material's viewport colour
-when nothing else is known) and is reported once per material
+Bump node on 'Normal' inputs (docs/textures.md). A Light Path node's outputs are constants
+per ray class: a surface that reads them is converted once per class, one engine material
+for each class that differs (addon/lightpath.py). Anything else falls back to its nearest
+approximation (another shader with a Color input: a Diffuse BSDF of that colour; the
+material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both; an input whose feeding node is not supported
 takes the socket's own value, and the warning says which value.
 """
@@ -32,6 +34,9 @@ import traceback
 
 import bpy
 import numpy as np
+
+from . import lightpath, nodegroups
+from .aovs import material_aovs
 
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
@@ -109,16 +114,17 @@ def _value_text(v) -> str:
 def output_node(nt, fallback_type="OUTPUT_MATERIAL"):
     """The output node Cycles renders a node tree with: the active output for the Cycles
     target, else for All, else EEVEE's; else the first node of fallback_type
-    (OUTPUT_MATERIAL / OUTPUT_WORLD / OUTPUT_LIGHT); None when there is none."""
+    (OUTPUT_MATERIAL / OUTPUT_WORLD / OUTPUT_LIGHT); None when there is none. The node
+    is a proxy that reads node groups through (addon/nodegroups.py)."""
     for target in ("CYCLES", "ALL", "EEVEE"):
         try:
             out = nt.get_output_node(target)
         except Exception:  # noqa: BLE001 - older API
             out = None
         if out is not None:
-            return out
+            return nodegroups.wrap(out)
     outs = [n for n in nt.nodes if n.type == fallback_type]
-    return outs[0] if outs else None
+    return nodegroups.wrap(outs[0]) if outs else None
 
 
 def _fold(node, inputs):
@@ -242,6 +248,21 @@ def _weighted(sn, wa, xa, wb, xb):
     if len(terms) == 1:
         return terms[0]
     return sn.Math("ADD", terms[0], terms[1])
+
+
+def _field_mul(pm, a, b):
+    """a x b for a volume's coefficients: numbers / (3,) arrays, or engine nodes (a
+    textured emission, engine/volumefields.py) combined by a Vector Math node."""
+    if hasattr(a, "evaluate") or hasattr(b, "evaluate"):
+        return pm.shadernodes.VectorMath("MULTIPLY", a, b)
+    return a * b
+
+
+def _field_add(pm, a, b):
+    """a + b as _field_mul."""
+    if hasattr(a, "evaluate") or hasattr(b, "evaluate"):
+        return pm.shadernodes.VectorMath("ADD", a, b)
+    return a + b
 
 
 def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
@@ -422,13 +443,32 @@ class MaterialConverter:
         key = mat.name if mat is not None else "default"
         if key in self.cache:
             return self.cache[key]
+        if mat is not None and lightpath.reads_light_path(mat, output_node):
+            # Light Path in the surface: converted once per ray class, the classes that
+            # differ from the diffuse rays' as its ray_variants (addon/lightpath.py).
+            m = lightpath.convert_per_ray_class(self, mat, key, self._convert_once)
+        else:
+            m = self._convert_once(mat, key)
+        self.cache[key] = m
+        return m
+
+    # The ray class whose Light Path values a conversion reads (addon/lightpath.py).
+    _ray_class = "diffuse"
+
+    def _convert_once(self, mat, key):
+        """convert()'s engine Material of mat named key, for the ray class _ray_class."""
         warnings: list[str] = []
         # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
         self._medium = (np.zeros(3), False, np.zeros(3), 0.0, np.zeros(3))
         self._density_field = None  # a texture on the medium's Density (_medium_of)
+        self._emission_field = None  # textures on its emission (_medium_of; volemit40)
+        self._albedo_field = None  # a texture on its Principled Volume's Color
         self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
-            closure = Closure()
+            # No material: Cycles (Blender 5.0) renders the default Principled BSDF, its
+            # specular layer included (measured: a sunlit plane without a material reads
+            # as a new material's Principled, 0.749; a Lambert 0.8 reads 0.784).
+            closure = Closure(specular=1.0)
         else:
             try:
                 closure = self._material_closure(mat, warnings)
@@ -486,10 +526,14 @@ class MaterialConverter:
             # a texture on the Density: a heterogeneous medium (engine/heterogeneous.py;
             # the coefficients above are then at density 1)
             density_texture=self._density_field,
+            # textures on its emission and on its Color (the albedo): engine/volumefields.py
+            volume_emission_texture=self._emission_field,
+            albedo_texture=self._albedo_field,
             # true displacement (Displacement Only / and Bump): vertices moved at prepare
-            displacement=self._displace[0], displacement_method=self._displace[1])
+            displacement=self._displace[0], displacement_method=self._displace[1],
+            # AOV Output nodes: the Shader AOV passes (addon/aovs.py)
+            aovs=self._aovs(mat, warnings))
         m.warnings[:0] = warnings
-        self.cache[key] = m
         return m
 
     # --- internals ----------------------------------------------------------------
@@ -525,7 +569,7 @@ class MaterialConverter:
         use_nodes = bpy.app.version >= (5, 0, 0) or getattr(mat, "use_nodes", True)
         if nt is None or not use_nodes:
             return Closure(base_color=tuple(mat.diffuse_color)[:3], roughness=mat.roughness)
-        out = output_node(nt)
+        out = output_node(nt)  # (node groups read through: addon/nodegroups.py)
         if out is None:
             self._warn(f"material '{mat.name}': no Material Output node; "
                        "using the viewport colour")
@@ -643,9 +687,12 @@ class MaterialConverter:
         plus its blackbody (_blackbody); an Emission shader Color x Strength
         (svm_node_closure_emission); Add Shader sums, Mix Shader weighs by its factor
         (the mix weight scales the density and the emission). The anisotropy g is
-        clamped to +-0.999 as Cycles' volume_henyey_greenstein_setup does. A phase
-        function other than Henyey-Greenstein and a texture on an input (the socket's own
-        value used: a homogeneous medium) are warned."""
+        clamped to +-0.999 as Cycles' volume_henyey_greenstein_setup does. In a material's
+        medium a texture on the emission's inputs makes the emission an engine node
+        (evaluated inside the medium: engine/volumefields.py) and one on Principled
+        Volume's Color (black Absorption Color) its albedo field (_albedo_color); a phase
+        function other than Henyey-Greenstein and a texture on another input (the
+        socket's own value used: a homogeneous medium) are warned."""
         zero = (np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
         if src is None or depth > MAX_NODE_DEPTH:
             return zero
@@ -662,27 +709,29 @@ class MaterialConverter:
             return (self._density(node) * (1.0 - color), np.zeros(3),
                     np.zeros(3), np.zeros(3))
         if t == "PRINCIPLED_VOLUME":
-            color = np.clip(self._volume_color(node, "Color"), 0.0, None)
+            color = np.clip(self._albedo_color(node), 0.0, None)
             density = self._density(node)
             absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
             g = self._anisotropy_g(node)
             emit = np.zeros(3)
-            strength = self._float(node, "Emission Strength", 0.0)
-            if strength > 0:
-                emit = emit + strength * self._volume_color(node, "Emission Color")
-            emit = emit + self._blackbody(node)
+            strength = self._emission_input(node, "Emission Strength", 0.0, 1)
+            if hasattr(strength, "evaluate") or strength > 0:
+                emit = _field_mul(self.pm, strength,
+                                  self._emission_input(node, "Emission Color", None, 3))
+            emit = _field_add(self.pm, emit, self._blackbody(node))
             scatter = density * color
             return (density * np.clip(1.0 - color, 0.0, None)
                     * np.clip(1.0 - absorb, 0.0, None), scatter, scatter * g, emit)
         if t == "ADD_SHADER":
             a = self._volume(self._source(node.inputs[0]), depth + 1)
             b = self._volume(self._source(node.inputs[1]), depth + 1)
-            return tuple(x + y for x, y in zip(a, b))
+            return tuple(_field_add(self.pm, x, y) for x, y in zip(a, b))
         if t == "MIX_SHADER":
             fac = min(max(self._float_socket(node, node.inputs[0], 0.5), 0.0), 1.0)
             a = self._volume(self._source(node.inputs[1]), depth + 1)
             b = self._volume(self._source(node.inputs[2]), depth + 1)
-            return tuple((1.0 - fac) * x + fac * y for x, y in zip(a, b))
+            return tuple(_field_add(self.pm, _field_mul(self.pm, 1.0 - fac, x),
+                                    _field_mul(self.pm, fac, y)) for x, y in zip(a, b))
         if t == "VOLUME_SCATTER":
             phase = str(getattr(node, "phase", "HENYEY_GREENSTEIN") or "HENYEY_GREENSTEIN")
             if phase != "HENYEY_GREENSTEIN":
@@ -695,8 +744,8 @@ class MaterialConverter:
         if t == "EMISSION":
             # Cycles' emission closure in a volume shader: radiance per metre of ray
             # (svm_node_closure_emission x the object's volume density, 1 for a mesh).
-            emit = (self._float(node, "Strength", 1.0)
-                    * self._volume_color(node, "Color"))
+            emit = _field_mul(self.pm, self._emission_input(node, "Strength", 1.0, 1),
+                              self._emission_input(node, "Color", None, 3))
             return np.zeros(3), np.zeros(3), np.zeros(3), emit
         self._warn(f"material '{name}': volume node '{node.name}' ({t}) is not supported "
                    "and ignored")
@@ -709,12 +758,25 @@ class MaterialConverter:
         blackbody colour of T (svm_math_blackbody_color_rec709, luminance about 1;
         engine.shadernodes.blackbody_rec709), its negative channels (outside the gamut)
         clipped to 0 as an emission."""
-        b = self._float(node, "Blackbody Intensity", 0.0)
-        if not b > 0:
+        b = self._emission_input(node, "Blackbody Intensity", 0.0, 1)
+        if not hasattr(b, "evaluate") and not b > 0:
             return np.zeros(3)
-        T = max(self._float(node, "Temperature", 1000.0), 0.0)
-        intensity = 5.670373e-8 * 1e-6 / np.pi * ((1.0 - b) + b * T ** 4)
-        tint = self._volume_color(node, "Blackbody Tint")
+        T = self._emission_input(node, "Temperature", 1000.0, 1)
+        tint = self._emission_input(node, "Blackbody Tint", None, 3)
+        sigma = 5.670373e-8 * 1e-6 / np.pi
+        if any(hasattr(x, "evaluate") for x in (b, T, tint)):
+            # A textured intensity / temperature / tint (fire): the same formula as engine
+            # nodes, evaluated at points inside the medium (engine/volumefields.py).
+            sn = self.pm.shadernodes
+            T = sn.Math("MAXIMUM", T, 0.0)
+            mix = sn.Math("ADD", sn.Math("SUBTRACT", 1.0, b),
+                          sn.Math("MULTIPLY", b, sn.Math("POWER", T, 4.0)))
+            intensity = sn.Math("MULTIPLY", sn.Math("MULTIPLY", mix, sigma),
+                                sn.Math("GREATER_THAN", b, 0.0))
+            return sn.VectorMath("MULTIPLY", sn.VectorMath("MULTIPLY", sn.Blackbody(T), tint),
+                                 intensity)
+        T = max(T, 0.0)
+        intensity = sigma * ((1.0 - b) + b * T ** 4)
         rgb = self.pm.shadernodes.blackbody_rec709(np.array([T]))[0]
         return np.clip(intensity * tint * rgb, 0.0, None)
 
@@ -743,7 +805,18 @@ class MaterialConverter:
         nodes with a textured Density among them are warned and read at each socket's
         own value (a homogeneous medium)."""
         self._fields, self._volume_nodes = ([] if fields else None), 0
+        self._albedo_fields = []
         absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
+        if self._albedo_fields and not (len(self._albedo_fields) == 1
+                                        and self._volume_nodes == 1):
+            node = self._albedo_fields[0][0]
+            self._warn(f"material '{self._mat.name}': a texture on the Color of "
+                       f"'{node.name}' mixed with other scattering or absorbing volume "
+                       "shaders is not supported (one such node per textured medium); "
+                       "each Color read at its socket's own value")
+            self._fields = None  # (the second reading: every socket's own value)
+            self._volume_nodes = 0
+            absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
         if self._fields:
             if len(self._fields) == 1 and self._volume_nodes == 1:
                 self._density_field = self._fields[0][1]
@@ -755,8 +828,16 @@ class MaterialConverter:
                            "Density read at its socket's own value")
                 self._fields = None
                 self._volume_nodes = 0
+                self._albedo_fields = []
                 absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
         self._fields = None
+        if len(self._albedo_fields) == 1:
+            self._albedo_field = self._albedo_fields[0][1]
+        self._albedo_fields = []
+        if hasattr(emit, "evaluate"):
+            # (engine Material.volume_emission_texture; the engine's stand-in is its mean)
+            self._emission_field = emit
+            emit = np.zeros(3)
         scatter = np.clip(scatter, 0.0, None)
         g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
         return (np.clip(absorb, 0.0, None), scatter, min(max(g, -G_LIMIT), G_LIMIT),
@@ -798,6 +879,65 @@ class MaterialConverter:
                    f"'{node.name}' varies per point, which a homogeneous medium does not; "
                    f"using its own value {_value_text(own)}")
         return np.full(3, float(own)) if np.ndim(own) == 0 else np.asarray(own, np.float64)
+
+    def _aovs(self, mat, warnings) -> dict:
+        """Material.aovs of mat (addon/aovs.py); {} when it has none or its AOV nodes
+        cannot be read (warned)."""
+        if mat is None:
+            return {}
+        try:
+            return material_aovs(self, mat)
+        except Exception as exc:  # noqa: BLE001 - an AOV must not stop the render
+            warnings.append(f"material '{mat.name}': its AOV Output nodes could not be read "
+                            f"({type(exc).__name__}: {exc}); its Shader AOVs stay 0")
+            return {}
+
+    def aov_input(self, node, socket):
+        """An AOV Output node's Color or Value input for the material just converted: an
+        engine node or a constant (addon/aovs.py)."""
+        return self._input(node, socket, 0)
+
+    def _albedo_color(self, node) -> np.ndarray:
+        """Principled Volume's Color. A texture on it, in a material's medium (not the
+        world's) whose Absorption Color is black and unlinked, is the medium's albedo
+        (Cycles' sigma_t = density x (Color + max(1 - Color, 0)) = density there: the
+        texture moves only the split between scattering and absorption,
+        engine/volumefields.py): recorded in self._albedo_fields and the socket's own
+        colour (within 0..1) returned for the coefficients. Otherwise _volume_color (a
+        texture warned, its own value used)."""
+        rgb, tex = self._color(node, "Color")
+        if tex is None:
+            return np.asarray(rgb, np.float64)
+        ab = node.inputs.get("Absorption Color")
+        black = ab is None or (self._source(ab) is None
+                               and not np.any(np.asarray(self._default(ab)) > 0))
+        if self._fields is not None and black:
+            self._albedo_fields.append((node, tex))
+            own = self._default(node.inputs["Color"])
+            own = np.full(3, float(own)) if np.ndim(own) == 0 else np.asarray(own)
+            return np.clip(own, 0.0, 1.0)
+        if self._fields is not None:
+            own = self._default(node.inputs["Color"])
+            self._warn(f"material '{self._mat.name}': the texture on 'Color' of node "
+                       f"'{node.name}' with an Absorption Color changes the medium's "
+                       "extinction per point, which is not supported; using its own value "
+                       f"{_value_text(own)}")
+        return self._volume_color(node, "Color")
+
+    def _emission_input(self, node, name, default, width):
+        """A volume node's emission input (Emission Strength / Color, Blackbody
+        Intensity / Temperature / Tint, an Emission shader's Strength / Color): an engine
+        node when a texture drives it in a material's medium (evaluated at points inside
+        it: engine/volumefields.py), else one constant (a float for width 1, else (3,));
+        the world's textures are warned and read at the socket's own value."""
+        s = node.inputs.get(name)
+        if s is not None and self._fields is not None and self._source(s) is not None:
+            val = self._input(node, s, 0)
+            if hasattr(val, "evaluate"):
+                return val
+        if width == 1:
+            return self._float(node, name, default)
+        return self._volume_color(node, name)
 
     def _warn(self, text):
         if text not in self._warned:
@@ -1703,6 +1843,8 @@ class MaterialConverter:
             return np.asarray(tuple(out.default_value)[:3], dtype=np.float64)
         if t == "VALUE":
             return float(out.default_value)
+        if t == "LIGHT_PATH":  # a constant per ray class (addon/lightpath.py)
+            return lightpath.output_value(self, n, oname)
         if t == "VERTEX_COLOR":  # the Color Attribute node
             name = str(getattr(n, "layer_name", ""))
             if oname == "Color" and not name:
@@ -2082,8 +2224,9 @@ class MaterialConverter:
         Interpolation, UDIM tiles), or None after a warning."""
         img = node.image
         if img is None:
-            self._warn(f"material '{self._mat.name}': image node '{node.name}' has no image")
-            return None
+            self._warn(f"material '{self._mat.name}': image node '{node.name}' has no image; "
+                       "it renders magenta, as in Cycles")
+            return self._missing_image()
         extension = str(getattr(node, "extension", "REPEAT"))
         interpolation = str(getattr(node, "interpolation", "Linear"))
         key = (img.name, extension, interpolation)
@@ -2108,10 +2251,20 @@ class MaterialConverter:
                                        name=img.name)
         except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
             self._warn(f"material '{self._mat.name}': image '{img.name}' in node "
-                       f"'{node.name}' could not be read ({exc}); using the input colour")
-            tex = None
+                       f"'{node.name}' could not be read ({exc}); it renders magenta, as "
+                       "in Cycles")
+            tex = self._missing_image()
         self.images[key] = tex
         return tex
+
+    def _missing_image(self):
+        """The texture Cycles shows for an image it cannot load (or no image): magenta
+        (TEX_IMAGE_MISSING_R/G/B 1, 0, 1), alpha 1, everywhere."""
+        if "missing" not in self.images:
+            self.images["missing"] = self.pm.ImageTexture(
+                np.array([[[1.0, 0.0, 1.0, 1.0]]], np.float32), extension="EXTEND",
+                interpolation="Closest", srgb=False, name="missing image")
+        return self.images["missing"]
 
     def _stored_as_srgb(self, img) -> bool:
         """True when Cycles keeps the image's texels sRGB-encoded (interpolates those as

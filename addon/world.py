@@ -13,7 +13,9 @@ an environment map and adds its sun disc as a sun light (`sky_sun_lights`). A sk
 the engine does not know warns and uses the world's viewport colour x strength.
 Backgrounds (or Emission shaders) joined by Mix Shader and Add Shader nodes are summed, a
 Mix factor from Light Path's Is Camera Ray giving camera rays a world of their own
-(`export_worlds`; docs/compatibility.md world39).
+(`export_worlds`; docs/compatibility.md world39). Colours, Mix factors and Strengths
+made of nodes of the direction (a gradient sky, a Noise on a factor) are evaluated along
+world directions and baked into a map (`WorldDirections`, `_Weight`; worldtex40).
 """
 from __future__ import annotations
 
@@ -124,11 +126,11 @@ def export_worlds(pm, world, warnings: list) -> tuple:
         return (viewport, None), None
     seen_by_camera = _ray_visibility(world, warnings)
     if not seen_by_camera:  # World > Settings > Ray Visibility > Camera off: black there
-        return _resolve_terms(pm, light), (np.zeros(3), None)
+        return _resolve_terms(pm, light, warnings, who), (np.zeros(3), None)
     if len(camera) == len(light) and all(
             wc == wl and tc is tl for (wc, tc), (wl, tl) in zip(camera, light)):
-        return _resolve_terms(pm, light), None
-    return _resolve_terms(pm, light), _resolve_terms(pm, camera)
+        return _resolve_terms(pm, light, warnings, who), None
+    return _resolve_terms(pm, light, warnings, who), _resolve_terms(pm, camera, warnings, who)
 
 
 def _ray_visibility(world, warnings) -> bool:
@@ -152,36 +154,105 @@ def _ray_visibility(world, warnings) -> bool:
 
 def _shader_terms(pm, world, node, ray, warnings, memo):
     """[(weight, term)] of the shader tree at node as ray ("light" or "camera") sees it,
-    term an RGB (3,) or an engine Environment; None for a node that is not a Background,
-    Emission, Mix Shader or Add Shader (or nothing: [])."""
+    weight a float or a _Weight (a factor that varies with direction), term an RGB (3,)
+    or an EnvTerm; None for a node that is not a Background, Emission, Mix Shader or Add
+    Shader (or nothing: [])."""
     if node is None:
         return []
     if node.type in ("BACKGROUND", "EMISSION"):
-        strength = max(world_fac(world, node.inputs["Strength"], ray, warnings,
-                                 f"the {node.name} Strength"), 0.0)
-        return [(strength, _background_color(pm, world, node, warnings, memo))]
+        strength = world_fac(world, node.inputs["Strength"], ray, warnings,
+                             f"the {node.name} Strength", memo=memo, pm=pm)
+        weight = (_Weight(1.0, ((strength, "strength"),))
+                  if isinstance(strength, _DirectionField) else max(strength, 0.0))
+        return [(weight, _background_color(pm, world, node, warnings, memo))]
     if node.type == "ADD_SHADER":
         parts = [_shader_terms(pm, world, _from(sock), ray, warnings, memo)
                  for sock in node.inputs if sock.type == "SHADER"]
         return None if any(p is None for p in parts) else [t for p in parts for t in p]
     if node.type == "MIX_SHADER":
-        fac = min(max(world_fac(world, node.inputs[0], ray, warnings), 0.0), 1.0)
+        fac = world_fac(world, node.inputs[0], ray, warnings, memo=memo, pm=pm)
         shaders = [sock for sock in node.inputs if sock.type == "SHADER"]
         first = _shader_terms(pm, world, _from(shaders[0]), ray, warnings, memo)
         second = _shader_terms(pm, world, _from(shaders[1]), ray, warnings, memo)
         if first is None or second is None:
             return None
-        return ([((1.0 - fac) * w, t) for w, t in first if fac < 1.0]
-                + [(fac * w, t) for w, t in second if fac > 0.0])
+        if isinstance(fac, _DirectionField):  # Cycles clamps the factor (saturatef)
+            return ([(_Weight.of(w).times(fac, "1-fac"), t) for w, t in first]
+                    + [(_Weight.of(w).times(fac, "fac"), t) for w, t in second])
+        fac = min(max(fac, 0.0), 1.0)
+        return ([(_scaled(w, 1.0 - fac), t) for w, t in first if fac < 1.0]
+                + [(_scaled(w, fac), t) for w, t in second if fac > 0.0])
     return None
 
 
-def world_fac(world, socket, ray, warnings, what="a Mix Shader factor") -> float:
+class _DirectionField:
+    """A world float socket fed by nodes that vary with direction (a Gradient or Noise
+    Texture, Separate XYZ of the Generated coordinates through a Color Ramp ...): node,
+    the engine/shadernodes graph, evaluated along world directions (WorldDirections)."""
+
+    def __init__(self, node):
+        self.node = node
+
+    def values(self, geo) -> np.ndarray:
+        """(n,) the field at geo's n directions (a colour read as its luminance)."""
+        n = len(geo.dirs)
+        val = np.asarray(self.node.evaluate(geo, np.arange(n), np.zeros(n), np.zeros(n)),
+                         np.float64)
+        if val.ndim == 2:
+            val = val[:, :3] @ np.array([0.2126, 0.7152, 0.0722])
+        return np.nan_to_num(np.broadcast_to(val, (n,)), nan=0.0, posinf=0.0, neginf=0.0)
+
+
+class _Weight:
+    """A world term's weight that varies with direction: const x the product of its
+    factors, each (field, kind): "fac" min(max(f, 0), 1) (a Mix Shader's factor, clamped
+    as Cycles' svm_node_mix_closure), "1-fac" one minus that, "strength" f itself."""
+
+    def __init__(self, const, factors=()):
+        self.const, self.factors = float(const), tuple(factors)
+
+    @staticmethod
+    def of(w) -> "_Weight":
+        return w if isinstance(w, _Weight) else _Weight(w)
+
+    def times(self, field, kind) -> "_Weight":
+        return _Weight(self.const, self.factors + ((field, kind),))
+
+    def __eq__(self, other):
+        return (isinstance(other, _Weight) and self.const == other.const
+                and len(self.factors) == len(other.factors)
+                and all(f is g and k == m for (f, k), (g, m) in
+                        zip(self.factors, other.factors)))
+
+    __hash__ = None
+
+    def values(self, geo) -> np.ndarray:
+        """(n,) the weight along geo's n directions."""
+        out = np.full(len(geo.dirs), self.const)
+        for field, kind in self.factors:
+            f = field.values(geo)
+            if kind == "strength":
+                out *= f  # (a negative product is clamped, warned, after the sum)
+            else:
+                f = np.clip(f, 0.0, 1.0)
+                out *= f if kind == "fac" else 1.0 - f
+        return out
+
+
+def _scaled(w, k: float):
+    """Weight w (a float or a _Weight) times the constant k."""
+    return w * k if not isinstance(w, _Weight) else _Weight(w.const * k, w.factors)
+
+
+def world_fac(world, socket, ray, warnings, what="a Mix Shader factor", memo=None,
+              pm=None):
     """The value of a world shader's float socket (a Mix Shader's factor, a Background's
     Strength: `what`, for the warning) for ray ("light" or "camera"): its constant, or a
     Light Path output (LIGHT_PATH_CAMERA for camera rays; for the rest Is Camera Ray is 0
     and the other ray kinds are warned and read as 0), through Math (one operand a
-    constant) and Invert nodes. Anything else: warned, its constant."""
+    constant) and Invert nodes; other nodes (textures of the direction, Color Ramp,
+    Separate XYZ ...: the material converter's nodes) a _DirectionField when pm and memo
+    are given (one per socket, shared by both ray kinds), else warned, its constant."""
     who = f"world '{world.name}'"
     if not socket.is_linked:
         return float(socket.default_value)
@@ -201,20 +272,42 @@ def world_fac(world, socket, ray, warnings, what="a Mix Shader factor") -> float
                 warnings.append(msg)
         return 0.0
     if node.type == "MATH":
-        values = [world_fac(world, sock, ray, warnings, what) for sock in node.inputs[:2]]
-        result = _math(node.operation, *values)
-        if result is not None:
-            return min(max(result, 0.0), 1.0) if node.use_clamp else result
+        values = [world_fac(world, sock, ray, warnings, what, memo, pm)
+                  for sock in node.inputs[:2]]
+        if not any(isinstance(v, _DirectionField) for v in values):
+            result = _math(node.operation, *values)
+            if result is not None:
+                return min(max(result, 0.0), 1.0) if node.use_clamp else result
     if node.type == "INVERT":
-        fac = world_fac(world, node.inputs["Fac"], ray, warnings, what)
-        x = world_fac(world, node.inputs["Color"], ray, warnings, what)
-        return fac * (1.0 - x) + (1.0 - fac) * x
+        fac = world_fac(world, node.inputs["Fac"], ray, warnings, what, memo, pm)
+        x = world_fac(world, node.inputs["Color"], ray, warnings, what, memo, pm)
+        if not (isinstance(fac, _DirectionField) or isinstance(x, _DirectionField)):
+            return fac * (1.0 - x) + (1.0 - fac) * x
+    if pm is not None and memo is not None:
+        return _direction_field(pm, world, socket, warnings, memo)
     value = float(getattr(socket, "default_value", 0.0))
     msg = (f"{who}: node '{node.name}' ({node.type}) driving {what} is not supported (a "
            f"constant, Light Path, Math and Invert are); using {value:g}")
     if msg not in warnings:
         warnings.append(msg)
     return value
+
+
+def _direction_field(pm, world, socket, warnings, memo):
+    """socket's value through the material converter's nodes (_WorldColours): a float
+    when it comes out constant, else a _DirectionField; one per socket (memo)."""
+    key = ("field", socket.as_pointer())
+    if key not in memo:
+        colours = _WorldColours(pm, world, warnings)
+        colours.fallback = np.zeros(3)
+        val = colours._input(socket.node, socket, 0)
+        warnings.extend(w for w in colours.told() if w not in warnings)
+        if hasattr(val, "evaluate"):
+            memo[key] = _DirectionField(val)
+        else:
+            arr = np.asarray(val, np.float64)
+            memo[key] = float(arr if arr.ndim == 0 else arr[:3] @ [0.2126, 0.7152, 0.0722])
+    return memo[key]
 
 
 def _math(op, a, b):
@@ -238,20 +331,57 @@ class EnvTerm:
         self.unit = unit if unit is not None else make(1.0)
 
 
+class WorldDirections:
+    """What engine/shadernodes asks of a Geometry, for a world shader evaluated along
+    world directions dirs (n,3) (unit), as Cycles sets up a background's ShaderData
+    (shader_setup_from_background: P = D, N = Ng = I = -D, no UVs): Generated and Object
+    coordinates and the Geometry node's Position read the direction, Normal, True Normal
+    and Incoming its opposite; UVs and colour attributes 0."""
+
+    def __init__(self, dirs):
+        self.dirs = np.asarray(dirs, np.float64).reshape(-1, 3)
+        self.ng = -self.dirs
+        self.offset = np.zeros(3)
+
+    def coordinates(self, name, prim, u, v):
+        d = self.dirs[np.asarray(prim, np.int64)]
+        return -d if name == "normal" else d
+
+    def hit_points(self, prim, u, v):
+        return self.dirs[np.asarray(prim, np.int64)]
+
+    def uvs(self, prim, u, v):
+        return np.zeros((len(prim), 2))
+
+    def colors(self, prim, u, v):
+        return np.zeros((len(prim), 3))
+
+
 class _EnvLeaf:
     """An environment map inside a world colour graph (engine/shadernodes nodes evaluated
-    per texel of the bake grid): its radiance along the grid texels' world directions."""
+    along the bake grid's directions): its radiance along the WorldDirections' dirs."""
 
     def __init__(self, env):
-        self.env, self.dirs = env, None
+        self.env = env
 
     def evaluate(self, geo, prim, u, v):
-        return self.env.radiance(self.dirs[prim])
+        return self.env.radiance(geo.dirs[np.asarray(prim, np.int64)])
+
+
+# Nodes that read a surface (its mesh attributes, its neighbourhood by rays, its view)
+# or a ray kind: not evaluated along world directions (warned, the socket's value).
+_SURFACE_ONLY_NODES = frozenset((
+    "AMBIENT_OCCLUSION", "BEVEL", "ATTRIBUTE", "UVMAP", "VERTEX_COLOR", "NORMAL_MAP",
+    "BUMP", "TANGENT", "WIREFRAME", "OBJECT_INFO", "PARTICLE_INFO", "HAIR_INFO",
+    "POINT_INFO", "LIGHT_PATH", "LAYER_WEIGHT", "FRESNEL", "UVALONGSTROKE",
+    "TEX_IMAGE", "DISPLACEMENT", "VECTOR_DISPLACEMENT", "TEX_POINTDENSITY", "RAYCAST"))
 
 
 class _WorldColours(MaterialConverter):
     """The material converter's colour nodes (engine/shadernodes) for a world's Background
-    colour: Environment and Sky Textures become _EnvLeaf nodes (made at strength 1)."""
+    colour or a factor: Environment and Sky Textures become _EnvLeaf nodes (made at
+    strength 1); Texture Coordinate reads the direction (WorldDirections; its Camera,
+    Window, Reflection and UV outputs warned, read as Generated)."""
 
     def __init__(self, pm, world, warnings):
         super().__init__(pm)
@@ -272,6 +402,19 @@ class _WorldColours(MaterialConverter):
             leaf.make = make
             self.leaves.append(leaf)
             return leaf
+        if n.type in _SURFACE_ONLY_NODES:
+            return None  # (warned by the converter: not supported, the socket's value)
+        oname = getattr(out, "name", out)
+        if n.type == "TEX_COORD" and oname not in ("Generated", "Object", "Normal"):
+            self._warn(f"material '{self._world.name}': Texture Coordinate '{n.name}' "
+                       f"output '{oname}' is not supported in the world (Generated, Object "
+                       "and Normal are: the ray direction); using the direction")
+            return self.pm.shadernodes.Coordinates("generated")
+        if n.type == "TEX_COORD" and oname == "Object" and getattr(n, "object", None):
+            self._warn(f"material '{self._world.name}': Texture Coordinate '{n.name}' "
+                       f"relative to object '{n.object.name}' is not supported in the "
+                       "world; using the direction")
+            return self.pm.shadernodes.Coordinates("generated")
         return super()._node_output(n, out, depth)
 
     def colour(self, node, socket):
@@ -301,13 +444,13 @@ def _background_color(pm, world, node, warnings, memo):
     term = None
     if isinstance(val, _EnvLeaf):
         term = EnvTerm(val.make, val.env)
-    elif hasattr(val, "evaluate") and colours.leaves:
-        term = _bake_colours(pm, world, val, colours.leaves, warnings)
     elif hasattr(val, "evaluate"):
-        src = _from(col_socket)
-        warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the Background "
-                        "colour is not supported (a colour, colour nodes and Environment "
-                        f"or Sky Textures are); using the colour {color.round(3).tolist()}")
+        term = _bake_colours(pm, world, val, colours.leaves, warnings)
+        if term is None:
+            src = _from(col_socket)
+            warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the "
+                            "Background colour cannot be evaluated along directions; using "
+                            f"the colour {color.round(3).tolist()}")
     else:
         arr = np.asarray(val, np.float64)
         color = np.full(3, float(arr)) if arr.ndim == 0 else arr[:3]
@@ -331,74 +474,139 @@ BAKE_UPSAMPLE = (4, 2, 1)
 BAKE_TEXELS = 2 ** 21
 
 
-def bake_grid(env) -> tuple:
+# A world with no map whose colour or mix factors vary with direction (a gradient sky, a
+# Noise on the Strength) is baked on a grid of this size (height, width: 0.35 degrees a
+# texel, 2 M texels of float32 RGB = 6 MB).
+DIRECTION_BAKE = (512, 1024)
+
+
+def bake_grid(env, fine=False) -> tuple:
     """(height, width, (height x width, 3) world directions) of the bake grid over env:
     its texel grid refined by the first of BAKE_UPSAMPLE that keeps it within
-    BAKE_TEXELS texels, the directions at the grid's texel centres (rows top first: the
-    zenith; equirectangular, env's rotation)."""
+    BAKE_TEXELS texels (fine: refined further, up to DIRECTION_BAKE's height, for
+    weights that vary with direction), the directions at the grid's texel centres (rows
+    top first: the zenith; equirectangular, env's rotation). env None: the
+    DIRECTION_BAKE grid, no rotation."""
+    if env is None:
+        height, width = DIRECTION_BAKE
+        return height, width, _grid_directions(height, width)
     h0, w0 = env.pixels.shape[:2]
     k = next((k for k in BAKE_UPSAMPLE if h0 * w0 * k * k <= BAKE_TEXELS), 1)
+    if fine:
+        k = max(k, min(-(-DIRECTION_BAKE[0] // h0), int((BAKE_TEXELS / (h0 * w0)) ** 0.5)))
     height, width = h0 * k, w0 * k
+    return height, width, _grid_directions(height, width) @ env.rotation  # (world -> texture)
+
+
+def _grid_directions(height, width) -> np.ndarray:
+    """(height x width, 3) texture-space directions at the texel centres of an
+    equirectangular grid (rows top first; Cycles' equirectangular_to_direction)."""
     theta = (np.arange(height) + 0.5)[:, None] / height * np.pi
     u = (np.arange(width) + 0.5)[None, :] / width
     phi = 2.0 * np.pi * (0.5 - u)
     st = np.sin(theta)
-    texture_dirs = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi),
-                                                np.cos(theta)), -1).reshape(-1, 3)
-    return height, width, texture_dirs @ env.rotation  # (rotation: world -> texture)
+    return np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi),
+                                        np.cos(theta)), -1).reshape(-1, 3)
+
+
+def _bake_environment(pm, pixels, height, width, first, name, warnings=None, who=""):
+    """engine Environment (strength 1) of baked (height x width, 3) radiance texels on
+    the bake grid of first (an Environment, or None: the DIRECTION_BAKE grid); negative
+    texels (a negative Strength or colour) read 0, with a warning into warnings."""
+    if warnings is not None and np.nanmin(pixels) < 0.0:
+        msg = (f"{who}: the radiance is negative in some directions (a negative Strength, "
+               "factor or colour); those read 0 (Cycles lets them subtract light)")
+        if msg not in warnings:
+            warnings.append(msg)
+    pixels = np.nan_to_num(np.maximum(pixels, 0.0), nan=0.0, posinf=0.0).reshape(
+        height, width, 3).astype(np.float32)
+    rotation = None if first is None else first.rotation
+    interpolation = "Linear" if first is None else first.interpolation
+    return pm.Environment(pixels, 1.0, rotation, interpolation,
+                          name=name if first is None else first.name)
 
 
 def _bake_colours(pm, world, val, leaves, warnings):
-    """EnvTerm of a colour graph over environment maps (leaves): evaluated on the bake
-    grid of the first map (bake_grid; every map looked up there), negatives clamped."""
-    first = leaves[0].env
+    """EnvTerm of a colour graph over environment maps (leaves) or over the direction
+    alone (no leaves: a gradient sky): evaluated on the bake grid of the first map
+    (bake_grid; every map looked up there) or the DIRECTION_BAKE grid, negatives
+    clamped; None when the graph cannot be evaluated without leaves (warned by the
+    caller)."""
+    first = leaves[0].env if leaves else None
     height, width, dirs = bake_grid(first)
-    for leaf in leaves:
-        leaf.dirs = dirs
     n = height * width
     try:
-        rgb = np.asarray(val.evaluate(None, np.arange(n), np.zeros(n), np.zeros(n)),
-                         np.float64)
+        rgb = np.asarray(val.evaluate(WorldDirections(dirs), np.arange(n), np.zeros(n),
+                                      np.zeros(n)), np.float64)
     except Exception as exc:  # noqa: BLE001 - a node that needs a surface
+        if not leaves:
+            return None
         warnings.append(f"world '{world.name}': the Background colour's nodes cannot be "
                         f"evaluated over the environment map ({exc}); using the map alone")
         return EnvTerm(leaves[0].make, first)
     if rgb.ndim == 1:
         rgb = np.repeat(rgb[:, None], 3, axis=1)
-    pixels = np.nan_to_num(np.maximum(rgb, 0.0), nan=0.0, posinf=0.0).reshape(
-        height, width, 3).astype(np.float32)
-    return EnvTerm(lambda strength: pm.Environment(pixels, strength, first.rotation,
-                                                   first.interpolation, name=first.name))
+    rgb = np.broadcast_to(rgb, (n, 3))
+    made = {}
+
+    def make(strength):
+        if strength not in made:
+            env = _bake_environment(pm, rgb, height, width, first, f"{world.name} colour",
+                                    warnings, f"world '{world.name}'")
+            made[strength] = (env if strength == 1.0 else
+                              pm.Environment(env.pixels, strength, env.rotation,
+                                             env.interpolation, name=env.name))
+        return made[strength]
+    return EnvTerm(make)
 
 
-def _resolve_terms(pm, terms) -> tuple:
-    """(background RGB (3,), Environment or None) of [(weight, term)], term an RGB (3,) or
-    an EnvTerm: the colours summed; one map alone made at its weight; a map with colours
-    or other maps baked into one map on the first map's bake grid (bake_grid: every map
-    looked up there, the colours added), its sky sun disc (sun_light) scaled by the sky's
-    weight."""
+def _resolve_terms(pm, terms, warnings=None, who="the world") -> tuple:
+    """(background RGB (3,), Environment or None) of [(weight, term)], weight a float or
+    a _Weight, term an RGB (3,) or an EnvTerm: the colours summed; one map alone at a
+    constant weight made at that weight; otherwise (several maps, a map and colours, a
+    weight that varies with direction) baked into one map on the first map's bake grid
+    (bake_grid: every map looked up there, the colours and weights evaluated along its
+    directions; no map: the DIRECTION_BAKE grid), its sky sun disc (sun_light) scaled by
+    the sky's weight toward the sun."""
     const = np.zeros(3)
-    maps = []
+    maps, varying = [], []
     for w, term in terms:
-        if w <= 0.0:
+        if isinstance(w, _Weight):
+            varying.append((w, term))
+            if not isinstance(term, np.ndarray):
+                maps.append((w, term))
+        elif w <= 0.0:
             continue
-        if isinstance(term, np.ndarray):
+        elif isinstance(term, np.ndarray):
             const = const + w * term
         else:
             maps.append((w, term))
-    if not maps:
+    if not maps and not varying:
         return np.clip(const, 0.0, None), None
-    w0, first = maps[0][0], maps[0][1].make(maps[0][0])
-    if len(maps) == 1 and not np.any(const > 0):
+    if maps and not varying and len(maps) == 1 and not np.any(const > 0):
+        first = maps[0][1].make(maps[0][0])
         return first.average(), first
-    height, width, dirs = bake_grid(first)
+    first = maps[0][1].unit if maps else None
+    height, width, dirs = bake_grid(first, fine=bool(varying))
+    geo = WorldDirections(dirs)
     pixels = np.broadcast_to(const, (height * width, 3)).copy()
-    for w, term in maps:
-        pixels += w * term.unit.radiance(dirs)
-    env = pm.Environment(pixels.reshape(height, width, 3).astype(np.float32), 1.0,
-                         first.rotation, first.interpolation, name=first.name)
-    sun = getattr(maps[0][1].unit, "sun_light", None)
+    for w, term in terms:
+        if not isinstance(w, _Weight) and w <= 0.0:
+            continue
+        k = w.values(geo)[:, None] if isinstance(w, _Weight) else w
+        if isinstance(term, np.ndarray):
+            if isinstance(w, _Weight):
+                pixels += k * term
+        else:
+            pixels += k * term.unit.radiance(dirs)
+    env = _bake_environment(pm, pixels, height, width, first,
+                            f"{maps[0][1].unit.name if maps else 'world'}", warnings, who)
+    sun = getattr(first, "sun_light", None) if first is not None else None
     if sun is not None:
+        w0 = maps[0][0]
+        if isinstance(w0, _Weight):  # the weight toward the sun (travel: -direction)
+            toward = -np.asarray(sun["direction"], np.float64).reshape(1, 3)
+            w0 = float(w0.values(WorldDirections(toward / np.linalg.norm(toward)))[0])
         env.sun_light = dict(sun, color=np.asarray(sun["color"], np.float64) * w0)
     return env.average(), env
 

@@ -18,6 +18,7 @@ import numpy as np
 from .anisotropy import set_hit_tangents
 from .camerakernels import face_shading_normals, hit_closures, hit_geometry, surface_lobes
 from .closures import principled as pr
+from . import raymaterials
 from .displacement import DisplacedNormals
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
@@ -155,15 +156,19 @@ def _offset_floor(geo: Geometry, prim, p, ng, offset):
         np.maximum(offset, floor, out=offset)
 
 
-def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHit:
+def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
+                material=None) -> SurfaceHit:
     """Surface data at N ray hits: triangles prim (N,), barycentrics u, v (N,) of corners
     1 and 2, ray directions d (N,3). Positions, normals, material, base colour and the
     ray-origin offset come from one compiled pass (camerakernels.hit_geometry); normal
-    maps, colour textures and alpha textures are applied after it, per material."""
+    maps, colour textures and alpha textures are applied after it, per material.
+    material (N,): each hit's material row where it is not its triangle's (the ray
+    class's Light Path variant: engine/raymaterials.path_materials); None: the triangles'."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
     p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
-    rows, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
+    rows, tabs = raymaterials.hit_tables(geo, prim, material, "v0", "e1", "e2",
+                                         "corner_normals", "material")
     hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset,
                  bary)
     _offset_floor(geo, prim, p, ng, offset)
@@ -229,19 +234,21 @@ def plain_surfaces(table: MaterialTable) -> bool:
 
 
 def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, want_glossy,
-                      out) -> tuple[SurfaceHit, int]:
+                      out, material=None) -> tuple[SurfaceHit, int]:
     """surface_hit and camerakernels.shade_lobes on N hits in one kernel
     (camerakernels.surface_lobes), for tables with plain_surfaces: (the SurfaceHit, with
     prm set to out's packed lobes, K the number of rows to shade). tp (N,3) throughputs,
     want_glossy as shade_lobes; out = (prm, sel, p, q, psum, glossy, rows, wd) the
     arrays shade_lobes writes (integrator.BounceBuffers.take(N)), written as it writes
-    them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py)."""
+    them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py).
+    material: as surface_hit's."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
     p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
     wo = np.empty((n, 3))
     prm, sel, pw, q, psum, glossy, rows, wd = out
-    idx, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
+    idx, tabs = raymaterials.hit_tables(geo, prim, material, "v0", "e1", "e2",
+                                        "corner_normals", "material")
     k = surface_lobes(idx, u, v, d, *tabs, table.base_color, table.closure_params,
                       np.ascontiguousarray(table.alpha, np.float64),
                       np.ascontiguousarray(tp, np.float64), bool(want_glossy), p, ng, ns, wo,

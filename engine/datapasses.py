@@ -48,6 +48,14 @@ kernel/integrator/surface_shader.h, surface_shader_diffuse / _glossy / _transmis
     depth along the view axis for an orthographic camera: camera_distance); the film
     shows saturate(1 - sum / samples) (film_get_pass_pixel_mist): 1 for the background.
 
+- Shader AOVs (RenderSettings.shader_aovs; Cycles' svm_node_aov_color / _value, written
+  where svm_node_aov_check passes: the camera ray and its transparent passes until the
+  single pass is done, i.e. at every surface of that chain up to and including the one
+  that ends it): the material's AOV Output node of that name gives its Color (a colour
+  AOV) or Value (a value AOV) at the hit, added unweighted (no throughput), a colour
+  AOV's alpha 1 a write (film_write_aov_pass_color's float4); the film divides by the
+  samples. A material without that AOV writes nothing (0).
+
 Shapes: pix (N,) int64 pixel rows; tp (N,3) float64 path throughput; t (N,) segment
 lengths (m). Passes are stored in Accumulator.data (name -> (P,3) or (P,) float64 sums).
 """
@@ -93,14 +101,39 @@ _NO_ALPHA = np.zeros(0)
 _NO_TP = np.zeros((0, 3))
 
 
+# Shader AOVs' data keys: AOV_VALUE + name (N,), AOV_COLOR + name (N,3) and its alpha
+# AOV_ALPHA + name (N,) (the writes' count: a colour AOV's fourth channel).
+AOV_VALUE, AOV_COLOR, AOV_ALPHA = "aov_value:", "aov_color:", "aov_alpha:"
+
+
+def wanted(settings) -> tuple:
+    """What a render's data passes are: RenderSettings.data_passes and, per Shader AOV
+    (settings.shader_aovs), its data key (AOV_VALUE / AOV_COLOR + name)."""
+    return tuple(settings.data_passes) + tuple(
+        (AOV_COLOR if kind == "color" else AOV_VALUE) + name
+        for name, kind in getattr(settings, "shader_aovs", ()))
+
+
 def keys(data_passes) -> list[tuple[str, str, int]]:
-    """(Blender name, data key, channels) of the passes RenderSettings.data_passes asks for."""
-    return [p for name in ORDER if name in data_passes for p in PASSES[name]]
+    """(Blender name, data key, channels) of the passes `data_passes` (wanted(settings),
+    or RenderSettings.data_passes) asks for; a colour AOV brings its alpha key too."""
+    out = [p for name in ORDER if name in data_passes for p in PASSES[name]]
+    for w in data_passes:
+        if w.startswith(AOV_VALUE):
+            out.append((w[len(AOV_VALUE):], w, 1))
+        elif w.startswith(AOV_COLOR):
+            name = w[len(AOV_COLOR):]
+            out += [(name, w, 3), (name, AOV_ALPHA + name, 1)]
+    return out
+
+
+def _aov_keys(want) -> list:
+    return [w for w in want if w.startswith((AOV_VALUE, AOV_COLOR))]
 
 
 def surface_wanted(data_passes) -> bool:
-    """Some of the surface data passes (SURFACE) is asked for."""
-    return any(name in data_passes for name in SURFACE)
+    """Some of the surface data passes (SURFACE) or a Shader AOV is asked for."""
+    return any(name in data_passes for name in SURFACE) or bool(_aov_keys(data_passes))
 
 
 def film_value(key, total, inv):
@@ -146,6 +179,9 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
     if not pending.any():
         return done
     sel = rows[pending]
+    aov_keys = _aov_keys(want)
+    if aov_keys and getattr(table, "aovs", None) is not None:
+        _add_aovs(acc, aov_keys, geo, table, hit.mat, prim, u, v, pix, sel)
     w0 = sel[first[sel]]
     if len(w0):
         b = pix[w0] - acc.lo  # (one first sample a pixel: plain stores overwrite)
@@ -183,6 +219,37 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
         done = done.copy()
         done[fin] = True
     return done
+
+
+def _add_aovs(acc, aov_keys, geo, table, mat, prim, u, v, pix, sel):
+    """The Shader AOVs (aov_keys: AOV_VALUE / AOV_COLOR + name) the materials of the
+    camera-chain hits sel (K,) write (module docstring): each material's AOV Output
+    node evaluated at its hits (engine/shadernodes, a colour into a value AOV as its
+    luminance), summed into the pixels."""
+    from .shadernodes import _eval
+    mats = np.asarray(mat)[sel]
+    for m in np.unique(mats):
+        outputs = table.aovs[int(m)]
+        if not outputs:
+            continue
+        rows = sel[mats == m]
+        p, uu, vv = prim[rows], u[rows], v[rows]
+        at = np.ascontiguousarray(pix[rows], np.int64)
+        for key in aov_keys:
+            color = key.startswith(AOV_COLOR)
+            name = key[len(AOV_COLOR if color else AOV_VALUE):]
+            node = outputs.get(name, {}).get("color" if color else "value")
+            if node is None:
+                continue
+            val = np.nan_to_num(np.asarray(_eval(node, geo, p, uu, vv, 3 if color else 1),
+                                           np.float64))
+            if color:
+                film_add(_buf(acc, key, 3), acc.lo, at, np.arange(len(rows)), _NO_TP,
+                         np.ascontiguousarray(val))
+                film_add_scalar(_buf(acc, AOV_ALPHA + name, 1), acc.lo, at,
+                                np.ones(len(rows)))
+            else:
+                film_add_scalar(_buf(acc, key, 1), acc.lo, at, np.ascontiguousarray(val))
 
 
 def add_background(acc, want, pix, rows, first, done):

@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .closures.ggx import ALPHA_MIN
-from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
+from .geometry import CAMERA, PIECE_TRIANGLES, SHADOW, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
-from . import shadelight, worldmedium
+from . import raymaterials, shadelight, worldmedium
 from .shadelight import find_shades
 from .rayoffset import ulp32
 from .sampling import luminance
@@ -299,6 +299,42 @@ def trapped_lights(scene, geo: Geometry, table: MaterialTable, lights: list, acc
     return out
 
 
+def shadow_passed(geo, table) -> np.ndarray:
+    """(T,) bool: triangles whose material shadow rays see as another one that lets them
+    through (a Light Path variant with alpha < 1: Mix Shader(Is Shadow Ray, Glass,
+    Transparent); engine/raymaterials.py)."""
+    other = raymaterials.differs(table, SHADOW)
+    if not other.any() or getattr(geo, "shared", None) is not None:
+        return np.zeros(geo.count, bool)
+    seen = raymaterials.triangle_materials(geo, table, SHADOW)
+    return other[geo.material] & (np.asarray(table.alpha)[seen] < 1.0)
+
+
+def _light_path_line(plan, geo, table) -> None:
+    """The report's line on materials that read Light Path (engine/raymaterials.py): which
+    ray classes meet another surface on which objects."""
+    parts = []
+    for key, cls in raymaterials.VARIANT_CLASSES.items():
+        other = raymaterials.differs(table, cls)
+        if not other.any() or getattr(geo, "shared", None) is not None:
+            continue
+        tri = other[geo.material]
+        if not tri.any():
+            continue
+        names = [geo.object_names[i] for i in np.unique(geo.object_id[tri])]
+        what = f"{key} rays see another surface on {_quoted(names, most=4)}"
+        if key == "shadow":
+            passed = np.unique(geo.object_id[shadow_passed(geo, table)])
+            if len(passed):
+                what += (" (transparent to them: " + _quoted(
+                    [geo.object_names[i] for i in passed], most=4)
+                    + " passes direct light by shadow rays, no caustic photons aimed at it)")
+        parts.append(what)
+    if parts:
+        plan.add("Light Path in materials", True,
+                 "; ".join(parts) + "; photons and diffuse rays see the material itself")
+
+
 def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, settings) -> EffectPlan:
     plan = EffectPlan()
     s = settings
@@ -307,6 +343,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     has_tris = geo.count > 0
     emitting = [li for li in lights if float(luminance(np.asarray(li.photon_flux))) > 0]
     spec_tri = table.has_specular[mat] if has_tris else np.zeros(0, bool)
+    # Light Path in a material: what the camera meets is its camera variant
+    # (engine/raymaterials.py; the same array without one).
+    cam_mat = raymaterials.triangle_materials(geo, table, CAMERA) if has_tris else mat
+    if cam_mat is not mat:
+        spec_tri = spec_tri | table.has_specular[cam_mat]
+    _light_path_line(plan, geo, table)
     diff_tri = table.has_diffuse[mat] if has_tris else np.zeros(0, bool)
     # Single-plane glass panes whose suns' and world's shadow rays refract through them
     # (engine/panelight.py; none under method 'local'): the caustics, sun and world lines
@@ -379,6 +421,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # Window glass (thin slabs, window_glass): passed by shadow rays, so no caustic
         # caster; its reflections come from unaimed photons, as a rough lobe's glow.
         window_tri = window_glass(geo, table) if has_tris else np.zeros(0, bool)
+        if has_tris:
+            # Glass that shadow rays see as a Transparent BSDF (Light Path's Is Shadow Ray,
+            # engine/raymaterials.py): its direct light comes by shadow rays, so it needs
+            # no caustic photons either.
+            window_tri = window_tri | shadow_passed(geo, table)
         plan.window_glass = ([geo.object_names[i] for i in np.unique(geo.object_id[window_tri])]
                              if window_tri.any() else [])
         # Single-plane glass panes (engine/panelight.py) when every emitting light that
@@ -507,8 +554,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                if shades is not None and all(n in shades.names
                                                              for n in tl_reached) else ""))
             if plan.window_glass:
+                # (thin flat glass, or glass a Light Path makes transparent to shadow rays)
+                why = ("thin flat glass" if not shadow_passed(geo, table).any()
+                       else "thin flat glass, or transparent to them by Light Path")
                 glow.append("the reflections of window glass "
-                            + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
+                            + _quoted(plan.window_glass) + f" (passed by shadow rays: {why})")
             if plan.pane_glass:
                 glow.append("the reflections of single-plane glass "
                             + _quoted(plan.pane_glass) + f" ({pane_lights} through it "
@@ -831,6 +881,17 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           "samples): ours takes it by shadow rays, smoothly, and keeps it, "
                           "so Cycles renders such a room darker than ours; set Indirect to 0 "
                           "in both to compare them")
+        elif s.clamp_indirect > 0:
+            # Cycles clamps each path sample; a sunlit room's bounce light reaches its
+            # paths in rare bright samples, which the clamp cuts, while our photon
+            # estimates are smooth and seldom reach it (newuser40: a room lit through an
+            # open window 1.046x Cycles at Indirect 10, its ceiling 1.21x; 1.002x with
+            # Cycles' clamp off).
+            glass_note = ("; Cycles clamps each path sample, and the bounce light of a "
+                          "sunlit room comes to its paths in rare bright samples that the "
+                          "clamp cuts, while photon estimates are smooth and seldom reach "
+                          "it: such rooms read brighter here than in Cycles; set Indirect "
+                          "to 0 in both to compare them")
         plan.add("clamping", True,
                  f"Light Paths > Clamping: direct light {limit(s.clamp_direct)}, indirect "
                  f"light and photon estimates {limit(s.clamp_indirect)}; brighter samples "
@@ -1199,12 +1260,14 @@ def _visible_specular(scene, geo, table, accel, probe=96, through=3) -> list:
                              px - np.floor(px), py - np.floor(py))
     see_through = (table.transmission > 0) | (table.alpha < 1) | table.has_alpha_texture
     seen = []
+    # (the camera's Light Path variants: engine/raymaterials.py)
+    cam_mat = raymaterials.triangle_materials(geo, table, CAMERA)
     for _ in range(through + 1):
         t, prim, _, _ = accel.intersect(o, d, tmax)
         live = prim >= 0
         hit = prim[live]
-        seen.append(hit[table.has_specular[geo.material[hit]]])
-        on = see_through[geo.material[hit]]
+        seen.append(hit[table.has_specular[cam_mat[hit]]])
+        on = see_through[cam_mat[hit]]
         if not on.any():
             break
         o, d, t, tmax = o[live][on], d[live][on], t[live][on], np.broadcast_to(

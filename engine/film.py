@@ -5,6 +5,7 @@ business. All buffers are linear float32.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -90,6 +91,7 @@ class Film:
         # (The light passes as Blender shows them: Direct / Indirect divided by Color.)
         for key, img in {**self.data, **shown(self.data)}.items():
             rgb = img if img.ndim == 3 else np.repeat(img[..., None], 3, axis=2)
-            paths.append(f"{root}.{key}.exr")
+            # (a Shader AOV's key holds its name: any character but a file name's kept)
+            paths.append(f"{root}.{re.sub(r'[^0-9A-Za-z_.-]', '_', key)}.exr")
             write_image(rgb, paths[-1])
         return paths

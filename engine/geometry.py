@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import raymaterials
 from .rayoffset import surface_offset, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
 from .parallel import Cancelled
@@ -69,9 +70,21 @@ class MaterialTable:
     density_textures: list = None      # per material: its medium's density field
                                        # (Material.density_texture, a node; None: none;
                                        # engine/heterogeneous.py)
+    aovs: list = None                  # per material: Material.aovs ({} without AOV
+                                       # Output nodes; engine/datapasses.py)
+    holdout: np.ndarray = None         # (M,) bool: camera rays see a hole (Material.holdout)
+    ray_remap: dict = None             # {ray class bit: (M,) int64 row that class meets}
+                                       # for the classes a Light Path variant changes
+                                       # (engine/raymaterials.py; None / {}: none)
+    volume_emission_textures: list = None  # per material: its medium's emission field
+    albedo_textures: list = None       # and albedo field (Material.volume_emission_texture,
+                                       # .albedo_texture; engine/volumefields.py)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
+        # The materials' Light Path variants become rows of their own after the given
+        # ones (engine/raymaterials.py; none: the rows are the materials as given).
+        materials, ray_remap = raymaterials.expand(materials)
         cols = {f: np.array([getattr(m, f) for m in materials], np.float64) for f in MAT_FIELDS}
         return cls(names=[m.name for m in materials],
                    base_color=np.array([m.base_color for m in materials], np.float64).reshape(-1, 3),
@@ -104,7 +117,13 @@ class MaterialTable:
                                          for m in materials], np.bool_),
                    density_textures=[getattr(m, "density_texture", None)
                                      for m in materials],
-                   **cols)
+                   aovs=[getattr(m, "aovs", None) or {} for m in materials],
+                   holdout=np.array([bool(getattr(m, "holdout", False))
+                                     for m in materials], np.bool_),
+                   volume_emission_textures=[getattr(m, "volume_emission_texture", None)
+                                             for m in materials],
+                   albedo_textures=[getattr(m, "albedo_texture", None) for m in materials],
+                   ray_remap=ray_remap, **cols)
 
     @property
     def has_scalar_textures(self) -> bool:

@@ -53,9 +53,12 @@ the same seed gives the same image for any worker count, and no stream's draws s
 (a scene without a density texture renders exactly as before). The camera segments'
 distances take the camera pass's stratified numbers (its ("volume",) dimension).
 
-Not heterogeneous (the stand-in at the mean density, warned: `limits`): an emitting
-medium's emission integral (engine/volumeemission.py). The World Volume and objects with
-shared instances keep a constant density (warned).
+An emitting medium's emission is integrated along the field, and textured emission and
+albedo (Principled Volume's Emission Strength / Color / Blackbody, its Color) are fields
+of their own: engine/volumefields.py (volemit40), which this module's fields carry (a
+material with only such textures is a field of constant density, whose tracking has
+nothing to do: `tracked`). The World Volume and objects with shared instances keep a
+constant density (warned).
 """
 from __future__ import annotations
 
@@ -165,6 +168,11 @@ class HeterogeneousMedia:
         self.object = np.asarray(geo.object_id)[rows].astype(np.int64)
         corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (R,3,3)
         self._fit_maps(corners)
+        # Textured emission and albedo (engine/volumefields.py): their means, and the
+        # fields' sigma_s_unit at the mean albedo, before anything reads the fields.
+        from .volumefields import MediumTextures
+        self.textures = MediumTextures(self, table, corners)
+        self.warnings.extend(self.textures.warnings)
         self._measure(corners)
         verts = corners.reshape(-1, 3)
         from .accel import Accel
@@ -181,23 +189,35 @@ class HeterogeneousMedia:
     def for_scene(cls, geo, table, seed: int = 0):
         """HeterogeneousMedia, or None when no material of the table has a density
         texture (table.density_textures) on a triangle of geo."""
-        textures = getattr(table, "density_textures", None)
-        if not textures or all(t is None for t in textures) or geo.count == 0:
+        from . import volumefields
+        textures = list(getattr(table, "density_textures", None) or [])
+        # (materials with an emission or albedo texture: a field of constant density,
+        # engine/volumefields.py)
+        textured = volumefields.textured_materials(table)
+        if (all(t is None for t in textures) and not textured) or geo.count == 0:
             return None
+        textures += [None] * (len(table.names) - len(textures))
         fields = {}
         for m, node in enumerate(textures):
             if node is None:
-                continue
+                if m not in textured:
+                    continue
+                node = 1.0
             a = np.asarray(table.absorption[m], np.float64)
             s = np.asarray(table.scattering[m], np.float64)
             fields[m] = Field(node, a + s, s)
         if getattr(geo, "shared", None) is not None:
             # (a shared instance's triangles are not in the flat tables this reads)
             for m in fields:
-                table.density_textures[m] = None
-            return _Warned([f"material '{table.names[m]}': a density texture on objects "
-                            "with shared instances (instanced copies) is not supported; "
-                            "rendered as a homogeneous medium of density 1" for m in fields])
+                if m < len(table.density_textures):
+                    table.density_textures[m] = None
+                volumefields.drop(table, m)
+            return _Warned([f"material '{table.names[m]}': a texture on its volume "
+                            "(Density, Color or Emission) on objects with shared instances "
+                            "(instanced copies) is not supported; rendered as a homogeneous "
+                            "medium (density 1, the Color socket's own value, no textured "
+                            "emission)"
+                            for m in fields])
         used = set(np.unique(np.asarray(geo.material)).tolist())
         fields = {m: f for m, f in fields.items() if m in used}
         if not fields:
@@ -215,12 +235,20 @@ class HeterogeneousMedia:
                                 f"be evaluated inside the volume ({type(exc).__name__}: "
                                 f"{exc}); rendered as a homogeneous medium of density 1")
                 table.density_textures[m] = None
+                volumefields.drop(table, m)
                 del fields[m]
         if not fields:
             return _Warned(warnings)
         het = cls(geo, table, fields, seed)
         het.warnings[:0] = warnings
         return het
+
+    @property
+    def tracked(self) -> bool:
+        """Whether some field has a density texture (the tracking has work); fields of
+        constant density (node 1.0) carry only emission / albedo textures
+        (volumefields)."""
+        return any(hasattr(f.node, "evaluate") for f in self.fields.values())
 
     # -- setup ---------------------------------------------------------------------
     def _fit_maps(self, corners):
@@ -405,7 +433,7 @@ class HeterogeneousMedia:
         d = np.asarray(d, np.float64)
         n = len(o)
         out = np.ones((n, 3))
-        if n == 0:
+        if n == 0 or not self.tracked:
             return out
         dl = np.linalg.norm(d, axis=1)
         ok = dl > 0
@@ -426,13 +454,21 @@ class HeterogeneousMedia:
 
     def scatter(self, o, d, tseg, pts, seg_m, w, uu):
         """Scattering points of camera-path segments (radiance's first scatter, the walks'
-        later ones) drawn along the majorant grid: for segments (rays o, d (K,3), lengths tseg (K,) in units of |d|, in media seg_m
-        (K,)) that lie in one heterogeneous part, the point pts (K,3) and weight w (K,3)
-        drawn for the stand-in (volumescatter.sample_segments) are replaced, in place, by
-        a distance s from the grid's majorant (majorant.sample_distances, from uu (K,):
-        the stand-in's numbers) and T(s) sigma_s(s) / pdf(s) (T ratio-tracked, the field
-        at the point); the others take scatter_weights. Returns (pts, w)."""
-        het = np.flatnonzero(np.isin(seg_m, list(self.fields)))
+        later ones) drawn along the majorant grid: for segments (rays o, d (K,3), lengths
+        tseg (K,) in units of |d|, in media seg_m (K,)) that lie in one part of a medium
+        with a density texture, the point pts (K,3) and weight w (K,3) drawn for the
+        stand-in (volumescatter.sample_segments) are replaced, in place, by a distance s
+        from the grid's majorant (majorant.sample_distances, from uu (K,): the stand-in's
+        numbers) and T(s) sigma_s(s) / pdf(s) (T ratio-tracked, the field and a textured
+        albedo's a(p) / a_mean at the point); the others (a constant density with an
+        albedo texture, engine/volumefields.py) take scatter_weights. Returns (pts, w)."""
+        dense = [m for m, f in self.fields.items() if hasattr(f.node, "evaluate")]
+        other = np.flatnonzero(np.isin(seg_m, list(self.fields)) & ~np.isin(seg_m, dense))
+        if len(other):
+            w[other] = self.scatter_weights(np.asarray(o)[other], np.asarray(d)[other],
+                                            pts[other], np.asarray(seg_m)[other],
+                                            w[other].copy())
+        het = np.flatnonzero(np.isin(seg_m, dense))
         if not len(het):
             return pts, w
         o_i = np.asarray(o, np.float64)[het]
@@ -477,12 +513,16 @@ class HeterogeneousMedia:
         keys = ray_keys(self.seed, o_l, d_i[ray][lit], 1) ^ (a[lit].view(np.uint64))
         P, D = self.track(o_l, u_l, keys, a[lit], s_l, m[lit], obj[lit])
         f = np.zeros(len(lit))
+        albedo = np.ones((len(lit), 3))
         for mm in np.unique(m[lit]):
             sel = m[lit] == mm
             f[sel] = self.density(mm, p[sel], obj[lit][sel])
+            # a textured albedo (engine/volumefields.py): a(p) / a_mean
+            albedo[sel] *= self.textures.albedo_ratio(mm, p[sel], obj[lit][sel])
         # T_c(s) sigma_s,c(s) / pdf(s), pdf = sig exp(-tau) / (1 - exp(-tot))
         log_t = tau[lit, None] - self._unit_t[m[lit]] * D[:, None]
-        w[rows[lit]] = (P * self._unit_s[m[lit]] * (f * -np.expm1(-tot[lit]) / sig[lit])[:, None]
+        w[rows[lit]] = (P * self._unit_s[m[lit]] * albedo
+                        * (f * -np.expm1(-tot[lit]) / sig[lit])[:, None]
                         * np.exp(np.minimum(log_t, 700.0)))
         return pts, w
 
@@ -507,6 +547,8 @@ class HeterogeneousMedia:
             f = self.fields[int(mm)]
             dens = self.density(mm, p_i[sel], obj[sel])
             w[i[sel]] *= (dens / f.f_mean)[:, None] if f.f_mean > 0 else 0.0
+            # a textured albedo (engine/volumefields.py): a(p) / a_mean
+            w[i[sel]] *= self.textures.albedo_ratio(mm, p_i[sel], obj[sel])
         return w
 
     def _object_at(self, o, u, s):
@@ -518,26 +560,19 @@ class HeterogeneousMedia:
 
     def describe(self) -> str:
         """The effect report's line: each textured medium's density range."""
-        return "; ".join(
+        return "; ".join([
             f"density texture of '{self.table.names[m]}': mean {f.f_mean:.3g}, largest "
             f"{f.f_max:.3g} over its objects' bounds (the homogeneous stand-in at the mean, "
             "corrected by residual ratio tracking against a majorant grid along camera "
             "segments, shadow rays and photons; single scattering's distances drawn along "
             "the grid)"
-            for m, f in self.fields.items())
+            for m, f in self.fields.items() if hasattr(f.node, "evaluate")]
+            + ([self.textures.describe()] if self.textures.describe() else []))
 
     def limits(self, settings=None) -> list[str]:
-        """Warnings for what renders at the stand-in's mean density in this render: an
-        emitting medium's emission integral; one per material, naming it."""
-        out = list(self.warnings)
-        emit = getattr(self.table, "volume_emission", None)
-        for m, f in self.fields.items():
-            if emit is not None and np.any(np.asarray(emit[m]) > 0):
-                out.append(f"material '{self.table.names[m]}': its density texture is "
-                           "followed by camera rays, scattering, shadow rays and photons, "
-                           "but its emission is integrated at its mean density "
-                           f"{f.f_mean:.4g} (a homogeneous glow)")
-        return out
+        """This render's warnings about its heterogeneous media (a deformed mesh's
+        coordinates, a tree that cannot be evaluated, an albedo texture above 1)."""
+        return list(self.warnings)
 
 
 def _field_values(node, pg, n) -> np.ndarray:

@@ -29,8 +29,8 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, heterogeneous, lightpasses, media,
-               photonvisibility, sampleclamp, shadelight, volumeemission, volumescatter,
-               volumewalk, worldmedium)
+               photonvisibility, raymaterials, sampleclamp, shadelight, volumeemission,
+               volumescatter, volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -1069,7 +1069,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if glow is not None:
                     # The glow of an emitting medium along the ray (as a gather ray's
                     # radiance: x pi / G).
-                    src, Le = glow.along(prim, d, t, medium_h[idx])
+                    src, Le = glow.along(prim, d, t, medium_h[idx], o=o)
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Le / G
                 if scatter is not None:
@@ -1210,19 +1210,20 @@ def _gather_escaping(ctx, scatter, glow, world_row, prim, o, d, tp, idx, medium_
             rows = esc[src]
             E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Ls / G
     if glow is not None:
-        src, Le = glow.along(np.full(len(esc), -1, np.int64), esc_d, esc_t, esc_m)
+        src, Le = glow.along(np.full(len(esc), -1, np.int64), esc_d, esc_t, esc_m,
+                             o=np.take(o, esc, axis=0))
         if len(src):
             rows = esc[src]
             E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Le / G
 
 
-def _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium, world_row):
+def _glow_without_hit(ctx, glow, acc, target, pix, prim, o, d, t, tp, medium, world_row):
     """The camera paths' glow (glow: volumeemission.MediumEmission) along the segments
     that meet no surface: those ending on a lamp (prim (n,) -2, t (n,) the lamp's
     distance in units of |d| (n,3)) in a known medium (medium (n,) int64 >= 0), and those
     escaping (prim -1) through the world volume (medium == world_row >= 0;
     worldmedium.escaping's length); into pass `target` of acc at pixels pix (n,),
-    weighted by tp (n,3)."""
+    weighted by tp (n,3); o (n,3) the segments' origins."""
     lamp = np.flatnonzero((prim == -2) & (np.asarray(medium) >= 0))
     esc, _, esc_t = worldmedium.escaping(ctx, prim, d, medium, world_row)
     rows = np.concatenate([lamp, esc])
@@ -1230,7 +1231,7 @@ def _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium, world
         return
     seg_t = np.concatenate([np.take(t, lamp), esc_t])
     src, Le = glow.along(np.full(len(rows), -1, np.int64), np.take(d, rows, axis=0), seg_t,
-                         np.take(medium, rows))
+                         np.take(medium, rows), o=np.take(o, rows, axis=0))
     if len(src):
         acc.add(target, pix, Le, tp, rows[src])
         if acc.light is not None:
@@ -2103,7 +2104,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
                 progress("render", end / total,
                          f"Rendering pixels {short_count(end // spp)}/{short_count(npix)}")
     finally:
-        _write_film(film, acc, spp, rh, rw, s.data_passes)
+        _write_film(film, acc, spp, rh, rw, datapasses.wanted(s))
     return counters
 
 
@@ -2198,7 +2199,7 @@ def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
                 active = np.nonzero(~converged)[0]
     finally:
         _write_film(film, acc, np.maximum(count, 1).astype(np.float64)[:, None], rh, rw,
-                    s.data_passes)
+                    datapasses.wanted(s))
         film.sample_count = count.reshape(rh, rw).astype(np.float32)
         film.stats["adaptive_mean_spp"] = float(count.mean()) if npix else 0.0
         film.stats["adaptive_min_samples"] = schedule.min_effective
@@ -2462,7 +2463,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     shade_from = lamp_w = None
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
-    has_holdout = bool(ctx.geo.holdout.any())
+    # (objects' holdout, and materials' that camera rays see: a Holdout shader chosen by
+    # Light Path's Is Camera Ray, engine/raymaterials.py)
+    mat_holdout = ctx.table.holdout if (ctx.table.holdout is not None
+                                        and ctx.table.holdout.any()) else None
+    has_holdout = bool(ctx.geo.holdout.any()) or mat_holdout is not None
     # (O,) bool: the shadow catcher objects (None: none; engine/shadowcatcher.py).
     catchers = getattr(ctx, "catcher_objects", None)
     # No material emits: no emission rows to gather or test (surface_hit's are zeros).
@@ -2525,7 +2530,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     left_p = None  # the point each path left (its previous hit), while coincident
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
-    want_data = s.data_passes
+    want_data = datapasses.wanted(s)
     feat = np.ones(len(o), bool) if "denoising" in want_data else None
     ftp = np.ones((len(o), 3)) if feat is not None else None
     to_camera = None
@@ -2608,7 +2613,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if glow is not None:
             # The glow along the segments that end on a lamp, or escape through the world
             # volume (its length until the transmittance is 1e-13: e / sigma_t).
-            _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium,
+            _glow_without_hit(ctx, glow, acc, target, pix, prim, o, d, t, tp, medium,
                               world_row)
         if link_prim is not None and bounce > 0 and links.shadow_groups:
             # Shadow Linking: a shadow-linked sun seen past its non-blockers by the rays
@@ -2717,6 +2722,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
             hole = np.zeros(len(prim), bool)
             hole[hitm] = np.take(ctx.geo.holdout, prim[hitm]) & (ray_cls[hitm] == CAMERA)
+            if mat_holdout is not None:
+                rows_h = raymaterials.hit_materials(ctx.geo, ctx.table, prim[hitm],
+                                                    ray_cls[hitm])
+                hole[hitm] |= mat_holdout[rows_h] & (ray_cls[hitm] == CAMERA)
             if hole.any():
                 prim = np.where(hole, -3, prim)
                 hitm &= ~hole
@@ -2787,7 +2796,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             tp = heterogeneous.attenuated(ctx, tp, o, d, t, prim)  # (density textures)
             if glow is not None:
                 # The glow of an emitting medium along the segment (engine/volumeemission.py).
-                src, Le = glow.along(prim, d, t, medium)
+                src, Le = glow.along(prim, d, t, medium, o=o)
                 if len(src):
                     acc.add(target, pix, Le, tp_seg, src)
                     if lpass is not None:
@@ -2837,11 +2846,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # nodes with the surface data in the same kernel (bsdf.surface_hit_lobes).
         bufs = buffers.take(n)
         prm, sel, p, q, psum, glossy, dsel, wd = bufs
+        # The material each ray class meets (Light Path in a material: camera rays and
+        # the chain's glossy / transmission rays may meet a variant; engine/raymaterials.py;
+        # None: every hit its triangle's own).
+        cls_mat = raymaterials.path_materials(ctx.geo, ctx.table, prim, ray_cls)
         if plain:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs)
+                                        bufs, material=cls_mat)
         else:
-            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat)
             per_hit = hit.params is not None
             nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
                              hit.params if per_hit else ctx.table.closure_params, per_hit,

@@ -70,6 +70,7 @@ import numpy as np
 
 from . import panekernels as pkk
 from . import photonkernels as pk
+from . import raymaterials
 from .parallel import once_on
 from .sampling import orthonormal_basis
 from .lights import packing as lpk
@@ -302,7 +303,9 @@ def find_panes(geo, table, lights, settings=None):
         return None
     limit = pk.flat_thickness_limits(geo)
     window = pk.window_triangles(geo, flat, limit)
-    on = flat[geo.material] & ~window
+    # (a pane that shadow rays see as another material, Light Path's Is Shadow Ray, is
+    # crossed by them as that material says: engine/raymaterials.py)
+    on = flat[geo.material] & ~window & ~raymaterials.differs(table, SHADOW)[geo.material]
     cand = []
     tol = PLANE_TOL * max(float(geo.extent), 1e-9)
     oid_all = np.asarray(geo.object_id)

@@ -299,9 +299,9 @@ def gather_points(stored: float) -> int:
 def data_pass_channels(settings: RenderSettings) -> int:
     """Channels per pixel of the data passes settings.data_passes asks for (Denoising
     Normal / Albedo / Depth: 3 + 3 + 1; the three Color passes: 9; Object / Material
-    Index and Mist 1 each, Position and UV 3 each)."""
-    from .datapasses import keys
-    return sum(channels for _name, _key, channels in keys(settings.data_passes))
+    Index and Mist 1 each, Position and UV 3 each; a Shader AOV 1, a colour one 4)."""
+    from .datapasses import keys, wanted
+    return sum(channels for _name, _key, channels in keys(wanted(settings)))
 
 
 def estimate_memory(scene, settings: RenderSettings, region=None, progressive=False,

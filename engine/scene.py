@@ -90,6 +90,32 @@ def _names(value, what: str) -> list:
     return names
 
 
+def _aov_outputs(aovs, who) -> dict:
+    """Material.aovs checked: {name: {"color": node or (3,) float64, "value": node or
+    float}} (either key may be missing). Raises SceneError naming the material."""
+    out = {}
+    for name, outputs in dict(aovs or {}).items():
+        if not isinstance(name, str) or not name:
+            raise SceneError(f"{who} aovs: an AOV name must be a non-empty string, got "
+                             f"{name!r}")
+        checked = {}
+        for kind, value in dict(outputs).items():
+            if kind not in ("color", "value"):
+                raise SceneError(f"{who} aovs '{name}': expected 'color' or 'value' "
+                                 f"outputs, got {kind!r}")
+            if hasattr(value, "evaluate"):
+                checked[kind] = value
+            elif kind == "color":
+                checked[kind] = _vec3(value, f"{who} aovs '{name}' color")
+            else:
+                checked[kind] = float(value)
+                if not math.isfinite(checked[kind]):
+                    raise SceneError(f"{who} aovs '{name}' value: must be finite, got "
+                                     f"{value!r}")
+        out[name] = checked
+    return out
+
+
 @dataclass
 class Material:
     """A Principled-v2 surface with Cycles' meaning (engine/closures/principled.py builds
@@ -170,6 +196,15 @@ class Material:
     value at a point inside the object scales the medium: sigma(p) = max(value, 0) x
     absorption / scattering, which are then the coefficients at density 1 (a textured
     Density socket: clouds, smoke; engine/heterogeneous.py). None: homogeneous.
+    `volume_emission_texture`: a node whose value at a point inside the object is the
+    medium's emission there ((N,3) or (N,), W m^-2 sr^-1 per metre, clipped at 0; a
+    textured Emission Strength / Color / Blackbody: a glowing cloud, fire); it replaces
+    `volume_emission` (engine/volumefields.py). None: `volume_emission` everywhere.
+    `albedo_texture`: a node whose value at a point is the medium's single-scattering
+    albedo sigma_s / sigma_t there ((N,3), clipped to 0..1; Principled Volume's textured
+    Color with a black Absorption Color: a coloured cloud); the extinction stays
+    absorption + scattering (x the density texture), only its split between them varies
+    (engine/volumefields.py). None: scattering / (absorption + scattering) everywhere.
     `displacement`, `displacement_method`: Cycles' true displacement (Material > Settings >
     Displacement): with "DISPLACEMENT" (Displacement Only) or "BOTH" (Displacement and
     Bump), the vertices of this material's faces move by the world-space vectors (m) of
@@ -178,6 +213,17 @@ class Material:
     mesh vertices (engine/displacement.displace_meshes; "DISPLACEMENT" recomputes the
     normals, "BOTH" keeps them and bumps through `normal_map`); "BUMP" (Blender's
     default) moves nothing: the bump is `normal_map`'s DisplacedNormals alone.
+    `aovs`: Cycles' AOV Output nodes: {AOV name: {"color": node or RGB (3,), "value":
+    node or float}}, what the material writes into the Shader AOV passes of that name
+    (engine/datapasses.py); a node is an engine/shadernodes node evaluated at the hits.
+    `ray_variants`: {"camera" | "glossy" | "transmission" | "shadow": Material} the
+    surface other ray classes meet (Cycles' Light Path node in the material: a window
+    transparent to shadow rays, a lamp the camera does not see); this material is what
+    diffuse rays, photons and light sampling meet (engine/raymaterials.py). None: one
+    material for every ray.
+    `holdout`: camera rays that meet the surface see a hole (alpha 0, no colour), as an
+    object's holdout (Mesh.holdout) does: Cycles' Holdout shader, as the camera variant
+    of Mix Shader(Is Camera Ray, Emission, Holdout) (addon/lightpath.py).
     """
 
     name: str = "default"
@@ -220,8 +266,13 @@ class Material:
     volume_emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     volume_only: bool = False
     density_texture: object | None = None
+    volume_emission_texture: object | None = None
+    albedo_texture: object | None = None
     displacement: object | None = None
     displacement_method: str = "BUMP"
+    aovs: dict = field(default_factory=dict)
+    ray_variants: dict | None = None
+    holdout: bool = False
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -242,6 +293,18 @@ class Material:
         if self.emission_texture is not None and not hasattr(self.emission_texture, "evaluate"):
             raise SceneError(f"{who} emission_texture: expected a node with evaluate(geo, "
                              f"prim, u, v), got {type(self.emission_texture).__name__}")
+        if self.ray_variants:
+            from .raymaterials import VARIANT_CLASSES
+            for key, var in self.ray_variants.items():
+                if key not in VARIANT_CLASSES:
+                    raise SceneError(f"{who} ray_variants: unknown ray class {key!r} "
+                                     f"(expected one of {', '.join(VARIANT_CLASSES)})")
+                if not isinstance(var, Material) or var.ray_variants:
+                    raise SceneError(f"{who} ray_variants[{key!r}]: expected an engine "
+                                     "Material without variants of its own")
+            self.ray_variants = dict(self.ray_variants)
+        else:
+            self.ray_variants = None
         self.base_color = _vec3(self.base_color, f"{who} base_color")
         self.emission = _vec3(self.emission, f"{who} emission")
         if np.any(self.emission < 0):
@@ -310,6 +373,11 @@ class Material:
                                                             "evaluate"):
             raise SceneError(f"{who} density_texture: expected a node with evaluate(), got "
                              f"{type(self.density_texture).__name__}")
+        for name in ("volume_emission_texture", "albedo_texture"):
+            tex = getattr(self, name)
+            if tex is not None and not hasattr(tex, "evaluate"):
+                raise SceneError(f"{who} {name}: expected a node with evaluate(), got "
+                                 f"{type(tex).__name__}")
         if self.volume_only:
             # No surface: every ray passes it unbent and untinted (a transparent pass).
             self.alpha = 0.0
@@ -348,6 +416,7 @@ class Material:
             raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap, Bump, "
                              "engine.bevel.Bevel or engine.displacement.DisplacedNormals, got "
                              f"{type(self.normal_map).__name__}")
+        self.aovs = _aov_outputs(self.aovs, who)
 
     @property
     def is_emissive(self) -> bool:
@@ -1439,6 +1508,7 @@ class Scene:
         self._check_links()
         # (emitting media glow too: engine/volumeemission.py)
         has_emitter = any(m.is_emissive or np.any(m.volume_emission > 0)
+                          or getattr(m, "volume_emission_texture", None) is not None
                           for m in self.materials.values())
         if self.world_medium is not None and np.any(self.world_medium.emission > 0):
             has_emitter = True

@@ -179,7 +179,15 @@ MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(no
                           "scattering": _vec3(nonneg=True),
                           "anisotropy": _number(-1.0, 1.0, lo_open=True, hi_open=True),
                           # its emission, W/m^2/sr per metre (engine/volumeemission.py)
-                          "volume_emission": _vec3(nonneg=True)})
+                          "volume_emission": _vec3(nonneg=True),
+                          # camera rays see a hole (a Holdout shader)
+                          "holdout": _BOOL})
+# Light Path in a material (engine/raymaterials.py): [materials.NAME.shadow_rays] (and
+# camera_rays, glossy_rays, transmission_rays) is the surface those rays meet instead,
+# with the same keys (Material.ray_variants["shadow"], ...).
+RAY_VARIANT_KEYS = ("camera_rays", "glossy_rays", "transmission_rays", "shadow_rays")
+MATERIAL_SCHEMA = _table({**MATERIAL_SCHEMA["properties"],
+                          **{k: MATERIAL_SCHEMA for k in RAY_VARIANT_KEYS}})
 MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({
@@ -523,8 +531,13 @@ def _build(data: dict, base: str):
         scene.mist = (float(m.get("start", 5.0)), float(m.get("depth", 25.0)),
                       MIST_FALLOFF[m.get("falloff", "QUADRATIC")])
     for name, spec in data.get("materials", {}).items():
-        scene.add_material(Material(name, **{k: _material_value(k, v)
-                                             for k, v in spec.items()}))
+        variants = {k[:-5]: Material(f"{name} [{k[:-5]} rays]",
+                                     **{kk: _material_value(kk, vv)
+                                        for kk, vv in spec[k].items()})
+                    for k in RAY_VARIANT_KEYS if k in spec}
+        scene.add_material(Material(name, ray_variants=variants or None,
+                                    **{k: _material_value(k, v) for k, v in spec.items()
+                                       if k not in RAY_VARIANT_KEYS}))
     _camera(scene, data["camera"])
     for i, obj in enumerate(data.get("objects", [])):
         _object(scene, obj, i, base)

@@ -61,6 +61,7 @@ from .resources import check_resources
 from .scene import Camera, Scene
 from .settings import RenderSettings
 from .visibility import VisibilityAccel
+from .raymaterials import expanded_names
 from .worldmedium import table_materials
 
 PREVIEW_SCALES = (4, 2)        # reduced resolutions before the first full-size pass
@@ -337,7 +338,8 @@ class Session:
         empty = ctx is not None and ctx.geo.count == 0
         if self._scene_dirty or ctx is None or empty:
             self._photons.clear()
-            same_names = ctx is not None and [m.name for m in table_materials(scene)] == ctx.table.names
+            same_names = (ctx is not None
+                          and expanded_names(table_materials(scene)) == ctx.table.names)
             if self._geometry_dirty or not same_names or ctx is None or empty:
                 geo, table = prepare(scene, self._cancel.is_set)
                 self.counters.geometry_builds += 1

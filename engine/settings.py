@@ -73,6 +73,26 @@ def _word_set(name: str, value, valid) -> tuple:
     return words
 
 
+def _shader_aovs(value) -> tuple:
+    """RenderSettings.shader_aovs checked: a tuple of (name, "value" | "color"), names
+    unique and non-empty. Raises ValueError naming the setting."""
+    out, seen = [], set()
+    for item in value or ():
+        try:
+            name, kind = item
+        except (TypeError, ValueError):
+            raise ValueError(f"setting 'shader_aovs' takes (name, 'value' | 'color') pairs, "
+                             f"got {item!r}") from None
+        if not isinstance(name, str) or not name or kind not in ("value", "color"):
+            raise ValueError(f"setting 'shader_aovs': expected a name and 'value' or "
+                             f"'color', got {item!r}")
+        if name in seen:
+            raise ValueError(f"setting 'shader_aovs': AOV '{name}' named twice")
+        seen.add(name)
+        out.append((name, kind))
+    return tuple(out)
+
+
 @dataclass
 class RenderSettings:
     # Pass 1 (photons)
@@ -179,6 +199,9 @@ class RenderSettings:
     # (Cycles' light passes, engine/lightpasses.py; it brings "color").
     # Extra outputs: the image's bits do not depend on them.
     data_passes: tuple = ()
+    # Shader AOVs (Blender's View Layer > Shader AOV): ((name, "value" | "color"), ...),
+    # written by the materials' AOV Output nodes (engine/datapasses.py, Material.aovs).
+    shader_aovs: tuple = ()
     # Cryptomatte ID mattes to make (engine/cryptomatte.py): any of "object", "material",
     # "asset"; and their Levels (ranks a pixel, 1-16, Blender's default 6). Extra outputs
     # from primary rays of their own: the image's bits do not depend on them.
@@ -300,6 +323,7 @@ class RenderSettings:
                              f"number from 0 (off) to {FILTER_GLOSSY_MAX:g}, got {v!r}")
         self.cycles_filter_glossy = fg
         self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
+        self.shader_aovs = _shader_aovs(self.shader_aovs)
         if "light" in self.data_passes and "color" not in self.data_passes:
             # Blender shows the light passes divided by the Color passes (Cycles adds
             # them to its buffer when a light pass is asked for): made with them.

@@ -131,6 +131,7 @@ import math
 import numpy as np
 
 from . import photonkernels as pk
+from . import raymaterials
 from .parallel import once_on
 from .sampling import orthonormal_basis
 
@@ -307,6 +308,10 @@ def find_shades(geo, table, lights, settings=None):
         return None
     ok, tl = shade_materials(table)
     glass = glass_shade_materials(table) & ~ok
+    # A shade that shadow rays see as another material (Light Path: Is Shadow Ray) lets
+    # them through as that material says (engine/raymaterials.py): not a shade here.
+    other = raymaterials.differs(table, SHADOW)
+    ok, glass = ok & ~other, glass & ~other
     if not (ok.any() or glass.any()):
         return None
     mat = np.asarray(geo.material)

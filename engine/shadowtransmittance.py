@@ -36,13 +36,13 @@ import threading
 
 import numpy as np
 
-from . import media
+from . import media, raymaterials
 from . import photonkernels as pk
 from .accel import Accel
 from .closures import principled as pr
 from .closures import tables
 from .coincident import CoincidentSurfaces
-from .geometry import ALL_RAYS
+from .geometry import ALL_RAYS, SHADOW
 from .jit import kernel, register_warm_up
 from .rayoffset import offset_along_normal, winding_normal
 from .textures import material_alpha
@@ -437,10 +437,13 @@ class ShadowTransmittance:
         self.flat_mat, self.flat_limit = pk.flat_tables(geo, table)
         self.flat_on = len(self.flat_mat) > 0
         if not self.shared:
-            self.tri_material = np.ascontiguousarray(geo.material, np.int64)
-            self.tri_transparent = self.transparent_materials(table)[geo.material]
+            # The material shadow rays meet (a Light Path variant: a window transparent
+            # to shadow rays; engine/raymaterials.py), triangle by triangle.
+            shadow_mat = raymaterials.triangle_materials(geo, table, SHADOW)
+            self.tri_material = np.ascontiguousarray(shadow_mat, np.int64)
+            self.tri_transparent = self.transparent_materials(table)[shadow_mat]
             if self.flat_on:
-                self.tri_transparent = self.tri_transparent | self.flat_mat[geo.material]
+                self.tri_transparent = self.tri_transparent | self.flat_mat[shadow_mat]
                 self.object_id = np.ascontiguousarray(geo.object_id, np.int64)
                 self.glass = glass_crossings(table.closure_params, table.base_color)
                 self.mat_ior = np.ascontiguousarray(table.ior, np.float64)
@@ -508,7 +511,7 @@ class ShadowTransmittance:
         bounces)."""
         if geo.count == 0 or int(max_hits) <= 0:
             return None
-        used = geo.used_materials()
+        used = raymaterials.remap_rows(table, SHADOW, geo.used_materials())
         if not cls.transparent_materials(table)[used].any() and not len(
                 pk.flat_tables(geo, table)[0]):
             return None
@@ -611,7 +614,7 @@ class ShadowTransmittance:
             if self.shared:
                 rows, tabs = geo.hit_tables(prim, *(("material", "e1", "e2") if media_on
                                                     else ("material",)))
-                tri_material = tabs[0]
+                tri_material = raymaterials.remap_rows(self.table, SHADOW, tabs[0])
                 seg_e = tuple(np.ascontiguousarray(x, np.float64) for x in tabs[1:])
             else:
                 rows, tri_material = prim, self.tri_material
@@ -624,7 +627,8 @@ class ShadowTransmittance:
             node_alpha = np.ones(len(prim))
             if hit.any():
                 hp, hu, hv = prim[hit], u[hit], v[hit]
-                node_alpha[hit] = material_alpha(self.table, geo, np.take(geo.material, hp),
+                node_alpha[hit] = material_alpha(self.table, geo,
+                                                 np.take(tri_material, rows[hit]),
                                                  hp, hu, hv, constant=False)
             state = np.empty(len(prim), np.int64)
             # Rays inside glass now: GOING after the step means out of a flat passage.

@@ -27,6 +27,11 @@ from its scatter point along one more segment and collects that segment's emissi
 segments carry the glow's first diffuse bounce and level 0's gather ends gather it once
 more (its second: gather_indirect's glow_only); later bounces are missing (a white
 corner ~10 % dark, docs/accuracy.md volemit38).
+
+A medium with a density, emission or albedo texture (engine/heterogeneous.py,
+engine/volumefields.py) keeps its homogeneous stand-in here; MediumEmission.along hands
+the segments in such a medium to volumefields.MediumTextures.integrate, which replaces
+the closed form by an unbiased estimate along the fields (volemit40).
 """
 from __future__ import annotations
 
@@ -117,12 +122,14 @@ class MediumEmission:
         emit = emission_table(ctx.table)
         return None if emit.shape[0] == 0 else cls(ctx, emit)
 
-    def along(self, prim, d, t, medium):
+    def along(self, prim, d, t, medium, o=None):
         """(src (K,) int64, L (K,3)): the radiance emitted towards each ray's origin
         along its segment (segment_emission) for the rays src of prim (n,) (the triangles
         met; < 0: a lamp or the world, the medium then read from `medium`), d (n,3), t
         (n,) in units of |d|, medium (n,) int64; per unit of throughput at the segment's
-        start."""
+        start. o (n,3): the segments' origins, which textured media need (their fields
+        are integrated along the segment: engine/volumefields.py); None: a scene
+        without them."""
         n = len(prim)
         src = np.empty(n, np.int64)
         L = np.empty((n, 3))
@@ -136,7 +143,14 @@ class MediumEmission:
                              np.ascontiguousarray(medium, np.int64),
                              np.ascontiguousarray(d, np.float64),
                              np.ascontiguousarray(t, np.float64), src, L)
-        return src[:k], L[:k]
+        src, L = src[:k], L[:k]
+        textures = getattr(getattr(self.ctx, "hetero", None), "textures", None)
+        if textures is not None and k:
+            if o is None:
+                raise ValueError("MediumEmission.along: textured media need the segments' "
+                                 "origins o")
+            textures.integrate(o, d, t, src, L, self.sigma)
+        return src, L
 
 
 @register_warm_up

@@ -703,7 +703,7 @@ class CameraScattering:
                 # (an escape through the world volume: its length to 1e-13, d_new unit)
                 t_e = (t if self.world_row < 0 else
                        np.where(np.asarray(prim) == -1, worldmedium.far_length(self.ctx), t))
-                s_e, Le = self.glow.along(prim, d_new, t_e, m)
+                s_e, Le = self.glow.along(prim, d_new, t_e, m, o=x)
                 if len(s_e):
                     L[idx[s_e]] += beta[s_e] * Le
             if step == self.bounces:

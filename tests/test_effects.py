@@ -664,6 +664,9 @@ def test_report_says_when_clamping_is_on():
     text = effects(s.render(dataclasses.replace(base, clamp_indirect=10.0)))
     assert ("clamping: on - Light Paths > Clamping: direct light off, indirect light and "
             "photon estimates 10 (R + G + B at most 30 per sample)") in text
+    # Why a room reads brighter than Cycles at its default Indirect 10 (newuser40).
+    assert "rare bright samples that the clamp cuts" in text
+    assert "set Indirect to 0 in both" in text
     text = effects(s.render(dataclasses.replace(base, clamp_direct=2.5)))
     assert "direct light 2.5 (R + G + B at most 7.5 per sample)" in text
 

@@ -1876,6 +1876,58 @@ def transparency_tinted_transparent():
     _sun()
 
 
+def _light_path_mix(name, output, first, second):
+    """A material of Mix Shader(Fac = Light Path's `output`, first, second), each side a
+    (shader node type, {input: value}) pair (addon/lightpath.py)."""
+    m, nt, out = _nodes_material(name)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    path = nt.nodes.new("ShaderNodeLightPath")
+    nt.links.new(path.outputs[output], mix.inputs[0])
+    for i, (node_type, inputs) in enumerate((first, second)):
+        n = nt.nodes.new(node_type)
+        for k, v in inputs.items():
+            n.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
+        nt.links.new(n.outputs[0], mix.inputs[i + 1])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
+@case("transparency", cycles=dict(caustics_refractive=False))
+def transparency_light_path_shadow_window():
+    """A tilted 3 cm glass slab of Mix Shader(Is Shadow Ray, Glass, Transparent tinted
+    (0.9, 0.8, 0.6)) under the sun: the camera sees glass, its shadow is the tinted sun
+    light that shadow rays carry through the Transparent BSDF. Cycles with Light Paths >
+    Caustics > Refractive off: with it on, Cycles adds the refractive caustic through the
+    glass on top (docs/compatibility.md, lightpath40)."""
+    _stage()
+    m = _light_path_mix("shadowglass", "Is Shadow Ray",
+                        ("ShaderNodeBsdfGlass", {"Roughness": 0.0}),
+                        ("ShaderNodeBsdfTransparent", {"Color": (0.9, 0.8, 0.6)}))
+    mb.box("Window", 1.6, 1.6, 0.03, m, (0, 0, 1.2), (0.35, 0, 0))
+    _sun()
+
+
+@case("transparency")
+def transparency_light_path_invisible_lamp():
+    """A lamp panel of Mix Shader(Is Camera Ray, Emission, Transparent) over a red cube:
+    it lights the stage, the camera looks through it."""
+    _stage()
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.3, 0.4))
+    m = _light_path_mix("lamp", "Is Camera Ray", ("ShaderNodeEmission", {"Strength": 6.0}),
+                        ("ShaderNodeBsdfTransparent", {}))
+    mb.plane("Lamp", 1.5, 1.5, m, (-0.6, -0.6, 2.0), (0.5, 0, 0))
+
+
+@case("transparency")
+def transparency_light_path_holdout_lamp():
+    """The lamp panel as Mix Shader(Is Camera Ray, Emission, Holdout): it lights the stage,
+    the camera sees a hole where it is (no colour, alpha 0)."""
+    _stage()
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.3, 0.4))
+    m = _light_path_mix("holdlamp", "Is Camera Ray", ("ShaderNodeEmission", {"Strength": 6.0}),
+                        ("ShaderNodeHoldout", {}))
+    mb.plane("Lamp", 1.5, 1.5, m, (-0.6, -0.6, 2.0), (0.5, 0, 0))
+
 def _window_room(pane):
     """A closed 4 x 4 x 2.5 m room lit only through a 1.2 x 1 m window in its +x wall by
     an area light outside. pane: None (an open window), "plane" (single-plane Glass) or
@@ -2259,6 +2311,49 @@ def world_mix_constant():
 
 
 @case("world", ours=dict(spp=64))
+def world_gradient_sky():
+    """A gradient sky made of nodes (Texture Coordinate Generated -> Separate XYZ's Z ->
+    Color Ramp: warm at the horizon, blue overhead, dark below) lighting the stage: the
+    engine bakes the tree along world directions into a map."""
+    _hdri_scene()
+    world = bpy.data.worlds.new("Gradient sky")
+    bpy.context.scene.world = world
+    nt = world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    stops = ramp.color_ramp.elements
+    stops[0].position, stops[0].color = 0.0, (1.0, 0.85, 0.6, 1.0)
+    stops[1].position, stops[1].color = 0.7, (0.15, 0.35, 1.0, 1.0)
+    low = stops.new(-0.05)  # (a Color Ramp clamps its factor: below the horizon reads stop 0)
+    low.color = (0.05, 0.04, 0.03, 1.0)
+    nt.links.new(coord.outputs["Generated"], sep.inputs[0])
+    nt.links.new(sep.outputs["Z"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 1.5
+
+
+@case("world", ours=dict(spp=64))
+def world_mix_texture():
+    """The HDRI mixed with a warm colour by a Gradient Texture of the direction (Linear,
+    Generated coordinates turned by a Mapping: the warm side to one side of the sky): the
+    factor baked along the map's directions."""
+    _hdri_scene()
+    mb.set_world_hdri(mb.sky_hdri(), 1.0)
+    _mix_world_background(0.0, rgb=(1.0, 0.55, 0.25), strength=1.5)
+    nt = bpy.context.scene.world.node_tree
+    mix = next(n for n in nt.nodes if n.type == "MIX_SHADER")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(60.0))
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], grad.inputs["Vector"])
+    nt.links.new(grad.outputs["Fac"], mix.inputs["Fac"])
+
+
+@case("world", ours=dict(spp=64))
 def world_hdri_color_nodes():
     """The HDRI graded in the world tree (Hue/Saturation: hue 0.45, saturation 1.6, then
     Bright/Contrast: contrast 0.2) before its Background, whose Strength is 1.2: the
@@ -2412,6 +2507,49 @@ def volume_cloud():
     mb.box("Cloud", 1.6, 1.6, 1.2, m, (0.0, 0.0, 1.0))
     mb.light("Spot", "SPOT", (0.2, 0.0, 3.4), 600.0, look_at=(0, 0, 0),
              spot_size=math.radians(40.0), spot_blend=0.2, shadow_soft_size=0.0)
+
+
+@case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))
+def volume_glow_cloud():
+    """A glowing cloud whose colour is a gradient: a volume-only cube, Principled Volume
+    with Density 3 x and Emission Strength 3 x one Color Ramp (black below 0.4, white
+    above 0.65) of a Noise Texture (Scale 2.5, Detail 2, Generated), Emission Color
+    orange, its Color a Color Ramp (blue .. white) of a Gradient Texture along Generated
+    x; floating over the floor before the back wall, a sun: its puffs glowing (the
+    emission integrated along the density field), the sun scattered by them in the
+    gradient's colour, the floor and the wall lit by the glow through the final gather
+    (engine/volumefields.py, docs/compatibility.md volemit40), at Cycles' default Volume
+    bounces 0. (It was warned: the emission at the mean density, the Color and Emission
+    Strength at their sockets' own values.)"""
+    _stage()
+    m, nt, out = _nodes_material("glow cloud")
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    noise.inputs["Detail"].default_value = 2.0
+    nt.links.new(tc.outputs["Generated"], noise.inputs["Vector"])
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = 0.4
+    ramp.color_ramp.elements[1].position = 0.65
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    v = nt.nodes.new("ShaderNodeVolumePrincipled")
+    v.inputs["Emission Color"].default_value = (1.0, 0.45, 0.15, 1.0)
+    for socket in ("Density", "Emission Strength"):
+        mul = nt.nodes.new("ShaderNodeMath")
+        mul.operation = "MULTIPLY"
+        mul.inputs[1].default_value = 3.0
+        nt.links.new(ramp.outputs["Color"], mul.inputs[0])
+        nt.links.new(mul.outputs[0], v.inputs[socket])
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(tc.outputs["Generated"], grad.inputs["Vector"])
+    tint = nt.nodes.new("ShaderNodeValToRGB")
+    tint.color_ramp.elements[0].color = (0.15, 0.35, 0.9, 1.0)
+    tint.color_ramp.elements[1].color = (0.9, 0.9, 0.9, 1.0)
+    nt.links.new(grad.outputs["Fac"], tint.inputs["Fac"])
+    nt.links.new(tint.outputs["Color"], v.inputs["Color"])
+    nt.links.new(v.outputs[0], out.inputs["Volume"])
+    mb.box("Cloud", 1.4, 1.4, 1.0, m, (0.0, 0.3, 0.9))
+    _sun()
 
 
 # (No Sky Texture case: every sky type is simulated and checked against Cycles 5.0.1 by

@@ -601,3 +601,36 @@ def test_light_and_shadow_linking_warn_naming_the_light_and_collection(fresh_sce
     assert warnings == [
         "object 'GlowCube': Shadow Linking (collection 'Blockers') is not supported; every "
         "object casts its shadows"], warnings
+
+
+def test_text_and_instances_are_named_by_their_objects(fresh_scene, bpy_addon):
+    """A bevelled Text exports as 'Text#0' (Blender 5 hands its triangles over as an
+    instance of itself) without the 'zero-area faces' warning its caps used to raise, a
+    mesh's degenerate faces still warn; instances are numbered per instancer and object,
+    not after other objects' instances (newuser40: 'Text/Text#360')."""
+    bpy = bpy_addon
+    from addon import export
+    from addon.core import load_engine
+    bpy.ops.object.text_add(location=(0, 0, 0))
+    text = bpy.context.object
+    text.data.extrude, text.data.bevel_depth = 0.1, 0.02
+    me = bpy.data.meshes.new("Flat")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (2, 0, 0), (0, 1, 0)], [], [(0, 1, 2), (0, 1, 3)])
+    flat = bpy.data.objects.new("Flat", me)
+    bpy.context.scene.collection.objects.link(flat)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location = (0, -8, 2)
+    bpy.context.scene.collection.objects.link(cam)
+    bpy.context.scene.camera = cam
+    for view in (False, True):
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        pm = load_engine()
+        if view:
+            out = export.export_viewport(export.ViewportExport(pm), depsgraph,
+                                         pm.Camera.look_at((0, -8, 2), (0, 0, 0)), 16, 12)[0]
+        else:
+            out = export.export_scene(pm, depsgraph, width=16, height=12)[0]
+        names = [m.name for m in out.meshes]
+        assert "Text#0" in names or "Text" in names, names
+        warned = [w for w in out.all_warnings() if "zero-area" in w]
+        assert len(warned) == 1 and "'Flat'" in warned[0], warned

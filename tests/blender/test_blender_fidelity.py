@@ -603,3 +603,39 @@ def test_shadow_invisible_plane_photons_pass_through(fresh_scene, bpy_addon, tmp
         indirect[engine] = lum[1] - lum[0]
     assert indirect["CYCLES"] > 0.4, indirect  # the underside's light is most of it
     assert abs(indirect["PHOTONMAP"] / indirect["CYCLES"] - 1) < 0.2, indirect
+
+
+def test_an_object_without_a_material_renders_the_default_principled(bpy_addon, tmp_path):
+    """Cycles (Blender 5.0) renders an object with no material as the default Principled
+    BSDF, specular layer included (newuser40: a material-less floor read 1.047 of Cycles
+    as a Lambert 0.8): the converter's default is that material, and the floor's
+    brightness follows Cycles'."""
+    from addon.core import load_engine
+    from addon.materials import MaterialConverter
+    from blender_helpers import cycles_plain, render_luminance, sun_light, world_color
+    bpy = bpy_addon
+    conv = MaterialConverter(load_engine())
+    fresh = bpy.data.materials.new("Fresh")
+    fresh.use_nodes = True
+    none, new = conv.convert(None), conv.convert(fresh)
+    for field in ("base_color", "metallic", "roughness", "ior", "specular",
+                  "specular_ior_level", "transmission", "coat_weight", "sheen_weight"):
+        np.testing.assert_allclose(getattr(none, field), getattr(new, field), rtol=1e-6,
+                                   err_msg=field)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    world_color(bpy, sc, (0.3, 0.35, 0.4))
+    sun_light(bpy, sc, (math.radians(35), 0, math.radians(30)), energy=3.0)
+    bpy.ops.mesh.primitive_plane_add(size=10)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location, cam.rotation_euler = (0, -5, 2.5), (math.radians(67), 0, 0)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = 32, 24, 100
+    sc.render.engine = "CYCLES"
+    cycles_plain(sc, 64, 12)
+    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr").mean()
+    sc.render.engine = "PHOTONMAP"
+    sc.photonmap.spp = 16
+    ours = render_luminance(bpy, sc, tmp_path / "ours.exr").mean()
+    assert ours / ref == pytest.approx(1.0, abs=0.012), ours / ref

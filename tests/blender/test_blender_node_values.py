@@ -194,3 +194,25 @@ def test_a_node_tree_the_converter_cannot_read_falls_back_with_a_warning(
     assert np.allclose(mat.base_color, (0.2, 0.4, 0.6))
     assert any("'Unreadable'" in w and "could not be read" in w and "KeyError" in w
                and "test_blender_node_values.py:" in w for w in mat.warnings), mat.warnings
+
+
+@pytest.mark.parametrize("case", ["missing file", "no image"])
+def test_an_image_that_cannot_load_is_magenta_as_in_cycles(fresh_scene, bpy_addon, case):
+    """An Image Texture whose file is missing, or that has no image, renders magenta (1, 0,
+    1) as Cycles' TEX_IMAGE_MISSING colour, with one warning saying so (newuser40: it read
+    0.8 grey under two contradicting warnings)."""
+    bpy = bpy_addon
+    m, nt, out = _material(bpy, "Lost")
+    p = _principled(nt, out)
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    if case == "missing file":
+        img = bpy.data.images.new("gone", 4, 4)
+        img.source, img.filepath = "FILE", "//nowhere/does_not_exist.png"
+        tex.image = img
+    nt.links.new(tex.outputs["Color"], p.inputs["Base Color"])
+    mat = _convert(m)
+    # Looked up anywhere (UVs 0..1 and beyond): magenta.
+    uvs = np.array([[0.3, 0.6], [0.0, 0.0], [1.7, -2.2]])
+    np.testing.assert_allclose(mat.texture.sample(uvs), np.tile([1.0, 0.0, 1.0], (3, 1)))
+    told = [w for w in mat.warnings if "magenta" in w]
+    assert len(told) == 1 and not [w for w in mat.warnings if "not supported" in w]

@@ -43,20 +43,27 @@ def test_spans_cover_the_bar_in_proportion_to_the_work(bpy_addon):
     assert "photons" not in off
 
 
+def _render_events(bpy, kinds) -> list:
+    """[(event, value)] of the add-on's status events of those kinds during one F12."""
+    from addon import engine
+    events = []
+    listener = (lambda event, value: events.append((event, value))
+                if event in kinds else None)
+    engine.status_listeners.append(listener)
+    try:
+        bpy.ops.render.render()
+    finally:
+        engine.status_listeners.remove(listener)
+    return events
+
+
 def test_a_render_reports_progress_that_never_goes_back(bpy_addon):
     bpy = bpy_addon
     scene = open_blend(bpy, "figure6_box.blend")
     cheap(scene, width=48, height=36, pct=100, spp=4, photons=20_000,
           caustic_photons=5_000)
     from addon import engine
-    events = []
-    listener = (lambda event, value: events.append((event, value))
-                if event in ("progress", "stage") else None)
-    engine.status_listeners.append(listener)
-    try:
-        bpy.ops.render.render()
-    finally:
-        engine.status_listeners.remove(listener)
+    events = _render_events(bpy, ("progress", "stage"))
     values = [v for e, v in events if e == "progress"]
     # Each stage told once, before its first progress (the batch bar's time left is
     # measured in the camera pass alone: engine/eta.py).
@@ -74,3 +81,34 @@ def test_a_render_reports_progress_that_never_goes_back(bpy_addon):
     assert spans["render"][0] == pytest.approx(
         engine.EXPORT_SHARE + (1 - engine.EXPORT_SHARE) * work / (work + 48 * 36 * 4))
     assert 0.3 < spans["render"][0] < 0.6
+
+
+def test_a_first_render_fills_the_bar_while_the_kernels_compile(bpy_addon, monkeypatch):
+    """A first render on a machine compiles the kernels for minutes: the bar's first half
+    follows the compile (kernels done / all) and the render's own work the second half,
+    never going back (newuser39 watched it at 0 % through the compile); a render with
+    the kernels cached starts its work at 0."""
+    bpy = bpy_addon
+    scene = open_blend(bpy, "figure6_box.blend")
+    cheap(scene, width=24, height=18, pct=100, spp=2, photons=5_000, caustic_photons=1_000)
+    from addon import engine
+    from addon.core import load_engine
+    pm = load_engine()
+
+    def compile_steps(progress=None):
+        for i in (1, 2, 3, 4):
+            progress("compile", i / 4, pm.jit.COMPILE_PROGRESS.format(i, 4))
+        return 2.0
+    monkeypatch.setattr(pm.jit, "needs_compile", lambda: True)
+    monkeypatch.setattr(pm.jit, "ensure_compiled", compile_steps)
+    events = _render_events(bpy, ("progress", "stats"))
+    values = [v for e, v in events if e == "progress"]
+    assert values[:4] == pytest.approx([0.125, 0.25, 0.375, 0.5])
+    assert all(b >= a - 1e-9 for a, b in zip(values, values[1:]))
+    assert values[-1] == pytest.approx(1.0)
+    assert any(e == "stats" and "Compiling kernels 2/4" in str(v) for e, v in events)
+    # Cached kernels: the render's work from 0.
+    monkeypatch.setattr(pm.jit, "needs_compile", lambda: False)
+    monkeypatch.setattr(pm.jit, "ensure_compiled", lambda progress=None: 0.0)
+    values = [v for e, v in _render_events(bpy, ("progress",))]
+    assert values[0] < 0.1 and values[-1] == pytest.approx(1.0)

@@ -66,13 +66,14 @@ def test_unsupported_world_nodes_warn_once_naming_the_node(mb, bpy_addon):
     hits = [w for w in scene.all_warnings() if "Ball Env" in w and "MIRROR_BALL" in w]
     assert len(hits) == 1 and scene.environment is None
     # (Every Sky Texture type is simulated; an unknown one's warning: test_blender_sky.)
-    # Any other node in the colour: named, and the socket's colour is used.
+    # A node the converter does not know in the colour: named, and the socket's colour
+    # is used. (A texture of the direction is baked: test_direction_textures_...)
     bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.name = "Clouds"
-    nt.links.new(noise.outputs["Color"], bg.inputs["Color"])
+    ao = nt.nodes.new("ShaderNodeAmbientOcclusion")
+    ao.name = "Occluded"
+    nt.links.new(ao.outputs["Color"], bg.inputs["Color"])
     scene = _export(bpy)
-    assert len([w for w in scene.all_warnings() if "Clouds" in w]) == 1
+    assert len([w for w in scene.all_warnings() if "Occluded" in w]) == 1
 
 
 def pm_environment(pixels):
@@ -302,3 +303,145 @@ def test_hdri_example_blend_renders(bpy_addon, tmp_path):
     assert top[2] > top[0], top
     from addon import engine
     assert not [w for w in engine.last_render["warnings"] if "world" in w]
+
+
+def _direction_world(bpy):
+    """A world of one Background fed by nodes of the direction: (node tree, Background,
+    Texture Coordinate)."""
+    world = bpy.data.worlds.new("Directions")
+    bpy.context.scene.world = world
+    nt = world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    return nt, bg, nt.nodes.new("ShaderNodeTexCoord")
+
+
+# Directions away from the poles (where the bake grid's top row lies 0.7 degrees off the
+# pole, and a factor of x reads 0.012 there instead of 0).
+_UNIT = np.array([[0.28, 0.0, 0.96], [1.0, 0.0, 0.0], [0.0, 0.6, 0.8], [0.8, 0.0, 0.6],
+                  [-0.6, 0.0, 0.8], [0.0, -1.0, 0.0], [0.36, 0.48, -0.8]])
+
+
+def test_direction_textures_bake_the_world(mb, bpy_addon):
+    """A Background colour made of nodes of the direction (Generated -> Separate XYZ ->
+    Color Ramp: a gradient sky) is baked into a map (Cycles' background: Generated = the
+    ray direction); looked up along directions it is the ramp at the direction's z; no
+    warning; the camera sees the same world."""
+    bpy = bpy_addon
+    nt, bg, coord = _direction_world(bpy)
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    stops = ramp.color_ramp.elements
+    stops[0].position, stops[0].color = 0.0, (1.0, 0.8, 0.6, 1.0)
+    stops[1].position, stops[1].color = 1.0, (0.2, 0.4, 1.0, 1.0)
+    nt.links.new(coord.outputs["Generated"], sep.inputs[0])
+    nt.links.new(sep.outputs["Z"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 2.0
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "world" in w]
+    assert scene.environment is not None and scene.camera_environment is None
+    t = np.clip(_UNIT[:, 2], 0.0, 1.0)[:, None]
+    want = 2.0 * ((1.0 - t) * np.array([1.0, 0.8, 0.6]) + t * np.array([0.2, 0.4, 1.0]))
+    # (bilinear over 0.35-degree texels: within 0.4 % of the ramp)
+    np.testing.assert_allclose(scene.environment.radiance(_UNIT), want, rtol=4e-3)
+    # The Normal output is the opposite direction (Cycles: N = -D).
+    nt.links.new(coord.outputs["Normal"], sep.inputs[0])
+    scene = _export(bpy)
+    t = np.clip(-_UNIT[:, 2], 0.0, 1.0)[:, None]
+    want = 2.0 * ((1.0 - t) * np.array([1.0, 0.8, 0.6]) + t * np.array([0.2, 0.4, 1.0]))
+    np.testing.assert_allclose(scene.environment.radiance(_UNIT), want, rtol=4e-3)
+
+
+def test_textured_mix_factor_and_strength_vary_with_direction(mb, bpy_addon):
+    """A Mix Shader's factor from a Gradient Texture (Linear: clamp(x, 0, 1) of the
+    direction) weighs an HDRI against a colour per direction; a Strength from Math of the
+    direction's x scales a colour; a negative one reads 0 and is warned."""
+    bpy = bpy_addon
+    sky = mb.sky_hdri(32, 16)
+    mb.set_world_hdri(sky, 1.0)
+    nt, mix = _mix(bpy, fac=0.0, rgb=(1.0, 0.5, 0.25), strength=2.0)
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(coord.outputs["Generated"], grad.inputs["Vector"])
+    nt.links.new(grad.outputs["Fac"], mix.inputs["Fac"])
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "world" in w]
+    hdri = pm_environment(sky)
+    f = np.clip(_UNIT[:, 0], 0.0, 1.0)[:, None]
+    want = (1.0 - f) * hdri.radiance(_UNIT) + f * np.array([2.0, 1.0, 0.5])
+    # (the factor's kink at x = 0 spread over a texel of the fine bake grid: 0.002)
+    np.testing.assert_allclose(scene.environment.radiance(_UNIT), want, rtol=2e-2,
+                               atol=5e-3)
+    # Strength = 0.8 x + 1 on a plain colour.
+    nt, bg, coord = _direction_world(bpy)
+    bg.inputs["Color"].default_value = (0.5, 0.6, 0.7, 1.0)
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    math_node = nt.nodes.new("ShaderNodeMath")
+    math_node.operation = "MULTIPLY_ADD"
+    math_node.inputs[1].default_value, math_node.inputs[2].default_value = 0.8, 1.0
+    nt.links.new(coord.outputs["Generated"], sep.inputs[0])
+    nt.links.new(sep.outputs["X"], math_node.inputs[0])
+    nt.links.new(math_node.outputs[0], bg.inputs["Strength"])
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "world" in w]
+    want = (0.8 * _UNIT[:, :1] + 1.0) * np.array([0.5, 0.6, 0.7])
+    np.testing.assert_allclose(scene.environment.radiance(_UNIT), want, rtol=4e-3)
+    # 2 x + 0.3 is negative toward -x: those directions read 0, warned once.
+    math_node.inputs[1].default_value, math_node.inputs[2].default_value = 2.0, 0.3
+    scene = _export(bpy)
+    hits = [w for w in scene.all_warnings() if "negative" in w]
+    assert len(hits) == 1 and "Directions" in hits[0]
+    got = scene.environment.radiance(_UNIT)
+    want = np.maximum(2.0 * _UNIT[:, :1] + 0.3, 0.0) * np.array([0.5, 0.6, 0.7])
+    np.testing.assert_allclose(got, want, rtol=4e-3, atol=3e-3)
+
+
+def test_world_nodes_that_need_a_surface_or_the_screen_warn(mb, bpy_addon):
+    """Texture Coordinate's Window output (a backplate mapped to the screen) is read as
+    the direction and warned naming the node; a Light Path output inside a colour graph
+    warned, its socket's value used."""
+    bpy = bpy_addon
+    nt, bg, coord = _direction_world(bpy)
+    coord.name = "Screen"
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(coord.outputs["Window"], noise.inputs["Vector"])
+    nt.links.new(noise.outputs["Color"], bg.inputs["Color"])
+    scene = _export(bpy)
+    hits = [w for w in scene.all_warnings() if "'Window'" in w]
+    assert len(hits) == 1 and "Screen" in hits[0] and scene.environment is not None
+    path = nt.nodes.new("ShaderNodeLightPath")
+    path.name = "Path"
+    nt.links.new(path.outputs["Is Camera Ray"], noise.inputs["Scale"])
+    hits = [w for w in _export(bpy).all_warnings() if "'Path'" in w]
+    assert len(hits) == 1
+
+
+def test_viewport_updates_reuse_the_baked_world_until_it_changes(mb, bpy_addon):
+    """The viewport's export bakes a direction world once: an update that leaves the
+    world alone (an object moved) reuses the map and its warnings; a world update bakes
+    it again."""
+    bpy = bpy_addon
+    from addon import export
+    from addon.core import load_engine
+    pm = load_engine()
+    nt, bg, coord = _direction_world(bpy)
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(coord.outputs["Window"], noise.inputs["Vector"])  # (warned)
+    nt.links.new(noise.outputs["Color"], bg.inputs["Color"])
+    mb.camera((0, -5, 1), (0, 0, 0))
+    cache = export.ViewportExport(pm)
+    camera = pm.Camera.look_at((0, -10, 3), (0, 0, 0))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    first, _ = export.export_viewport(cache, depsgraph, camera, 16, 12)
+    again, info = export.export_viewport(cache, depsgraph, camera, 16, 12,
+                                         export.ViewportUpdates())
+    assert again.environment is first.environment and not info["world_changed"]
+    assert [w for w in again.warnings if "'Window'" in w]
+    bg.inputs["Strength"].default_value = 3.0
+    updates = export.ViewportUpdates()
+    updates.world = True
+    third, info = export.export_viewport(cache, bpy.context.evaluated_depsgraph_get(),
+                                         camera, 16, 12, updates)
+    assert third.environment is not first.environment and info["world_changed"]
+    np.testing.assert_allclose(third.environment.average(), 3.0 * first.environment.average(),
+                               rtol=1e-5)

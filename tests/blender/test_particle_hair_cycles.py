@@ -173,3 +173,53 @@ def test_particle_hair_matches_cycles(bpy_addon, tmp_path, children):
     # The hair is there: the tuft's blocks differ from the bare floor's.
     tuft, floor = ref[24:48, 24:72].mean(), ref[60:, :12].mean()
     assert tuft < 0.8 * floor or tuft > 1.25 * floor, (tuft, floor)
+
+
+def _generated_ramp_scene(bpy):
+    """_scene's tuft (200 strands) coloured by a Color Ramp of Generated's x."""
+    sc, emitter, mod = _scene(bpy, count=200)
+    nt = bpy.data.materials["Hair"].node_tree
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.9, 0.8, 0.1, 1.0)
+    ramp.color_ramp.elements[1].color = (0.05, 0.1, 0.9, 1.0)
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(coord.outputs["Generated"], sep.inputs[0])
+    nt.links.new(sep.outputs["X"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
+    return sc, emitter
+
+
+def test_generated_coordinates_are_the_roots_in_the_emitters_texture_space(bpy_addon):
+    """Each strand's Generated coordinate is its root key in the emitter mesh's texture
+    space, the same along the whole strand (Cycles' blender/curves.cpp: co * size - loc
+    of the first key; before: the tubes' own bounds)."""
+    bpy = bpy_addon
+    sc, emitter = _generated_ramp_scene(bpy)
+    from addon import export
+    from addon.core import load_engine
+    from addon.particlehair import particle_strands
+    ob = emitter.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    geo = export.extract_particle_hair(load_engine(), ob, background=True)
+    gen = export.texture_coordinates(geo, False)["generated"]
+    strands = particle_strands(ob, background=True)
+    roots = strands.points[strands.offsets[:-1]]
+    # The emitter is a 1.2 m plane: its texture space spans x, y in [-0.6, 0.6].
+    want = (roots[:, :2] + 0.6) / 1.2
+    first = gen[:, 0, :2]  # every corner of a strand's tubes carries its root's value
+    assert np.ptp(gen[:, :, 0], axis=1).max() < 1e-12
+    np.testing.assert_allclose(np.unique(first[:, 0]), np.unique(want[:, 0]), atol=1e-6)
+    assert 0.0 <= first.min() and first.max() <= 1.0
+
+
+@pytest.mark.slow
+def test_generated_coordinates_colour_the_tuft_as_cycles(bpy_addon, tmp_path):
+    """A Color Ramp of Generated's x colours the tuft as in Cycles (s40: whole 1.00x,
+    blocks within 0.88-1.08)."""
+    bpy = bpy_addon
+    sc, _emitter = _generated_ramp_scene(bpy)
+    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
+    whole = ours.mean() / ref.mean()
+    ratio = block_means(ours) / block_means(ref)
+    assert 0.985 < whole < 1.015, whole
+    assert 0.88 < ratio.min() and ratio.max() < 1.08, np.round(ratio, 3)
