@@ -2476,6 +2476,22 @@ def volume_fog_spot():
              spot_size=math.radians(35.0), spot_blend=0.2, shadow_soft_size=0.0)
 
 
+def _noise_puffs(nt, black_below, white_above):
+    """A Color Ramp (black below, white above the two positions) of a Noise Texture
+    (Scale 2.5, Detail 2) of the Generated coordinates, in node tree nt: the clouds'
+    density pattern. Returns the ramp node."""
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    noise.inputs["Detail"].default_value = 2.0
+    nt.links.new(tc.outputs["Generated"], noise.inputs["Vector"])
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = black_below
+    ramp.color_ramp.elements[1].position = white_above
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    return ramp
+
+
 @case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))
 def volume_cloud():
     """A cloud cube: Principled Volume (Color 0.8) whose Density is 4 x a Color Ramp
@@ -2487,15 +2503,7 @@ def volume_cloud():
     homogeneous box.)"""
     _stage()
     m, nt, out = _nodes_material("cloud")
-    tc = nt.nodes.new("ShaderNodeTexCoord")
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 2.5
-    noise.inputs["Detail"].default_value = 2.0
-    nt.links.new(tc.outputs["Generated"], noise.inputs["Vector"])
-    ramp = nt.nodes.new("ShaderNodeValToRGB")
-    ramp.color_ramp.elements[0].position = 0.45
-    ramp.color_ramp.elements[1].position = 0.62
-    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    ramp = _noise_puffs(nt, 0.45, 0.62)
     mul = nt.nodes.new("ShaderNodeMath")
     mul.operation = "MULTIPLY"
     mul.inputs[1].default_value = 4.0
@@ -2523,15 +2531,7 @@ def volume_glow_cloud():
     Strength at their sockets' own values.)"""
     _stage()
     m, nt, out = _nodes_material("glow cloud")
-    tc = nt.nodes.new("ShaderNodeTexCoord")
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 2.5
-    noise.inputs["Detail"].default_value = 2.0
-    nt.links.new(tc.outputs["Generated"], noise.inputs["Vector"])
-    ramp = nt.nodes.new("ShaderNodeValToRGB")
-    ramp.color_ramp.elements[0].position = 0.4
-    ramp.color_ramp.elements[1].position = 0.65
-    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    ramp = _noise_puffs(nt, 0.4, 0.65)
     v = nt.nodes.new("ShaderNodeVolumePrincipled")
     v.inputs["Emission Color"].default_value = (1.0, 0.45, 0.15, 1.0)
     for socket in ("Density", "Emission Strength"):
@@ -2541,7 +2541,7 @@ def volume_glow_cloud():
         nt.links.new(ramp.outputs["Color"], mul.inputs[0])
         nt.links.new(mul.outputs[0], v.inputs[socket])
     grad = nt.nodes.new("ShaderNodeTexGradient")
-    nt.links.new(tc.outputs["Generated"], grad.inputs["Vector"])
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Generated"], grad.inputs["Vector"])
     tint = nt.nodes.new("ShaderNodeValToRGB")
     tint.color_ramp.elements[0].color = (0.15, 0.35, 0.9, 1.0)
     tint.color_ramp.elements[1].color = (0.9, 0.9, 0.9, 1.0)
