@@ -70,7 +70,7 @@ def test_points_export_as_spheres_of_their_radius(bpy_addon):
     pm = load_engine()
     scene, _ = export.export_scene(pm, bpy.context.evaluated_depsgraph_get(), width=16,
                                    height=12)
-    spheres = [m for m in scene.meshes if m.name.startswith("Dots/")]
+    spheres = [m for m in scene.meshes if m.name.startswith("Dots#")]
     assert len(spheres) == 1 and spheres[0].materials == ["Red"]
     n = len(dots.data.vertices)  # 42: Blender's icosphere of Subdivisions 2
     level = pm.pointcloud.sphere_level(n)
@@ -87,13 +87,13 @@ def test_points_export_as_spheres_of_their_radius(bpy_addon):
     view, _ = export.export_viewport(export.ViewportExport(pm),
                                      bpy.context.evaluated_depsgraph_get(),
                                      pm.Camera.look_at((0, -4, 2), (0, 0, 0)), 16, 12)
-    seen = [m for m in view.meshes if m.name.startswith("Dots/")]
+    seen = [m for m in view.meshes if m.name.startswith("Dots#")]
     assert len(seen) == 1 and np.allclose(seen[0].expanded().vertices, spheres[0].vertices)
     dots.modifiers.clear()
     _points_modifier(bpy, dots, 0.05, drop_radius=True)
     scene, _ = export.export_scene(pm, bpy.context.evaluated_depsgraph_get(), width=16,
                                    height=12)
-    v = np.asarray(next(m for m in scene.meshes if m.name.startswith("Dots/")).vertices)
+    v = np.asarray(next(m for m in scene.meshes if m.name.startswith("Dots#")).vertices)
     r = np.linalg.norm(v[:12] - v[:12].mean(axis=0), axis=1)
     assert r.max() == pytest.approx(0.01 * pm.pointcloud.area_scale(
         *pm.pointcloud.icosphere(level)), rel=1e-4)
@@ -106,7 +106,7 @@ def test_points_of_radius_0_render_nothing_and_say_so(bpy_addon):
     from addon.core import load_engine
     scene, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
                                    width=16, height=12)
-    assert not [m for m in scene.meshes if m.name.startswith("Dots/")]
+    assert not [m for m in scene.meshes if m.name.startswith("Dots#")]
     hits = [w for w in scene.all_warnings() if "'Dots'" in w]
     assert len(hits) == 1 and "radius 0" in hits[0], hits
 
