@@ -152,18 +152,22 @@ def test_each_geometry_exported_once(fresh_scene, bpy_addon):
     got = dict.fromkeys(expect, 0)
     for m in scene.meshes:
         owner = next((k for k in sorted(expect, key=len, reverse=True)
-                      if m.name == k or m.name.startswith(k + "/") or f"/{k}#" in m.name),
+                      if m.name == k or m.name.startswith((k + "/", k + "#"))
+                      or f"/{k}#" in m.name),
                      m.name)
         got[owner] = got.get(owner, 0) + len(m.faces)
     assert got == expect
     assert info["triangles"] == sum(expect.values())
 
     # The material case: balls made by Geometry Nodes keep their own (red) material.
-    for m in scene.meshes:
-        if m.name.startswith((realized.name + "/", instanced.name + "/")):
-            for name in np.unique(np.asarray(m.materials)[m.material_ids]):
-                np.testing.assert_allclose(scene.materials[name].base_color,
-                                           (0.8, 0.02, 0.02), atol=1e-3)
+    balls = [m for m in scene.meshes
+             if m.name.startswith(tuple(f"{o.name}{sep}" for o in (realized, instanced)
+                                        for sep in "/#"))]
+    assert len(balls) >= 2, [m.name for m in scene.meshes]
+    for m in balls:
+        for name in np.unique(np.asarray(m.materials)[m.material_ids]):
+            np.testing.assert_allclose(scene.materials[name].base_color,
+                                       (0.8, 0.02, 0.02), atol=1e-3)
 
 
 # --- rendering: ours and Cycles on the same bpy scene ---------------------------------
