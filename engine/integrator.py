@@ -3044,7 +3044,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         s, np.take(chain[:, 0], gl)))
                 acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
                 if lpass is not None:
-                    lpass.shaded(pix, Lt, tp, gl, lightpasses.TRANSMISSION_DIRECT)
+                    # The translucent lobe's share is Diffuse Direct (Cycles counts the
+                    # Translucent BSDF among its diffuse closures), the rough glass
+                    # refraction's Transmission Direct: split by the two lobes' albedos
+                    # (exact where a surface has one of them).
+                    translucent = lightpasses.translucent_share(ctx.table, hit, gl)
+                    lpass.shaded(pix, Lt * translucent, tp, gl, lightpasses.DIFFUSE_DIRECT)
+                    lpass.shaded(pix, Lt * (1.0 - translucent), tp, gl,
+                                 lightpasses.TRANSMISSION_DIRECT)
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.

@@ -51,6 +51,7 @@ from __future__ import annotations
 import numpy as np
 
 from .camerakernels import film_add
+from .closures import principled as pr
 from .visibility import DIFFUSE, GLOSSY, TRANSMISSION
 
 # Data keys (Film.data / Accumulator.data), by index: Direct of a class c is c,
@@ -154,6 +155,21 @@ class PathPasses:
         """Light scattered in a medium towards the paths (before tp): VOLUME before the
         first bent bounce, the path's Indirect after it."""
         self.shaded(pix, rgb, tp, rows, VOLUME)
+
+
+def translucent_share(table, hit, rows) -> np.ndarray:
+    """(K,3) the translucent lobe's share of the light the hits rows (K,) int64 take
+    through their far side (engine/glasslight.py: the translucent lobe and the rough
+    glass refraction together): its albedo over the two lobes' (principled.setup's
+    estimates, datapasses.lobe_albedo); 0 without a translucent lobe, 1 without a
+    glass one."""
+    from .datapasses import lobe_albedo
+    rows = np.asarray(rows, np.int64)
+    _, albedo = lobe_albedo(table, hit)
+    tl = albedo[rows, pr.L_TRANSL]
+    both = tl + albedo[rows, pr.L_GLASS_T]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(both > 0.0, tl / both, 0.0)
 
 
 def split_direct(direct, glossy, keep=None):

@@ -254,3 +254,23 @@ def test_fog_light_is_kept_apart():
     raw = sum(d[k].astype(np.float64) for k in lp.KEYS)
     comb = sum(getattr(film, n).astype(np.float64) for n in EFFECTS)
     np.testing.assert_allclose(raw, comb, rtol=1e-6, atol=1e-7)
+
+
+def test_translucent_light_from_behind_is_diffuse_direct():
+    """A Translucent BSDF sheet lit by a sun from behind: Cycles counts the translucent
+    closure among its diffuse ones, so the light it lets through is Diffuse Direct
+    (measured against Cycles 5.0: 1.2219 / 1.2211 on a sheet of colour 0.8, Transmission
+    Direct 0 in both); before s40 it reached no pass and the passes did not sum to the
+    image. The sheet's light is E x colour / pi, which Blender shows divided by the
+    colour: E / pi."""
+    s = PaperScene(W, H, background=(0.0, 0.0, 0.0))
+    sheet = Material("sheet", (0.8, 0.8, 0.8), translucent=1.0, roughness=1.0)
+    s.add_plane((0, 0, 0), (0, 0, 1), 40.0, sheet, name="sheet")
+    s.add_sun((0.0, 0.0, 1.0), strength=SUN)  # travelling up: it lights the sheet's back
+    s.set_camera((0.0, 0.0, 5.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), view_angle=20.0)
+    film = render(s, _settings(photons=2_000, caustic_photons=0))
+    sh = _shown(film)
+    assert film.combined.mean() > 0.1
+    np.testing.assert_allclose(sh["diffuse_direct"], SUN / np.pi, rtol=2e-3)
+    assert not film.data["transmission_direct"].any()
+    np.testing.assert_allclose(_recombined(film), film.combined, rtol=1e-4, atol=1e-6)
