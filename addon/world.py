@@ -617,8 +617,8 @@ def _environment(pm, world, node, warnings):
     who = f"world '{world.name}': Environment Texture '{node.name}'"
     img = node.image
     if img is None:
-        warnings.append(f"{who} has no image; using the Background colour")
-        return None
+        warnings.append(f"{who} has no image; the world renders magenta, as in Cycles")
+        return _missing_map(pm)
     if node.projection != "EQUIRECTANGULAR":
         warnings.append(f"{who}: projection '{node.projection}' is not supported "
                         "(only Equirectangular); using the Background colour")
@@ -631,9 +631,9 @@ def _environment(pm, world, node, warnings):
     try:
         rgba = _pixels(img)
     except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
-        warnings.append(f"{who}: image '{img.name}' could not be read ({exc}); using the "
-                        "Background colour")
-        return None
+        warnings.append(f"{who}: image '{img.name}' could not be read ({exc}); the world "
+                        "renders magenta, as in Cycles")
+        return _missing_map(pm)
     rgb = np.nan_to_num(np.maximum(np.asarray(rgba[:, :, :3], np.float32), 0.0), nan=0.0,
                         posinf=0.0)
     srgb = cycles_stores_srgb(img)
@@ -653,6 +653,15 @@ def _environment(pm, world, node, warnings):
         warnings.append(f"{who}: {exc}; using the Background colour")
         return None
     return make
+
+
+def _missing_map(pm):
+    """make(strength) of the map Cycles shows for an environment image it cannot load:
+    magenta (TEX_IMAGE_MISSING_R/G/B 1, 0, 1) in every direction (a missing HDRI lights
+    the scene magenta there too: the user sees it at once)."""
+    magenta = np.array([[[1.0, 0.0, 1.0]]], np.float32)
+    return lambda strength: pm.Environment(magenta, strength, None, "Closest",
+                                           name="missing image")
 
 
 def _check_coordinates(world, socket, warnings):

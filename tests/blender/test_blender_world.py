@@ -445,3 +445,23 @@ def test_viewport_updates_reuse_the_baked_world_until_it_changes(mb, bpy_addon):
     assert third.environment is not first.environment and info["world_changed"]
     np.testing.assert_allclose(third.environment.average(), 3.0 * first.environment.average(),
                                rtol=1e-5)
+
+
+@pytest.mark.parametrize("case", ["missing file", "no image"])
+def test_an_environment_image_that_cannot_load_is_a_magenta_world(mb, bpy_addon, case):
+    """An Environment Texture whose file is missing, or that has no image, shows and
+    lights magenta (1, 0, 1) as in Cycles (measured: sky and floor (1, 0, 1) in both),
+    with one warning saying so (it was the Background's own colour)."""
+    bpy = bpy_addon
+    nt, bg, _coord = _direction_world(bpy)
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    if case == "missing file":
+        img = bpy.data.images.new("gone", 4, 4)
+        img.source, img.filepath = "FILE", "//nowhere/sky.exr"
+        env.image = img
+    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 2.0
+    scene = _export(bpy)
+    np.testing.assert_allclose(scene.environment.radiance(_UNIT), np.tile([2.0, 0.0, 2.0],
+                                                                          (len(_UNIT), 1)))
+    assert len([w for w in scene.all_warnings() if "magenta" in w]) == 1
