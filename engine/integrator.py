@@ -3089,7 +3089,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         chain[:, 0] += bent
         if lpass is not None:
             lpass.take(keep)
-            lpass.bend(bent, ray_cls)
+            # (A translucent lobe's ray through the surface is a diffuse bounce to the
+            # passes, as Cycles counts the Translucent BSDF among its diffuse closures.)
+            lpass.bend(bent, lightpasses.pass_classes(
+                ctx.table, np.take(hit.mat, keep), d, np.take(hit.ng, keep, axis=0),
+                ray_cls))
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)

@@ -157,6 +157,26 @@ class PathPasses:
         self.shaded(pix, rgb, tp, rows, VOLUME)
 
 
+def pass_classes(table, mat, d, ng, ray_cls) -> np.ndarray:
+    """The continued rays' classes for the light passes (K,) int64: ray_cls (K,), except
+    that a ray through the surface (d (K,3) below the geometric normal ng (K,3)) of a
+    material with a translucent lobe and no glass (table rows mat (K,)) is DIFFUSE: the
+    translucent lobe's bounce, which Cycles counts among its diffuse closures (measured:
+    a sheet lit from behind by a lit floor, Cycles' Diffuse Indirect 1.329, Transmission
+    0). A material with both lobes keeps the ray's own class (which lobe sent it is not
+    kept)."""
+    translucent = np.asarray(getattr(table, "translucent", None) if
+                             getattr(table, "translucent", None) is not None
+                             else np.zeros(len(table.names)))
+    only = (translucent > 0.0) & ~(np.asarray(table.transmission) > 0.0)
+    if not only.any():
+        return ray_cls
+    mat = np.asarray(mat, np.int64)
+    below = np.einsum("ij,ij->i", d, ng) < 0.0
+    swap = only[mat] & below & (np.asarray(ray_cls) == TRANSMISSION)
+    return np.where(swap, DIFFUSE, ray_cls) if swap.any() else ray_cls
+
+
 def translucent_share(table, hit, rows) -> np.ndarray:
     """(K,3) the translucent lobe's share of the light the hits rows (K,) int64 take
     through their far side (engine/glasslight.py: the translucent lobe and the rough

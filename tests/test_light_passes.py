@@ -274,3 +274,23 @@ def test_translucent_light_from_behind_is_diffuse_direct():
     np.testing.assert_allclose(sh["diffuse_direct"], SUN / np.pi, rtol=2e-3)
     assert not film.data["transmission_direct"].any()
     np.testing.assert_allclose(_recombined(film), film.combined, rtol=1e-4, atol=1e-6)
+
+
+def test_translucent_light_through_a_bounce_is_diffuse_indirect():
+    """A Translucent BSDF sheet over a sunlit floor, seen from above: the light it lets
+    through comes from the floor's bounce, and its bounce through the sheet is diffuse to
+    the passes (Cycles 5.0 measured: Diffuse Indirect 1.329, ours 1.319, Transmission 0
+    in both); the passes sum to the image."""
+    s = PaperScene(W, H, background=(0.0, 0.0, 0.0))
+    sheet = Material("sheet", (0.8, 0.8, 0.8), translucent=1.0, roughness=1.0)
+    s.add_plane((0, 0, 0), (0, 0, 1), 4.0, sheet, name="sheet")
+    s.add_plane((0, 0, -1.0), (0, 0, 1), 40.0, Material("floor", (0.8, 0.8, 0.8)),
+                name="floor")
+    s.add_sun((0.6, 0.0, -0.8), strength=SUN)
+    s.set_camera((0.0, 0.0, 5.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), view_angle=20.0)
+    film = render(s, _settings(photons=5_000, caustic_photons=0))
+    sh = _shown(film)
+    assert sh["diffuse_indirect"].mean() > 0.05
+    assert not film.data["transmission_indirect"].any()
+    assert not film.data["transmission_direct"].any()
+    np.testing.assert_allclose(_recombined(film), film.combined, rtol=1e-4, atol=1e-6)
