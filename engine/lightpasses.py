@@ -157,6 +157,12 @@ class PathPasses:
         self.shaded(pix, rgb, tp, rows, VOLUME)
 
 
+def _translucent(table) -> np.ndarray:
+    """(M,) bool: the table's rows with a translucent lobe (MaterialTable.translucent)."""
+    share = getattr(table, "translucent", None)
+    return np.zeros(len(table.names), bool) if share is None else np.asarray(share) > 0.0
+
+
 def pass_classes(table, mat, d, ng, ray_cls) -> np.ndarray:
     """The continued rays' classes for the light passes (K,) int64: ray_cls (K,), except
     that a ray through the surface (d (K,3) below the geometric normal ng (K,3)) of a
@@ -165,10 +171,7 @@ def pass_classes(table, mat, d, ng, ray_cls) -> np.ndarray:
     a sheet lit from behind by a lit floor, Cycles' Diffuse Indirect 1.329, Transmission
     0). A material with both lobes keeps the ray's own class (which lobe sent it is not
     kept)."""
-    translucent = np.asarray(getattr(table, "translucent", None) if
-                             getattr(table, "translucent", None) is not None
-                             else np.zeros(len(table.names)))
-    only = (translucent > 0.0) & ~(np.asarray(table.transmission) > 0.0)
+    only = _translucent(table) & ~(np.asarray(table.transmission) > 0.0)
     if not only.any():
         return ray_cls
     mat = np.asarray(mat, np.int64)
@@ -185,6 +188,8 @@ def translucent_share(table, hit, rows) -> np.ndarray:
     glass one."""
     from .datapasses import lobe_albedo
     rows = np.asarray(rows, np.int64)
+    if not _translucent(table).any():  # (rough glass alone: no albedo of the batch)
+        return np.zeros((len(rows), 3))
     _, albedo = lobe_albedo(table, hit)
     tl = albedo[rows, pr.L_TRANSL]
     both = tl + albedo[rows, pr.L_GLASS_T]
