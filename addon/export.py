@@ -1283,11 +1283,14 @@ def clamp_settings(scene, props) -> dict:
 
 
 def filter_glossy_settings(scene) -> dict:
-    """Cycles' Light Paths > Caustics > Filter Glossy as the RenderSettings keyword
-    cycles_filter_glossy (0 without the Cycles add-on): not simulated, only named by the
-    effect report where it changes Cycles' image (engine/settings.py)."""
+    """Cycles' Light Paths > Caustics (Filter Glossy, Reflective, Refractive) as the
+    RenderSettings keywords cycles_filter_glossy, cycles_caustics_reflective,
+    cycles_caustics_refractive (0 / on / on without the Cycles add-on): not simulated,
+    only named by the effect report where they change Cycles' image (engine/settings.py)."""
     cycles = getattr(scene, "cycles", None)
-    return dict(cycles_filter_glossy=float(getattr(cycles, "blur_glossy", 0.0) or 0.0))
+    return dict(cycles_filter_glossy=float(getattr(cycles, "blur_glossy", 0.0) or 0.0),
+                cycles_caustics_reflective=bool(getattr(cycles, "caustics_reflective", True)),
+                cycles_caustics_refractive=bool(getattr(cycles, "caustics_refractive", True)))
 
 
 def border_region(render, width: int, height: int):

@@ -210,6 +210,44 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names) -> None:
              "not blur, so it matches Cycles with Filter Glossy 0: set that to compare")
 
 
+def _cycles_caustics_note(plan: EffectPlan, s, geo: Geometry, table: MaterialTable,
+                          names) -> None:
+    """The "Cycles' caustics" line: Cycles' Light Paths > Caustics > Reflective or
+    Refractive (the scene's, read by the add-on) is off and light reaches diffuse surfaces
+    off specular ones here (names: the objects whose specular light does, besides the
+    window and single-plane glass of the plan). With the switch off, Cycles drops the
+    glossy-reflection / transmission closures its paths meet after a diffuse bounce
+    (intern/cycles/kernel/integrator/surface_shader.h, surface_shader_prepare_closures
+    under __CAUSTICS_TRICKS__) and its shadow rays stop at glass, so that light is
+    missing from its image: a room lit through a window pane loses the sun patch and the
+    sky's light (newuser40's room: no patch in Cycles, ours within 0.2 % of Cycles with
+    the switches on and its clamp off). Only named, as Filter Glossy: the engine renders
+    that light (Cycles with the switches on). Translucent surfaces are diffuse
+    transmission, which the switch leaves alone."""
+    ids_of = {n: i for i, n in enumerate(geo.object_names)}
+    glass = ([n for n in names if specular_kind(geo, table, ids_of[n]) == "glass"]
+             + list(plan.window_glass) + list(plan.pane_glass))
+    mirrors = [n for n in names if n not in glass and _strong_reflector(geo, table, ids_of[n])]
+    off = []  # in the order of Cycles' panel
+    if not s.cycles_caustics_reflective and mirrors:
+        off.append(("Reflective", "off", mirrors))
+    if not s.cycles_caustics_refractive and glass:
+        off.append(("Refractive", "through", glass))
+    if not off:
+        return
+    switches = " and ".join(k for k, _, _ in off)
+    sources = " and ".join(f"{w} {_quoted(n, most=REPORT_NAMES_MAX)}" for _, w, n in off)
+    plan.add("Cycles' caustics", False,
+             f"Cycles' Light Paths > Caustics > {switches} "
+             + ("are" if len(off) > 1 else "is") + " off: Cycles leaves out the light "
+             f"that reaches diffuse surfaces {sources} (a sun patch through a window, the "
+             "caustic of a glass or a mirror)"
+             + (", and its shadow rays stop at glass" if glass and off[-1][1] == "through"
+                else "") + ", so its image is darker there; ours renders that light, as Cycles with "
+             + ("them" if len(off) > 1 else "it") + " on: turn "
+             + ("them" if len(off) > 1 else "it") + " on to compare")
+
+
 def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
     """Bounding spheres (centre, radius) and names of objects owning the masked triangles."""
     ids = np.unique(geo.object_id[tri_mask])
@@ -627,6 +665,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             _filter_glossy_note(plan, s.cycles_filter_glossy, [
                 n for n in [n for _, _, _, n in reached] + rough_reached
                 if _strong_reflector(geo, table, ids_of[n])])
+        if not (s.cycles_caustics_reflective and s.cycles_caustics_refractive):
+            _cycles_caustics_note(plan, s, geo, table,
+                                  [n for _, _, _, n in reached] + rough_reached)
 
     # --- specular chains -------------------------------------------------------------------
     visible = _visible_specular(scene, geo, table, accel) if spec_tri.any() else []

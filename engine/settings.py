@@ -148,6 +148,15 @@ class RenderSettings:
     # (docs/accuracy.md, glow36). Not simulated: the engine renders that light unblurred,
     # as Cycles with Filter Glossy 0.
     cycles_filter_glossy: float = 0.0
+    # Cycles' Light Paths > Caustics > Reflective / Refractive of the scene (Cycles'
+    # default: both on), read by the add-on only so the effect report can say where
+    # Cycles' image differs: off, Cycles drops the glossy-reflection / transmission
+    # closures its paths meet after a diffuse bounce (surface_shader_prepare_closures,
+    # __CAUSTICS_TRICKS__), and its shadow rays stop at glass, so a sun patch through a
+    # window or a glass's caustic is missing from its image. Not simulated: the engine
+    # renders that light, as Cycles with both on.
+    cycles_caustics_reflective: bool = True
+    cycles_caustics_refractive: bool = True
     adaptive_min_samples: int = 0
     # An extra cap on the specular bounces along a camera path (the paper's
     # MaxRayTraceDepth), transparent passes included. Off by default (1024, the most
@@ -322,6 +331,12 @@ class RenderSettings:
             raise ValueError("setting 'cycles_filter_glossy' (Cycles' Filter Glossy) must be a "
                              f"number from 0 (off) to {FILTER_GLOSSY_MAX:g}, got {v!r}")
         self.cycles_filter_glossy = fg
+        for name in ("cycles_caustics_reflective", "cycles_caustics_refractive"):
+            v = getattr(self, name)
+            if not isinstance(v, (bool, np.bool_)):
+                raise ValueError(f"setting '{name}' (Cycles' Caustics > "
+                                 f"{name[16:].title()}) must be True or False, got {v!r}")
+            setattr(self, name, bool(v))
         self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
         self.shader_aovs = _shader_aovs(self.shader_aovs)
         if "light" in self.data_passes and "color" not in self.data_passes:

@@ -801,6 +801,43 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
     assert "glossy blur" in effects(b) and "glossy blur" not in effects(a)
 
 
+def test_cycles_caustics_switches_are_named_where_they_change_cycles_image():
+    """Cycles' Light Paths > Caustics > Reflective / Refractive off drop the light its
+    paths would find off a mirror / through glass after a diffuse bounce, and its shadow
+    rays stop at glass (newuser40: a room lit through a thick pane had no sun patch in
+    Cycles). The add-on passes the scene's switches; the report names the objects whose
+    light Cycles leaves out, by switch, and nothing while they are on or where nothing
+    specular lights a diffuse surface. Only named: the image is the same."""
+    s = _room(Material("plain", (0.6, 0.6, 0.6)), extra=[("mirror", "Mirror"),
+                                                         ("glass", "Ball")])
+    assert not any(r.startswith("Cycles' caustics") for r in _plan(s).report())
+    line = _line(_plan(s, cycles_caustics_refractive=False), "Cycles' caustics: off - ")
+    assert line.startswith("Cycles' caustics: off - Cycles' Light Paths > Caustics > "
+                           "Refractive is off: Cycles leaves out the light that reaches "
+                           "diffuse surfaces through "), line
+    assert "'Ball'" in line and "'Mirror'" not in line, line
+    both = _line(_plan(s, cycles_caustics_refractive=False, cycles_caustics_reflective=False),
+                 "Cycles' caustics: off - ")
+    assert "Reflective and Refractive are off" in both and "off 'Mirror'" in both, both
+    assert "turn them on to compare" in both, both
+    # Window glass (shadow rays pass it: no caustic caster) is named too.
+    window = _room(Material("plain", (0.6, 0.6, 0.6)))
+    window.add_material(Material("pane", (1, 1, 1), transmission=1.0, ior=1.5))
+    window.add_box((0, 0, 1.5), (2, 2, 0.02), "pane", name="Window")
+    line = _line(_plan(window, cycles_caustics_refractive=False), "Cycles' caustics: off - ")
+    assert "diffuse surfaces through 'Window' (" in line, line
+    # A plain room: nothing specular throws light onto a diffuse surface.
+    plain = _room(Material("plain", (0.6, 0.6, 0.6)))
+    assert not any(r.startswith("Cycles' caustics") for r in _plan(
+        plain, cycles_caustics_refractive=False, cycles_caustics_reflective=False).report())
+    with pytest.raises(ValueError, match="Caustics > Refractive"):
+        RenderSettings(cycles_caustics_refractive="no")
+    base = RenderSettings(photons=2000, caustic_photons=1000, spp=1, workers=1, seed=3)
+    a = s.render(base)
+    b = s.render(dataclasses.replace(base, cycles_caustics_refractive=False))
+    assert np.array_equal(a.combined, b.combined) and a.combined.max() > 0
+
+
 def test_a_volume_only_fog_box_is_not_reported_as_alpha():
     """The surfaces of a volume-only material are a transparent pass (invisible, as in
     Cycles): the transparency line names them as such, not as "alpha below 1"

@@ -70,6 +70,19 @@ def test_property_defaults_match_engine(bpy_addon):
     RenderSettings(**kwargs)  # accepted by the engine
 
 
+def test_cycles_caustics_switches_reach_the_effect_report(bpy_addon):
+    """Cycles' Light Paths > Caustics > Reflective / Refractive are read from the scene
+    (only named by the effect report: engine/effects.py, _cycles_caustics_note)."""
+    bpy = bpy_addon
+    bpy.ops.wm.read_homefile(use_empty=True)
+    sc = bpy.context.scene
+    kw = sc.photonmap.to_settings_kwargs()
+    assert kw["cycles_caustics_reflective"] is True and kw["cycles_caustics_refractive"] is True
+    sc.cycles.caustics_refractive = False
+    kw = sc.photonmap.to_settings_kwargs()
+    assert kw["cycles_caustics_reflective"] is True and kw["cycles_caustics_refractive"] is False
+
+
 def test_every_setting_has_a_tooltip(bpy_addon):
     """Every setting of the panels has a tooltip of a sentence (a new user's main help,
     newuser23's trial); Max Photon Depth says that the Light Paths limits end photons
