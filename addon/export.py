@@ -1846,7 +1846,16 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         cam_obj = cam_obj.evaluated_get(depsgraph)
     camera_out = convert_camera(pm, cam_obj, width, height, render, warnings,
                                 scene_eval.objects)
-    (background, environment), seen = export_worlds(pm, scene_eval.world, warnings)
+    view = (pm.shadernodes.CameraView(camera_out, width, height)
+            if camera_out is not None else None)  # (a world's Window coordinates)
+    (background, environment), seen = export_worlds(pm, scene_eval.world, warnings, view)
+    if (seen is not None and isinstance(seen[1], pm.worldgraph.WorldGraph)
+            and camera_out.kind == "ORTHO"):
+        # (Cycles projects an orthographic camera ray's origin; ours knows its direction)
+        warnings.append(f"world '{scene_eval.world.name}': a Window-mapped background "
+                        "behind an orthographic camera is not screen-mapped here: camera "
+                        "rays see the image at the projection of their direction, as "
+                        "Cycles' other rays do")
     lights, portals = split_portals(pm, lights)
     resolve_light_links(lights, meshes, info.pop("owners", {}))
     lights = lights + sky_sun_lights(pm, environment, seen)  # a Sky Texture's sun disc

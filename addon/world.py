@@ -88,7 +88,7 @@ LIGHT_PATH_CAMERA = {"Is Camera Ray": 1.0, "Is Shadow Ray": 0.0, "Is Diffuse Ray
                      "Is Transmission Ray": 0.0, "Is Volume Scatter Ray": 0.0}
 
 
-def export_worlds(pm, world, warnings: list) -> tuple:
+def export_worlds(pm, world, warnings: list, camera_view=None) -> tuple:
     """((background, environment) the scene's light: what every ray but the camera's
     sees, (background, environment) what camera rays see, or None when the same) for a
     Blender world; warnings get one line per unsupported node (each naming the world and
@@ -100,7 +100,13 @@ def export_worlds(pm, world, warnings: list) -> tuple:
     a Light Path output (through Math and Invert nodes): Is Camera Ray is 1 for camera
     rays and 0 for the rest, so "light the scene with the HDRI, show a colour behind"
     (Mix by Is Camera Ray) renders as in Cycles. Several environment maps (or a map and a
-    colour) in one sum are baked into one map on the first map's texels."""
+    colour) in one sum are baked into one map on the first map's texels.
+
+    camera_view: engine shadernodes.CameraView of the render's camera, for the Texture
+    Coordinate node's Window and Camera outputs (a screen-mapped backplate): the light
+    bakes the image as Cycles projects it through the camera, and camera rays see it
+    exactly (engine/worldgraph.py WorldGraph); None (the viewport): those outputs are
+    warned and read as the direction."""
     if world is None:
         return (np.zeros(3), None), None
     viewport = np.asarray(tuple(world.color)[:3], dtype=np.float64)
@@ -115,7 +121,7 @@ def export_worlds(pm, world, warnings: list) -> tuple:
     if out is None or not out.inputs["Surface"].is_linked:
         return (np.zeros(3), None), None
     node = _from(out.inputs["Surface"])
-    memo: dict = {}
+    memo: dict = {_CAMERA_VIEW: camera_view}
     light = _shader_terms(pm, world, node, "light", warnings, memo)
     camera = _shader_terms(pm, world, node, "camera", [], memo)  # (warned once, above)
     if light is None:
@@ -125,12 +131,49 @@ def export_worlds(pm, world, warnings: list) -> tuple:
                         "world viewport colour as background")
         return (viewport, None), None
     seen_by_camera = _ray_visibility(world, warnings)
+    lit = _resolve_terms(pm, light, warnings, who, camera_view)
     if not seen_by_camera:  # World > Settings > Ray Visibility > Camera off: black there
-        return _resolve_terms(pm, light, warnings, who), (np.zeros(3), None)
+        return lit, (np.zeros(3), None)
+    if any(_view_dependent(w, t) for w, t in camera):
+        # A screen-mapped backplate: camera rays evaluate the graph at their direction
+        # (a baked map would blur the image to its texels).
+        return lit, (np.zeros(3), _exact_world(pm, camera, camera_view, world.name))
     if len(camera) == len(light) and all(
             wc == wl and tc is tl for (wc, tc), (wl, tl) in zip(camera, light)):
-        return _resolve_terms(pm, light, warnings, who), None
-    return _resolve_terms(pm, light, warnings, who), _resolve_terms(pm, camera, warnings, who)
+        return lit, None
+    return lit, _resolve_terms(pm, camera, warnings, who, camera_view)
+
+
+# memo's key for the render's camera view (export_worlds' camera_view), which the colour
+# converters read for the Window and Camera coordinates.
+_CAMERA_VIEW = ("camera_view",)
+
+
+def _view_dependent(weight, term) -> bool:
+    """A world term reads the camera (Window or Camera coordinates): in its colour graph
+    or in a factor of its weight."""
+    if isinstance(term, EnvTerm) and term.reads_camera:
+        return True
+    return isinstance(weight, _Weight) and any(getattr(f, "reads_camera", False)
+                                               for f, _ in weight.factors)
+
+
+def _exact_world(pm, terms, camera_view, name):
+    """engine worldgraph.WorldGraph of [(weight, term)] (_shader_terms'): each term's
+    colour graph (EnvTerm.graph) or map at strength 1, its weight's constant and
+    direction factors, evaluated per ray."""
+    out = []
+    for w, term in terms:
+        const, factors = (w.const, [(f.node, k) for f, k in w.factors]) \
+            if isinstance(w, _Weight) else (float(w), [])
+        if not factors and const <= 0.0:
+            continue
+        if isinstance(term, np.ndarray):
+            colour = term
+        else:
+            colour = term.graph if term.graph is not None else term.unit
+        out.append((const, factors, colour))
+    return pm.worldgraph.WorldGraph(out, camera_view, name=f"{name} (camera rays)")
 
 
 def _ray_visibility(world, warnings) -> bool:
@@ -190,8 +233,9 @@ class _DirectionField:
     Texture, Separate XYZ of the Generated coordinates through a Color Ramp ...): node,
     the engine/shadernodes graph, evaluated along world directions (WorldDirections)."""
 
-    def __init__(self, node):
+    def __init__(self, node, reads_camera=False):
         self.node = node
+        self.reads_camera = reads_camera  # it reads the Camera or Window coordinates
 
     def values(self, geo) -> np.ndarray:
         """(n,) the field at geo's n directions (a colour read as its luminance)."""
@@ -298,12 +342,12 @@ def _direction_field(pm, world, socket, warnings, memo):
     when it comes out constant, else a _DirectionField; one per socket (memo)."""
     key = ("field", socket.as_pointer())
     if key not in memo:
-        colours = _WorldColours(pm, world, warnings)
+        colours = _WorldColours(pm, world, warnings, memo.get(_CAMERA_VIEW))
         colours.fallback = np.zeros(3)
         val = colours._input(socket.node, socket, 0)
         warnings.extend(w for w in colours.told() if w not in warnings)
         if hasattr(val, "evaluate"):
-            memo[key] = _DirectionField(val)
+            memo[key] = _DirectionField(val, colours.view_dependent)
         else:
             arr = np.asarray(val, np.float64)
             memo[key] = float(arr if arr.ndim == 0 else arr[:3] @ [0.2126, 0.7152, 0.0722])
@@ -329,32 +373,8 @@ class EnvTerm:
     def __init__(self, make, unit=None):
         self.make = make
         self.unit = unit if unit is not None else make(1.0)
-
-
-class WorldDirections:
-    """What engine/shadernodes asks of a Geometry, for a world shader evaluated along
-    world directions dirs (n,3) (unit), as Cycles sets up a background's ShaderData
-    (shader_setup_from_background: P = D, N = Ng = I = -D, no UVs): Generated and Object
-    coordinates and the Geometry node's Position read the direction, Normal, True Normal
-    and Incoming its opposite; UVs and colour attributes 0."""
-
-    def __init__(self, dirs):
-        self.dirs = np.asarray(dirs, np.float64).reshape(-1, 3)
-        self.ng = -self.dirs
-        self.offset = np.zeros(3)
-
-    def coordinates(self, name, prim, u, v):
-        d = self.dirs[np.asarray(prim, np.int64)]
-        return -d if name == "normal" else d
-
-    def hit_points(self, prim, u, v):
-        return self.dirs[np.asarray(prim, np.int64)]
-
-    def uvs(self, prim, u, v):
-        return np.zeros((len(prim), 2))
-
-    def colors(self, prim, u, v):
-        return np.zeros((len(prim), 3))
+        self.graph = None  # a baked colour graph's nodes (shadernodes), for camera rays
+        self.reads_camera = False  # the graph reads the Camera or Window coordinates
 
 
 class _EnvLeaf:
@@ -374,17 +394,21 @@ _SURFACE_ONLY_NODES = frozenset((
     "AMBIENT_OCCLUSION", "BEVEL", "ATTRIBUTE", "UVMAP", "VERTEX_COLOR", "NORMAL_MAP",
     "BUMP", "TANGENT", "WIREFRAME", "OBJECT_INFO", "PARTICLE_INFO", "HAIR_INFO",
     "POINT_INFO", "LIGHT_PATH", "LAYER_WEIGHT", "FRESNEL", "UVALONGSTROKE",
-    "TEX_IMAGE", "DISPLACEMENT", "VECTOR_DISPLACEMENT", "TEX_POINTDENSITY", "RAYCAST"))
+    "DISPLACEMENT", "VECTOR_DISPLACEMENT", "TEX_POINTDENSITY", "RAYCAST"))
 
 
 class _WorldColours(MaterialConverter):
     """The material converter's colour nodes (engine/shadernodes) for a world's Background
     colour or a factor: Environment and Sky Textures become _EnvLeaf nodes (made at
-    strength 1); Texture Coordinate reads the direction (WorldDirections; its Camera,
-    Window, Reflection and UV outputs warned, read as Generated)."""
+    strength 1); Texture Coordinate reads the direction (engine worldgraph.
+    WorldDirections), its Camera and Window outputs the camera's projection of it (with
+    a camera_view; view_dependent then set), Reflection its opposite (Cycles' sd->wi);
+    UV warned, read as Generated. An Image Texture is read at its Vector."""
 
-    def __init__(self, pm, world, warnings):
+    def __init__(self, pm, world, warnings, camera_view=None):
         super().__init__(pm)
+        self.camera_view = camera_view
+        self.view_dependent = False
         self._world, self._world_warnings = world, warnings
         self._mat = type("WorldName", (), {"name": world.name})()
         self._warned, self._warnings = set(), []
@@ -405,6 +429,10 @@ class _WorldColours(MaterialConverter):
         if n.type in _SURFACE_ONLY_NODES:
             return None  # (warned by the converter: not supported, the socket's value)
         oname = getattr(out, "name", out)
+        if n.type == "TEX_COORD" and (oname == "Reflection" or (
+                oname in ("Window", "Camera") and self.camera_view is not None)):
+            self.view_dependent |= oname != "Reflection"
+            return self.pm.shadernodes.ViewCoordinates(oname.upper())
         if n.type == "TEX_COORD" and oname not in ("Generated", "Object", "Normal"):
             self._warn(f"material '{self._world.name}': Texture Coordinate '{n.name}' "
                        f"output '{oname}' is not supported in the world (Generated, Object "
@@ -438,14 +466,17 @@ def _background_color(pm, world, node, warnings, memo):
     who = f"world '{world.name}'"
     col_socket = node.inputs["Color"]
     color = np.asarray(tuple(col_socket.default_value)[:3], dtype=np.float64)
-    colours = _WorldColours(pm, world, warnings)
+    camera_view = memo.get(_CAMERA_VIEW)
+    colours = _WorldColours(pm, world, warnings, camera_view)
     colours.fallback = color
     val = colours.colour(node, col_socket)
     term = None
     if isinstance(val, _EnvLeaf):
         term = EnvTerm(val.make, val.env)
     elif hasattr(val, "evaluate"):
-        term = _bake_colours(pm, world, val, colours.leaves, warnings)
+        term = _bake_colours(pm, world, val, colours.leaves, warnings, camera_view)
+        if term is not None:
+            term.graph, term.reads_camera = val, colours.view_dependent
         if term is None:
             src = _from(col_socket)
             warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the "
@@ -526,7 +557,7 @@ def _bake_environment(pm, pixels, height, width, first, name, warnings=None, who
                           name=name if first is None else first.name)
 
 
-def _bake_colours(pm, world, val, leaves, warnings):
+def _bake_colours(pm, world, val, leaves, warnings, camera_view=None):
     """EnvTerm of a colour graph over environment maps (leaves) or over the direction
     alone (no leaves: a gradient sky): evaluated on the bake grid of the first map
     (bake_grid; every map looked up there) or the DIRECTION_BAKE grid, negatives
@@ -536,7 +567,8 @@ def _bake_colours(pm, world, val, leaves, warnings):
     height, width, dirs = bake_grid(first)
     n = height * width
     try:
-        rgb = np.asarray(val.evaluate(WorldDirections(dirs), np.arange(n), np.zeros(n),
+        rgb = np.asarray(val.evaluate(pm.worldgraph.WorldDirections(dirs, camera_view),
+                                      np.arange(n), np.zeros(n),
                                       np.zeros(n)), np.float64)
     except Exception as exc:  # noqa: BLE001 - a node that needs a surface
         if not leaves:
@@ -560,7 +592,7 @@ def _bake_colours(pm, world, val, leaves, warnings):
     return EnvTerm(make)
 
 
-def _resolve_terms(pm, terms, warnings=None, who="the world") -> tuple:
+def _resolve_terms(pm, terms, warnings=None, who="the world", camera_view=None) -> tuple:
     """(background RGB (3,), Environment or None) of [(weight, term)], weight a float or
     a _Weight, term an RGB (3,) or an EnvTerm: the colours summed; one map alone at a
     constant weight made at that weight; otherwise (several maps, a map and colours, a
@@ -588,7 +620,7 @@ def _resolve_terms(pm, terms, warnings=None, who="the world") -> tuple:
         return first.average(), first
     first = maps[0][1].unit if maps else None
     height, width, dirs = bake_grid(first, fine=bool(varying))
-    geo = WorldDirections(dirs)
+    geo = pm.worldgraph.WorldDirections(dirs, camera_view)
     pixels = np.broadcast_to(const, (height * width, 3)).copy()
     for w, term in terms:
         if not isinstance(w, _Weight) and w <= 0.0:
@@ -606,7 +638,8 @@ def _resolve_terms(pm, terms, warnings=None, who="the world") -> tuple:
         w0 = maps[0][0]
         if isinstance(w0, _Weight):  # the weight toward the sun (travel: -direction)
             toward = -np.asarray(sun["direction"], np.float64).reshape(1, 3)
-            w0 = float(w0.values(WorldDirections(toward / np.linalg.norm(toward)))[0])
+            w0 = float(w0.values(pm.worldgraph.WorldDirections(
+                toward / np.linalg.norm(toward), camera_view))[0])
         env.sun_light = dict(sun, color=np.asarray(sun["color"], np.float64) * w0)
     return env.average(), env
 

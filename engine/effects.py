@@ -23,6 +23,7 @@ from .rayoffset import ulp32
 from .sampling import luminance
 from .scene import AREA, SUN
 from .settings import CYCLES_DEFAULT_BOUNCES
+from .worldgraph import WorldGraph
 
 PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can reach it
 # A report line names at most this many objects, then says how many more (a scene of
@@ -747,7 +748,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                        "where the sky lights it most" if env is None else
                        f"environment map '{env.name}' ({env.width}x{env.height}) lights "
                        "the scene (shadow rays importance-sample the map)")
-            if worldmedium.has_camera_world(scene):
+            if isinstance(getattr(scene, "camera_environment", None), WorldGraph):
+                how += ("; the camera sees the world's nodes evaluated at each of its rays "
+                        "(a backplate of the Texture Coordinate's Window or Camera "
+                        "output lands on the pixels as sharp as its image; the light is "
+                        "the image as Cycles projects it through the camera, baked)")
+            elif worldmedium.has_camera_world(scene):
                 how += ("; the camera sees a world of its own behind the scene (a Light "
                         "Path Is Camera Ray mix, or Ray Visibility > Camera off), which "
                         "lights nothing")

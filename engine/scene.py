@@ -1388,7 +1388,8 @@ class Scene:
     # world when it differs from what lights the scene: a world that mixes its shaders by
     # Light Path's Is Camera Ray (Cycles). None: `background` / `environment`, as every
     # other ray. camera_background (3,) RGB radiance; camera_environment an Environment
-    # that replaces it (engine/worldmedium.background).
+    # that replaces it (engine/worldmedium.background), or a worldgraph.WorldGraph (a
+    # screen-mapped backplate: the world's nodes evaluated at each camera ray).
     camera_background: tuple | np.ndarray | None = None
     camera_environment: object | None = None
     # Blender's World > Mist Pass as Cycles' film reads it: (start m, depth m, falloff
@@ -1488,7 +1489,10 @@ class Scene:
             env = getattr(self, name)
             if env is not None:
                 from .lights.environment import Environment
-                if not isinstance(env, Environment):
+                from .worldgraph import WorldGraph
+                # (camera rays may see a world graph evaluated per ray: a backplate)
+                if not isinstance(env, (Environment, WorldGraph) if name ==
+                                  "camera_environment" else Environment):
                     raise SceneError(f"{name}: expected an engine Environment, got "
                                      f"{type(env).__name__}")
         if self.camera_background is not None:

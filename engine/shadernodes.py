@@ -1580,8 +1580,11 @@ class ViewCoordinates:
         view = getattr(geo, "camera_view", None)
         if view is None:
             return np.zeros((len(prim), 3))
-        p = geo.hit_points(prim, np.asarray(u, np.float64),
-                           np.asarray(v, np.float64)) + np.asarray(geo.offset)
+        if hasattr(geo, "view_points"):  # a world's directions (engine/worldgraph.py)
+            p = geo.view_points(prim, u, v)
+        else:
+            p = geo.hit_points(prim, np.asarray(u, np.float64),
+                               np.asarray(v, np.float64)) + np.asarray(geo.offset)
         return view.to_camera(p) if self.output == "CAMERA" else view.to_ndc(p)
 
 

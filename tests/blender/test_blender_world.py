@@ -397,17 +397,18 @@ def test_textured_mix_factor_and_strength_vary_with_direction(mb, bpy_addon):
 
 
 def test_world_nodes_that_need_a_surface_or_the_screen_warn(mb, bpy_addon):
-    """Texture Coordinate's Window output (a backplate mapped to the screen) is read as
-    the direction and warned naming the node; a Light Path output inside a colour graph
-    warned, its socket's value used."""
+    """Texture Coordinate's UV output (a world has no UV map) is read as the direction
+    and warned naming the node (its Window output is the camera's projection:
+    tests/blender/test_world_backplate_cycles.py); a Light Path output inside a colour
+    graph warned, its socket's value used."""
     bpy = bpy_addon
     nt, bg, coord = _direction_world(bpy)
     coord.name = "Screen"
     noise = nt.nodes.new("ShaderNodeTexNoise")
-    nt.links.new(coord.outputs["Window"], noise.inputs["Vector"])
+    nt.links.new(coord.outputs["UV"], noise.inputs["Vector"])
     nt.links.new(noise.outputs["Color"], bg.inputs["Color"])
     scene = _export(bpy)
-    hits = [w for w in scene.all_warnings() if "'Window'" in w]
+    hits = [w for w in scene.all_warnings() if "'UV'" in w]
     assert len(hits) == 1 and "Screen" in hits[0] and scene.environment is not None
     path = nt.nodes.new("ShaderNodeLightPath")
     path.name = "Path"
