@@ -1401,6 +1401,9 @@ class Scene:
     # Blender's World > Volume (WorldMedium, None: vacuum): a homogeneous medium filling
     # all space outside the objects' media (engine/worldmedium.py).
     world_medium: "WorldMedium | None" = None
+    # The Vector pass' motion (engine/vectorpass.SceneMotion: the camera and each mesh's
+    # object transform one frame before and after); None: nothing moves.
+    vector_motion: "object | None" = None
 
     def add_material(self, material: Material) -> Material:
         self.materials[material.name] = material

@@ -57,8 +57,8 @@ CYCLES_DEFAULT_BOUNCES = (12, 4, 4, 12)
 
 
 # RenderSettings.data_passes' values (engine/datapasses.py)
-DATA_PASSES = ("color", "denoising", "light", "material_index", "mist", "object_index",
-               "position", "uv")
+DATA_PASSES = ("ao", "color", "denoising", "light", "material_index", "mist", "object_index",
+               "position", "uv", "vector")
 # RenderSettings.cryptomatte's values (engine/cryptomatte.py KINDS)
 CRYPTOMATTE_KINDS = ("asset", "material", "object")
 
@@ -196,9 +196,13 @@ class RenderSettings:
     # Cycles' data passes to make besides the image (engine/datapasses.py): "denoising"
     # (Denoising Normal / Albedo / Depth), "color" (Diffuse / Glossy / Transmission Color),
     # "object_index", "material_index", "position", "uv", "mist" (one pass each), "light"
-    # (Cycles' light passes, engine/lightpasses.py; it brings "color").
+    # (Cycles' light passes, engine/lightpasses.py; it brings "color"), "ao" (Ambient
+    # Occlusion, engine/aopass.py), "vector" (motion vectors: Scene.vector_motion).
     # Extra outputs: the image's bits do not depend on them.
     data_passes: tuple = ()
+    # The Ambient Occlusion pass' ray length, m (Blender's World > Settings > Ambient
+    # Occlusion > Distance, world.light_settings.distance; Cycles takes 10 without a world).
+    ao_distance: float = 10.0
     # Shader AOVs (Blender's View Layer > Shader AOV): ((name, "value" | "color"), ...),
     # written by the materials' AOV Output nodes (engine/datapasses.py, Material.aovs).
     shader_aovs: tuple = ()
@@ -323,6 +327,12 @@ class RenderSettings:
                              f"number from 0 (off) to {FILTER_GLOSSY_MAX:g}, got {v!r}")
         self.cycles_filter_glossy = fg
         self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
+        ad = self.ao_distance
+        if isinstance(ad, bool) or not isinstance(ad, (int, float, np.floating, np.integer)) \
+                or not math.isfinite(float(ad)) or float(ad) < 0.0:
+            raise ValueError("setting 'ao_distance' (the Ambient Occlusion pass' distance, m) "
+                             f"must be a number >= 0, got {ad!r}")
+        self.ao_distance = float(ad)
         self.shader_aovs = _shader_aovs(self.shader_aovs)
         if "light" in self.data_passes and "color" not in self.data_passes:
             # Blender shows the light passes divided by the Color passes (Cycles adds
