@@ -72,6 +72,13 @@ VECTOR_PASS = ("use_pass_vector", "Vector", "vector", 4, "XYZW", "VECTOR")
 VECTOR_WITH_BLUR = "Vector (made with Motion Blur off, as Cycles)"
 
 
+def light_group_passes(view_layer) -> list[tuple[str, str]]:
+    """(group name, pass name) of the view layer's Light Groups: Cycles' pass
+    "Combined_<group>" each (engine/lightgroups.py)."""
+    return [(g.name, f"Combined_{g.name}") for g in getattr(view_layer, "lightgroups", ())
+            if g.name]
+
+
 def _ao_vector_passes(view_layer=None):
     """AO_PASS and VECTOR_PASS (those view_layer asks for: both when None) with this
     Blender's pass names."""
@@ -239,7 +246,6 @@ def unmade_passes_warning(view_layer, adaptive: bool = False, volume_bounces: in
     cyc = getattr(view_layer, "cycles", None)
     if not adaptive and bool(getattr(cyc, "pass_debug_sample_count", False)):
         names.append("Debug Sample Count (made with adaptive sampling only)")
-    names += [f"Light Group '{g.name}'" for g in getattr(view_layer, "lightgroups", ())]
     if not names:
         return None
     return (f"view layer '{view_layer.name}' asks for passes Photon Mapping does not make "
@@ -504,6 +510,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
         for _, name, _, channels, chan_id, kind in _ao_vector_passes(renderlayer):
             self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        for _, name in light_group_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         if _shadow_catcher_pass(renderlayer):
             self.register_pass(scene, renderlayer, SHADOW_CATCHER_PASS, 3, "RGB", "COLOR")
         if _adaptive(scene):
@@ -606,6 +614,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             kwargs["seed"] = frame_seed(props.seed, scene.frame_current)
         kwargs["data_passes"] = data_passes(view_layer)
         kwargs["ao_distance"] = ao_distance(scene)
+        kwargs["light_groups"] = tuple(g for g, _ in light_group_passes(view_layer))
         kwargs["shader_aovs"] = view_layer_aovs(view_layer)
         kwargs["cryptomatte"] = tuple(k for switch, k, _ in CRYPTOMATTE_LAYERS
                                       if getattr(view_layer, switch, False))
@@ -891,6 +900,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 self.add_pass(name, channels, chan_id, layer=layer)
         for _, name, _, channels, chan_id, _ in _ao_vector_passes(view_layer):
             self.add_pass(name, channels, chan_id, layer=layer)
+        for _, name in light_group_passes(view_layer):
+            self.add_pass(name, 3, "RGB", layer=layer)
         if _shadow_catcher_pass(view_layer):
             self.add_pass(SHADOW_CATCHER_PASS, 3, "RGB", layer=layer)
         if sample_count:
@@ -937,6 +948,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                         else data.get(key))
                 if made is not None:
                     buffers[name] = made
+            groups = _engine_module("lightgroups")
+            for group, name in light_group_passes(view_layer):
+                if groups.key(group) in data:
+                    buffers[name] = data[groups.key(group)]
             # The light passes as Blender shows them (Direct / Indirect / Color).
             scene = view_layer.id_data
             shown = _engine_module("lightpasses").shown(data, _volume_bounces(scene))

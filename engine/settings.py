@@ -211,6 +211,10 @@ class RenderSettings:
     # from primary rays of their own: the image's bits do not depend on them.
     cryptomatte: tuple = ()
     cryptomatte_levels: int = 6
+    # Light Group passes to make (Blender's View Layer > Light Groups: their names;
+    # engine/lightgroups.py): each a render of its own of the group's emitters, in
+    # Film.data["lightgroup:" + name]. The image's bits do not depend on them.
+    light_groups: tuple = ()
     # Blender's View Layer > Passes > Data > Alpha Threshold (pass_alpha_threshold):
     # the UV pass is written at the first camera-chain surface whose alpha reaches it
     # (Cycles' film_write_data_passes; 0: the first surface whatever its alpha).
@@ -339,6 +343,12 @@ class RenderSettings:
             # them to its buffer when a light pass is asked for): made with them.
             self.data_passes = tuple(sorted(self.data_passes + ("color",)))
         self.cryptomatte = _word_set("cryptomatte", self.cryptomatte, CRYPTOMATTE_KINDS)
+        groups = (self.light_groups,) if isinstance(self.light_groups, str) else \
+            tuple(self.light_groups or ())
+        if not all(isinstance(g, str) and g for g in groups):
+            raise ValueError("setting 'light_groups' takes light group names (non-empty "
+                             f"strings), got {self.light_groups!r}")
+        self.light_groups = tuple(dict.fromkeys(groups))  # (in order, once each)
         lv = self.cryptomatte_levels
         if isinstance(lv, bool) or not isinstance(lv, (int, np.integer)) or not 1 <= lv <= 16:
             raise ValueError("setting 'cryptomatte_levels' must be a whole number from 1 to "
