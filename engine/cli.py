@@ -255,6 +255,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "Indirect, Emission, Environment; brings color), object_index, "
                         "material_index, position, uv, mist, ao (Ambient Occlusion, rays of "
                         "--ao-distance); written with --save-passes")
+    r.add_argument("--light-groups", type=lambda t: tuple(x.strip() for x in t.split(",")
+                                                          if x.strip()),
+                   metavar="NAMES",
+                   help="Light Group passes to make, comma-separated group names (the "
+                        "scene file's lightgroup = \"NAME\" on lights, objects and "
+                        "world_lightgroup): each the image of its emitters alone, written "
+                        "with --save-passes as name.lightgroup_NAME.exr")
     r.add_argument("--ao-distance", type=float, metavar="M",
                    help="the Ambient Occlusion pass' ray length in metres (Blender's World > "
                         "Ambient Occlusion > Distance; default 10)")
@@ -393,7 +400,8 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
                  "method", "max_bounces", "diffuse_bounces", "glossy_bounces",
                  "transmission_bounces", "adaptive_threshold", "adaptive_min_samples",
                  "clamp_direct", "clamp_indirect",
-                 "data_passes", "ao_distance", "cryptomatte", "cryptomatte_levels"):
+                 "data_passes", "ao_distance", "light_groups", "cryptomatte",
+                 "cryptomatte_levels"):
         v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v

@@ -98,3 +98,60 @@ def test_light_groups_setting():
     for bad in (("",), (3,)):
         with pytest.raises(ValueError, match="light_groups"):
             RenderSettings(light_groups=bad)
+
+
+SCENE_FILE = """
+background = [0.2, 0.2, 0.2]
+world_lightgroup = "sky"
+
+[render]
+width = 12
+height = 9
+spp = 2
+photons = 3000
+caustic_photons = 300
+
+[camera]
+position = [0, -4, 3]
+look_at = [0, 0, 0]
+up = [0, 0, 1]
+fov = 50
+
+[materials.grey]
+base_color = [0.5, 0.5, 0.5]
+
+[[objects]]
+type = "plane"
+name = "floor"
+center = [0, 0, 0]
+normal = [0, 0, 1]
+size = 6
+material = "grey"
+
+[[lights]]
+type = "point"
+name = "lamp"
+position = [0, 0, 2]
+power = 200
+lightgroup = "key"
+"""
+
+
+def test_scene_file_and_cli_write_light_groups(tmp_path):
+    """The scene file's lightgroup / world_lightgroup and `photonmap render --light-groups
+    key,sky --save-passes` write each group's pass as name.lightgroup_NAME.exr, summing to
+    the image."""
+    from engine.cli import main
+    from engine.imageio import read_image
+    path = tmp_path / "lg.toml"
+    path.write_text(SCENE_FILE)
+    out = tmp_path / "lg.exr"
+    assert main(["render", str(path), "-o", str(out), "--light-groups", "key,sky",
+                 "--save-passes", "--quiet"]) == 0
+    key_pass = read_image(str(tmp_path / "lg.lightgroup_key.exr"))
+    sky_pass = read_image(str(tmp_path / "lg.lightgroup_sky.exr"))
+    image = read_image(str(out))[..., :3]
+    assert key_pass.shape == sky_pass.shape == (9, 12, 3)
+    assert key_pass.mean() > 0.05 and np.allclose(sky_pass[0, 0], 0.2, atol=1e-3)
+    total = key_pass + sky_pass
+    assert abs(total.mean() / image.mean() - 1.0) < 0.1
