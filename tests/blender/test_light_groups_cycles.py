@@ -17,7 +17,7 @@ import pytest
 
 from blender_helpers import ROOT, cheap, cycles_plain, read_layers, render_exr
 
-pytestmark = [pytest.mark.blender, pytest.mark.slow]
+pytestmark = pytest.mark.blender
 
 W, H = 64, 48
 GROUPS = ("key", "sun", "glow", "sky")
@@ -75,6 +75,7 @@ def _blocks(a, s=16):
     return a[:h // s * s, :w // s * s].reshape(h // s, s, w // s, s, -1).mean(axis=(1, 3))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("group", GROUPS)
 def test_group_pass_matches_cycles(renders, group):
     cyc = renders["CYCLES"][f"Combined_{group}"][..., :3]
@@ -87,6 +88,7 @@ def test_group_pass_matches_cycles(renders, group):
     assert np.all(np.abs(bo[lit] / bc[lit] - 1.0) < 0.08), (group, (bo / bc)[..., 0])
 
 
+@pytest.mark.slow
 def test_groups_sum_to_combined(renders):
     for engine, tol in (("CYCLES", 1e-4), ("PHOTONMAP", 0.015)):
         passes = renders[engine]
@@ -94,3 +96,54 @@ def test_groups_sum_to_combined(renders):
         combined = passes["Combined"][..., :3]
         assert abs(total.mean() / combined.mean() - 1.0) < tol, (engine, total.mean(),
                                                                   combined.mean())
+
+
+def test_panels_draw_the_light_groups_and_passes(bpy_addon):
+    """The View Layer's Passes panel offers Vector and Ambient Occlusion, its Light Groups
+    sub-panel the groups' list; Object and World panels their Light Group field (Cycles'
+    own panels show for Cycles alone)."""
+    from types import SimpleNamespace
+
+    from addon import ui
+
+    log = []
+
+    class Layout:
+        use_property_split = use_property_decorate = False
+        enabled = True
+
+        def column(self, **kw):
+            return self
+
+        row = column
+
+        def prop(self, owner, name, **kw):
+            log.append(name)
+
+        def prop_search(self, owner, name, *args, **kw):
+            log.append(("search", name))
+
+        def template_list(self, *args, **kw):
+            log.append(("list", args[3]))
+
+        def operator(self, name, **kw):
+            log.append(name)
+            return SimpleNamespace(name="")
+
+        def separator(self):
+            pass
+
+        def menu(self, *args, **kw):
+            pass
+
+    scene = bpy_addon.context.scene
+    ctx = SimpleNamespace(view_layer=scene.view_layers[0], object=scene.objects[0],
+                          world=scene.world or bpy_addon.data.worlds.new("w"))
+    ui.PHOTONMAP_PT_passes.draw(SimpleNamespace(layout=Layout()), ctx)
+    assert "use_pass_vector" in log and "use_pass_ambient_occlusion" in log
+    ui.PHOTONMAP_PT_passes_lightgroups.draw(SimpleNamespace(layout=Layout()), ctx)
+    assert ("list", "lightgroups") in log
+    for panel in (ui.PHOTONMAP_PT_object_lightgroup, ui.PHOTONMAP_PT_world_lightgroup):
+        log.clear()
+        panel.draw(SimpleNamespace(layout=Layout()), ctx)
+        assert ("search", "lightgroup") in log
