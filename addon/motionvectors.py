@@ -3,7 +3,9 @@ frame (as Cycles' motion pass samples it: blender/sync.cpp, frame -1 and +1 with
 motion blur off), turned into the engine's vectorpass.SceneMotion (the cameras, and
 each mesh's object transform relative to the frame's, matched by the export's mesh
 names). A mesh whose vertices move within its object (armature, shape keys,
-simulations) is named in a warning: its vectors follow the object's transform only."""
+modifiers) carries its vertices' displacements (SceneMotion.deform, Cycles' deformation
+motion); one whose vertex count changes between the frames is named in a warning: its
+vectors follow the object's transform only."""
 from __future__ import annotations
 
 import importlib
@@ -46,35 +48,45 @@ def scene_motion(engine, pm, depsgraph, pm_scene, width, height):
     prev, nxt = others
     by_name = [{m.name: m for m in s.meshes} for s in others]
     objects = {}
-    deformed = []
+    deform = {}
+    changed = []  # meshes whose vertex count differs between the frames
     for mesh in pm_scene.meshes:
-        maps = []
+        maps, moves, bent = [], [], False
+        a = _world_vertices(mesh)
         for table in by_name:
             other = table.get(mesh.name)
             if other is None:
                 maps.append(vp.SceneMotion.object_map(mesh.object_linear, mesh.location,
                                                       mesh.object_linear, mesh.location))
+                moves.append(None)
                 continue
             maps.append(vp.SceneMotion.object_map(mesh.object_linear, mesh.location,
                                                   other.object_linear, other.location))
-            if mesh.name not in deformed:
-                a, b = _world_vertices(mesh), _world_vertices(other)
-                if a.shape == b.shape and len(a):
-                    m = maps[-1]
-                    moved = a @ m[:, :3].T + m[:, 3]
-                    size = float(np.ptp(a, axis=0).max()) or 1.0
-                    if float(np.abs(moved - b).max()) > DEFORM_TOLERANCE * size:
-                        deformed.append(mesh.name)
+            b = _world_vertices(other)
+            moves.append(b - a if a.shape == b.shape else None)
+            if not len(a):
+                continue
+            if a.shape != b.shape:
+                if mesh.name not in changed:
+                    changed.append(mesh.name)
+                continue
+            m = maps[-1]
+            size = float(np.ptp(a, axis=0).max()) or 1.0
+            bent |= float(np.abs(a @ m[:, :3].T + m[:, 3] - b).max()) > DEFORM_TOLERANCE * size
+        if bent:  # (a frame without the mesh, or of another count: no displacement)
+            deform[mesh.name] = tuple(d if d is not None else
+                                      a @ mp[:, :3].T + mp[:, 3] - a
+                                      for d, mp in zip(moves, maps))
         identity = np.allclose(maps[0][:, :3], np.eye(3)) and np.allclose(maps[1][:, :3],
                                                                           np.eye(3))
         if not (identity and not maps[0][:, 3].any() and not maps[1][:, 3].any()):
             objects[mesh.name] = (maps[0], maps[1])
     warnings = []
-    if deformed:
-        names = ", ".join(f"'{n}'" for n in deformed[:5]) + (
-            f" and {len(deformed) - 5} more" if len(deformed) > 5 else "")
-        warnings.append(f"Vector pass: the vertices of {names} move within the object "
-                        "(armature, shape keys, simulation): their vectors follow the "
+    if changed:
+        names = ", ".join(f"'{n}'" for n in changed[:5]) + (
+            f" and {len(changed) - 5} more" if len(changed) > 5 else "")
+        warnings.append(f"Vector pass: {names} change their vertex count between frames "
+                        "(a modifier or simulation remeshes them): their vectors follow the "
                         "object's transform only")
     return vp.SceneMotion(prev_camera=prev.camera, next_camera=nxt.camera,
-                          objects=objects), warnings
+                          objects=objects, deform=deform), warnings

@@ -225,7 +225,8 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
                      _NO_TP, uvw)
         if "vector" in want and motion is not None:
             pre, post = motion.vectors(hit.p[fin] + geo.offset,
-                                       np.take(geo.object_id, prim[fin]))
+                                       np.take(geo.object_id, prim[fin]), prim[fin],
+                                       u[fin], v[fin])
             at = np.ascontiguousarray(pix, np.int64)
             for key, vec in zip(vectorpass.KEYS, (pre, post)):
                 film_add(_buf(acc, key, 3), acc.lo, at, fin, _NO_TP, vec)

@@ -20,9 +20,14 @@ the background reads 0 and a pixel half covered the covered half's motion.
 
 Here: each mesh moves with its object's transform (Mesh.location and object_linear at
 the three frames, matched by name): P_prev = A_prev A^-1 P. A mesh whose vertices move
-within the object (an armature, a shape key, a simulation) has its object's motion
-only: the add-on warns (addon/motionvectors.py). Each write adds (x, y, 1) into two
-Accumulator.data sums (KEYS), the third channel the motion weight; shown() divides.
+within the object (an armature, shape keys, a modifier: Cycles' deformation motion,
+its motion vertex attributes interpolated by the barycentrics) carries its vertices'
+world displacements to the two frames (SceneMotion.deform): P_prev = P + sum_k w_k
+(V_prev,k - V_k) over the hit triangle's corners, w its barycentric weights. (Traced
+two-level, instanced rows take their object's transform.) A mesh whose vertex count
+changes between frames has its object's motion only: the add-on warns
+(addon/motionvectors.py). Each write adds (x, y, 1) into two Accumulator.data sums
+(KEYS), the third channel the motion weight; shown() divides.
 """
 from __future__ import annotations
 
@@ -40,11 +45,14 @@ class SceneMotion:
     next_camera: scene.Camera one frame before / after (None: the frame's camera);
     objects: {mesh name: ((3,4) prev, (3,4) next)} affine maps taking a world point of
     the mesh at the frame to the same point one frame before / after (identity for a
-    mesh not listed)."""
+    mesh not listed); deform: {mesh name: ((V,3) prev, (V,3) next)} world displacements
+    of a deforming mesh's vertices (Mesh.vertices' order) to the frame before / after,
+    used instead of its object's map."""
 
     prev_camera: object = None
     next_camera: object = None
     objects: dict = field(default_factory=dict)
+    deform: dict = field(default_factory=dict)
 
     @staticmethod
     def object_map(linear, location, linear_other, location_other) -> np.ndarray:
@@ -91,13 +99,30 @@ class VectorMotion:
             pair = sm.objects.get(name)
             if pair is not None:
                 self.maps[i, 0], self.maps[i, 1] = pair
+        # Deforming meshes (row-wise triangles, not two-level): object row -> (faces,
+        # prev, next displacements) and the object's first triangle row.
+        self.deform = {}
+        if sm.deform and getattr(geo, "shared", None) is None and geo.count:
+            faces = {m.name: m.faces for m in scene.meshes if m.vertices is not None}
+            oid = np.asarray(geo.object_id)
+            rows, first = np.unique(oid, return_index=True)
+            start = dict(zip(rows.tolist(), first.tolist()))
+            for i, name in enumerate(names):
+                moved = sm.deform.get(name)
+                f = faces.get(name)
+                if moved is None or f is None or i not in start:
+                    continue
+                dprev, dnext = (np.asarray(x, np.float64) for x in moved)
+                if len(dprev) > int(np.max(f, initial=-1)):
+                    self.deform[i] = (start[i], np.asarray(f, np.int64), dprev, dnext)
 
     def _raster(self, view, p):
         return view.to_ndc(p)[:, :2] * self.size
 
-    def vectors(self, p, obj):
+    def vectors(self, p, obj, prim=None, u=None, v=None):
         """(pre (K,3), post (K,3)): (x, y, 1) of the motion vectors (module docstring) at
-        world points p (K,3) of object rows obj (K,)."""
+        world points p (K,3) of object rows obj (K,), on triangles prim (K,) at
+        barycentrics u, v (K,) (for the deforming meshes; None: objects' maps only)."""
         k = len(p)
         pre = np.zeros((k, 3))
         post = np.zeros((k, 3))
@@ -108,6 +133,21 @@ class VectorMotion:
         p = np.asarray(p, np.float64)
         p_prev = np.einsum("kij,kj->ki", m[:, 0, :, :3], p) + m[:, 0, :, 3]
         p_next = np.einsum("kij,kj->ki", m[:, 1, :, :3], p) + m[:, 1, :, 3]
+        if self.deform and prim is not None:
+            obj = np.asarray(obj, np.int64)
+            for i, (start, faces, dprev, dnext) in self.deform.items():
+                rows = np.flatnonzero(obj == i)
+                if not len(rows):
+                    continue
+                local = np.asarray(prim, np.int64)[rows] - start
+                ok = (local >= 0) & (local < len(faces))
+                rows, corners = rows[ok], faces[local[ok]]
+                uu = np.asarray(u, np.float64)[rows][:, None]
+                vv = np.asarray(v, np.float64)[rows][:, None]
+                w0 = 1.0 - uu - vv
+                for d, out in ((dprev, p_prev), (dnext, p_next)):
+                    out[rows] = p[rows] + (w0 * d[corners[:, 0]] + uu * d[corners[:, 1]]
+                                           + vv * d[corners[:, 2]])
         center = self._raster(self.view, p)
         with np.errstate(invalid="ignore", divide="ignore"):
             pre[:, :2] = self._raster(self.prev, p_prev) - center

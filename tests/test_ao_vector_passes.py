@@ -132,3 +132,22 @@ def test_write_data_passes(tmp_path):
     film = _render(s, ("ao", "vector"), spp=2, ao_distance=2.0)
     names = sorted(p.rsplit(".", 2)[1] for p in film.write_data_passes(str(tmp_path / "x")))
     assert names == ["ao", "vector_post", "vector_pre"]
+
+
+def test_vector_of_a_deforming_mesh():
+    """A floor whose vertices spread out by 10 % a frame about the origin (deformation
+    motion, SceneMotion.deform: no object transform explains it): a point P a frame ago
+    was at 1.1 P... seen from straight above, pre = 0.1 x its image offset from the centre
+    (the barycentric interpolation of a linear displacement is exact)."""
+    s = _scene(floor_half=3.0)
+    floor = s.meshes[0]
+    d = 0.1 * np.asarray(floor.vertices, np.float64)
+    s.vector_motion = SceneMotion(deform={"floor": (d, -d)})
+    film = _render(s, ("vector", "position"), spp=1)
+    vec = shown(film.data)
+    pos = film.data["position"]
+    ppm = _pixels_per_metre()
+    assert np.allclose(vec[..., 0], 0.1 * ppm * pos[..., 0], atol=1e-4)
+    assert np.allclose(vec[..., 1], 0.1 * ppm * pos[..., 1], atol=1e-4)
+    assert np.allclose(vec[..., 2:], vec[..., :2], atol=1e-4)
+    assert np.abs(vec).max() > 0.5
