@@ -155,3 +155,15 @@ def test_scene_file_and_cli_write_light_groups(tmp_path):
     assert key_pass.mean() > 0.05 and np.allclose(sky_pass[0, 0], 0.2, atol=1e-3)
     total = key_pass + sky_pass
     assert abs(total.mean() / image.mean() - 1.0) < 0.1
+
+
+def test_memory_estimate_counts_the_group_render():
+    """engine/resources.py counts a light group's render (its scene and photon maps, one
+    group at a time beside the main render's) and the groups' passes."""
+    from engine.resources import estimate_memory
+    s = _scene()
+    plain = estimate_memory(s, _settings())
+    grouped = estimate_memory(s, _settings(light_groups=("a", "b")))
+    assert "light group render" not in plain.parts
+    assert grouped.parts["light group render"] >= plain.parts["photon maps"]
+    assert grouped.parts["data passes"] == W * H * 6 * 12  # (3 channels a group)
