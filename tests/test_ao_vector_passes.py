@@ -151,3 +151,21 @@ def test_vector_of_a_deforming_mesh():
     assert np.allclose(vec[..., 1], 0.1 * ppm * pos[..., 1], atol=1e-4)
     assert np.allclose(vec[..., 2:], vec[..., :2], atol=1e-4)
     assert np.abs(vec).max() > 0.5
+
+
+def test_ao_through_a_half_transparent_sheet():
+    """The camera sees the floor through a sheet of alpha 0.5 at 1 m (both in view, the
+    camera 2 m up): the sheet writes throughput x alpha = 0.5 x its AO (1: nothing above
+    it), the floor the other half x its AO through the sheet, (1/2)^2 + (1 - (1/2)^2) x
+    0.5 = 0.625 at D = 2 (Cycles' AO at every camera-chain surface): 0.8125."""
+    s = PaperScene(W, H, background=(0.2, 0.2, 0.2))
+    s.add_material(Material("m", (0.5, 0.5, 0.5)))
+    s.add_material(Material("c", (0.5, 0.5, 0.5), alpha=0.5))
+    v, f = _quad(0.0, 40.0)
+    s.add_mesh(Mesh("floor", v, f, materials=["m"]))
+    v, f = _quad(1.0, 40.0)
+    s.add_mesh(Mesh("sheet", v, f, materials=["c"]))
+    s.add_point_light((0.0, 0.0, 3.0), power=100.0)
+    s.set_camera((0.0, 0.0, 2.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), view_angle=VIEW)
+    ao = _render(s, ao_distance=2.0).data["ao"]
+    assert abs(float(ao.mean()) - 0.8125) < 0.02, ao.mean()
