@@ -106,6 +106,9 @@ class Context:
     links: object = None
     # Heterogeneous media (engine/heterogeneous.py: density textures; None: none).
     hetero: object = None
+    # Light groups' contexts kept between passes (render_progressive: {name: Context});
+    # None: each group's context is built and closed within its pass (_render_light_groups).
+    light_group_contexts: dict | None = None
 
 
     def serial(self) -> "Context":
@@ -198,6 +201,8 @@ def close_context(ctx: Context) -> None:
         ctx.links.close()
     if ctx.catcher_alone is not None:
         ctx.catcher_alone.accel.close()
+    for group in (ctx.light_group_contexts or {}).values():
+        close_context(group)
     if getattr(ctx.hetero, "accel", None) is not None:
         ctx.hetero.accel.close()  # (the textured media's boundaries: heterogeneous.py)
 
@@ -386,7 +391,9 @@ def _render_alone(ctx: Context, region, film: Film, progress, should_cancel) -> 
 def _render_light_groups(ctx: Context, region, film: Film, progress, should_cancel) -> None:
     """Each light group's render (engine/lightgroups.py): a photon and camera pass of the
     scene with only the group's emitters, its Combined into film.data; raises
-    Cancelled. A group without emitters is black without a render."""
+    Cancelled. A group without emitters is black without a render. Its context is built
+    for the pass and closed after it, or kept in ctx.light_group_contexts when that is a
+    dict (progressive passes: built once)."""
     t0 = time.perf_counter()
     x0, y0, x1, y1 = region
     settings = lightgroups.group_settings(ctx.settings)
@@ -405,12 +412,19 @@ def _render_light_groups(ctx: Context, region, film: Film, progress, should_canc
                 progress("light groups", (_i + (fraction if whole is None else whole))
                          / len(names), f"Light group '{_name}': {text}")
 
-        group = prepare_context(lightgroups.group_scene(ctx.scene, name), settings,
-                                should_cancel=should_cancel)
+        kept = ctx.light_group_contexts
+        group = None if kept is None else kept.get(name)
+        if group is None:
+            group = prepare_context(lightgroups.group_scene(ctx.scene, name), settings,
+                                    should_cancel=should_cancel)
+            if kept is not None:
+                kept[name] = group
+        group.settings = settings  # (this pass' seed and photon counts)
         try:
             one = _render_pass(group, region, told, should_cancel, True, None, inner.plan)
         finally:
-            close_context(group)
+            if kept is None:
+                close_context(group)
         if one.stats.get("cancelled"):
             raise Cancelled()
         film.data[lightgroups.key(name)] = one.combined

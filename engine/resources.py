@@ -392,9 +392,10 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
     est.drivers["triangles"] = "the scene's triangle count"
     if getattr(s, "light_groups", ()):
         # A light group's render (engine/lightgroups.py) builds its own scene, one group
-        # at a time, while the main render's is held: its triangles and photon maps.
-        est.parts["light group render"] = est.parts["triangles"] + est.parts.get(
-            "photon maps", 0)
+        # at a time, while the main render's is held: its triangles and photon maps;
+        # progressive passes keep every group's scene.
+        est.parts["light group render"] = (est.parts["triangles"] + est.parts.get(
+            "photon maps", 0)) * (len(s.light_groups) if progressive else 1)
         est.drivers["light group render"] = "light_groups"
     env = getattr(scene, "environment", None)
     if env is not None and getattr(scene, "background_is_light", True):

@@ -167,3 +167,14 @@ def test_memory_estimate_counts_the_group_render():
     assert "light group render" not in plain.parts
     assert grouped.parts["light group render"] >= plain.parts["photon maps"]
     assert grouped.parts["data passes"] == W * H * 6 * 12  # (3 channels a group)
+
+
+def test_progressive_passes_average_the_groups():
+    """Progressive passes render each group every pass (their scenes built once) and
+    average its pass as the image's: the groups still sum to Combined."""
+    from engine import Budget, render_progressive
+    film = render_progressive(_scene(), _settings(light_groups=("a", "b", "w")),
+                              Budget(passes=2))
+    assert film.stats["passes"] == 2
+    total = sum(film.data[key(g)] for g in "abw")
+    assert abs(total.mean() / film.combined.mean() - 1.0) < 0.01
