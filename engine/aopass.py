@@ -12,7 +12,7 @@ it gets through, the pass adds
     path throughput x surface alpha x the shadow ray's transmittance
 (transparent surfaces let it through with their transparency, Cycles' transparent
 shadows; anything else blocks it). The film divides by the samples: a fully open
-opaque surface seen directly reads 1, the background 0.
+opaque surface seen directly reads 1, the background and holdout surfaces 0.
 
 Here: the shading normal (hit.ns, the Normal Map / Bump nodes' included) stands for
 the diffuse closures' normal; the direction is ambientocclusion.ao_directions' single
@@ -48,6 +48,10 @@ def add_ao(acc, ctx, hit, prim, u, v, pix, tp, rows, distance: float, counters=N
     if len(rows) == 0 or not distance > 0.0:
         return
     rows = np.ascontiguousarray(rows, np.int64)
+    # A holdout surface ends the path before its AO (integrate_surface_holdout).
+    rows = rows[~np.asarray(np.take(ctx.geo.holdout, np.asarray(prim)[rows]), bool)]
+    if len(rows) == 0:
+        return
     alpha = (np.take(ctx.table.alpha, np.asarray(hit.mat)[rows])
              if getattr(hit, "alpha", None) is None
              else np.asarray(hit.alpha, np.float64)[rows])

@@ -169,3 +169,11 @@ def test_ao_through_a_half_transparent_sheet():
     s.set_camera((0.0, 0.0, 2.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), view_angle=VIEW)
     ao = _render(s, ao_distance=2.0).data["ao"]
     assert abs(float(ao.mean()) - 0.8125) < 0.02, ao.mean()
+
+
+def test_ao_of_a_holdout_is_zero():
+    """A holdout surface ends the camera path before Cycles' AO: the pass reads 0 there."""
+    s = _scene()
+    s.meshes[0].holdout = True
+    ao = _render(s, ao_distance=0.9, spp=2).data["ao"]
+    assert np.all(ao == 0.0)
