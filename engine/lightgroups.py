@@ -61,14 +61,14 @@ def members(scene, name: str) -> int:
     n = sum(1 for light in scene.lights if light.lightgroup == name)
     n += sum(1 for m in scene.meshes if m.lightgroup == name
              and any(_emits(scene.materials[k]) for k in m.materials))
-    return n + int(scene.world_lightgroup == name)
+    return n + int(scene.world_lightgroup == name)  # (the world: its colour, map, glow)
 
 
 def group_scene(scene, name: str):
     """scene with only light group `name`'s emitters (module docstring): its lamps; the
     emissive materials of meshes outside it swapped for dark copies; the world black
-    unless it is the group's; no shadow catchers, no motion vectors, no warnings (the
-    whole scene's are told once)."""
+    (and its volume's emission off) unless it is the group's; no shadow catchers, no
+    motion vectors, no warnings (the whole scene's are told once)."""
     materials = dict(scene.materials)
     meshes = []
     for m in scene.meshes:
@@ -102,6 +102,9 @@ def group_scene(scene, name: str):
         out.environment = None
         out.camera_background = None
         out.camera_environment = None
+        fog = scene.world_medium
+        if fog is not None and np.any(np.asarray(fog.emission) > 0):
+            out.world_medium = replace(fog, emission=(0.0, 0.0, 0.0))  # (its glow)
     return out
 
 

@@ -178,3 +178,12 @@ def test_progressive_passes_average_the_groups():
     assert film.stats["passes"] == 2
     total = sum(film.data[key(g)] for g in "abw")
     assert abs(total.mean() / film.combined.mean() - 1.0) < 0.01
+
+
+def test_world_volume_glow_is_the_worlds():
+    """An emitting World > Volume glows in the world's group only."""
+    from engine.scene import WorldMedium
+    s = _scene()
+    s.world_medium = WorldMedium(absorption=(0.01, 0.01, 0.01), emission=(0.02, 0.02, 0.02))
+    assert np.all(np.asarray(group_scene(s, "a").world_medium.emission) == 0.0)
+    assert np.all(np.asarray(group_scene(s, "w").world_medium.emission) == 0.02)
