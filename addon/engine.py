@@ -9,7 +9,7 @@ import traceback
 import bpy
 import numpy as np
 
-from . import export, viewport
+from . import export, motionvectors, viewport
 from .aovs import aov_passes, view_layer_aovs
 from .core import load_engine
 
@@ -64,6 +64,30 @@ SURFACE_PASSES = (("use_pass_mist", "Mist", "mist", 1, "Z", "VALUE"),
                   ("use_pass_material_index", "Material Index", "material_index", 1, "X",
                    "VALUE"))
 _OLD_SURFACE_NAMES = {"Object Index": "IndexOB", "Material Index": "IndexMA"}
+# Cycles' Ambient Occlusion pass (engine/aopass.py; Blender 4 names it AO) and Vector pass
+# (engine/vectorpass.py, made with motion blur off as Cycles): (view layer switch,
+# Blender 5's pass name, RenderSettings.data_passes kind, channels, chan_id, type).
+AO_PASS = ("use_pass_ambient_occlusion", "Ambient Occlusion", "ao", 3, "RGB", "COLOR")
+VECTOR_PASS = ("use_pass_vector", "Vector", "vector", 4, "XYZW", "VECTOR")
+VECTOR_WITH_BLUR = "Vector (made with Motion Blur off, as Cycles)"
+
+
+def light_group_passes(view_layer) -> list[tuple[str, str]]:
+    """(group name, pass name) of the view layer's Light Groups: Cycles' pass
+    "Combined_<group>" each (engine/lightgroups.py)."""
+    return [(g.name, f"Combined_{g.name}") for g in getattr(view_layer, "lightgroups", ())
+            if g.name]
+
+
+def _ao_vector_passes(view_layer=None):
+    """AO_PASS and VECTOR_PASS (those view_layer asks for: both when None) with this
+    Blender's pass names."""
+    out = []
+    for p in (AO_PASS, VECTOR_PASS):
+        if view_layer is None or getattr(view_layer, p[0], False):
+            name = p[1] if bpy.app.version >= (5, 0, 0) or p is VECTOR_PASS else "AO"
+            out.append((p[0], name, *p[2:]))
+    return out
 
 
 def _surface_passes():
@@ -134,8 +158,7 @@ def _color_passes():
 # Passes a view layer may ask for that the engine does not make: (owner, switch, the name
 # Blender shows). One warning names those asked for (left empty in the render result).
 UNMADE_PASSES = (
-    ("", "use_pass_vector", "Vector"), ("", "use_pass_shadow", "Shadow"),
-    ("", "use_pass_ambient_occlusion", "Ambient Occlusion"),
+    ("", "use_pass_shadow", "Shadow"),
     ("", "use_pass_subsurface_direct", "Subsurface Direct"),
     ("", "use_pass_subsurface_indirect", "Subsurface Indirect"),
     ("", "use_pass_subsurface_color", "Subsurface Color"),
@@ -187,14 +210,33 @@ def data_passes(view_layer) -> tuple:
             or any(getattr(cyc, switch, False) for switch, _, _ in VOLUME_PASSES)):
         out.append("light")  # (brings "color": Blender divides by it)
     out += [key for switch, _, key, *_ in SURFACE_PASSES if getattr(view_layer, switch, False)]
+    if getattr(view_layer, AO_PASS[0], False):
+        out.append("ao")
+    render = getattr(getattr(view_layer, "id_data", None), "render", None)
+    if getattr(view_layer, VECTOR_PASS[0], False) and not getattr(render, "use_motion_blur",
+                                                                    False):
+        out.append("vector")  # (Cycles makes it with motion blur off only)
     return tuple(out)
 
 
-def unmade_passes_warning(view_layer, adaptive: bool = False, volume_bounces: int = 0):
+def ao_distance(scene) -> float:
+    """The Ambient Occlusion pass' distance: World > Settings > Ambient Occlusion >
+    Distance (world.light_settings.distance), Cycles' 10 m without a world."""
+    world = getattr(scene, "world", None)
+    ls = getattr(world, "light_settings", None)
+    d = getattr(ls, "distance", None)
+    return max(float(d), 0.0) if d is not None else 10.0
+
+
+def unmade_passes_warning(view_layer, adaptive: bool = False, volume_bounces: int = 0,
+                          motion_blur: bool = False):
     """One warning naming the passes view_layer asks for that the engine does not make
     (they stay empty), or None. volume_bounces: the scene's Light Paths > Volume bounces
-    (the volume passes are made at 0)."""
+    (the volume passes are made at 0); motion_blur: Render > Motion Blur is on (the
+    Vector pass is made without it, as Cycles)."""
     names = []
+    if motion_blur and getattr(view_layer, VECTOR_PASS[0], False):
+        names.append(VECTOR_WITH_BLUR)
     for owner, switch, label in UNMADE_PASSES:
         if volume_bounces == 0 and switch in {sw for sw, _, _ in VOLUME_PASSES}:
             continue
@@ -204,7 +246,6 @@ def unmade_passes_warning(view_layer, adaptive: bool = False, volume_bounces: in
     cyc = getattr(view_layer, "cycles", None)
     if not adaptive and bool(getattr(cyc, "pass_debug_sample_count", False)):
         names.append("Debug Sample Count (made with adaptive sampling only)")
-    names += [f"Light Group '{g.name}'" for g in getattr(view_layer, "lightgroups", ())]
     if not names:
         return None
     return (f"view layer '{view_layer.name}' asks for passes Photon Mapping does not make "
@@ -467,6 +508,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _, channels, chan_id, kind in _surface_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        for _, name, _, channels, chan_id, kind in _ao_vector_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        for _, name in light_group_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         if _shadow_catcher_pass(renderlayer):
             self.register_pass(scene, renderlayer, SHADOW_CATCHER_PASS, 3, "RGB", "COLOR")
         if _adaptive(scene):
@@ -568,6 +613,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         if props.use_animated_seed:
             kwargs["seed"] = frame_seed(props.seed, scene.frame_current)
         kwargs["data_passes"] = data_passes(view_layer)
+        kwargs["ao_distance"] = ao_distance(scene)
+        kwargs["light_groups"] = tuple(g for g, _ in light_group_passes(view_layer))
         kwargs["shader_aovs"] = view_layer_aovs(view_layer)
         kwargs["cryptomatte"] = tuple(k for switch, k, _ in CRYPTOMATTE_LAYERS
                                       if getattr(view_layer, switch, False))
@@ -575,9 +622,15 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         kwargs["pass_alpha_threshold"] = float(getattr(view_layer, "pass_alpha_threshold",
                                                        0.5))
         settings = pm.RenderSettings(**kwargs)
-        unmade = unmade_passes_warning(view_layer, _adaptive(scene), _volume_bounces(scene))
+        unmade = unmade_passes_warning(view_layer, _adaptive(scene), _volume_bounces(scene),
+                                       bool(render.use_motion_blur))
         if unmade is not None:  # said with the export's warnings, kept in film.warnings
             pm_scene.warnings.append(unmade)
+        if "vector" in settings.data_passes:  # the scene a frame before and after
+            self._stats("Vector pass: exporting the frames before and after")
+            pm_scene.vector_motion, moved = motionvectors.scene_motion(
+                self, pm, depsgraph, pm_scene, width, height)
+            pm_scene.warnings.extend(moved)
         # Refuse what cannot fit before anything big is allocated (Blender's render result
         # included); raises ResourceError with the setting and the estimate.
         pm.resources.check_resources(pm_scene, settings, region, progressive=props.progressive,
@@ -845,6 +898,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _, channels, chan_id, _ in _surface_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, channels, chan_id, layer=layer)
+        for _, name, _, channels, chan_id, _ in _ao_vector_passes(view_layer):
+            self.add_pass(name, channels, chan_id, layer=layer)
+        for _, name in light_group_passes(view_layer):
+            self.add_pass(name, 3, "RGB", layer=layer)
         if _shadow_catcher_pass(view_layer):
             self.add_pass(SHADOW_CATCHER_PASS, 3, "RGB", layer=layer)
         if sample_count:
@@ -886,6 +943,15 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                               + [(p[1], p[2]) for p in _surface_passes()]):
                 if key in data:
                     buffers[name] = data[key] if data[key].ndim == 3 else data[key][:, :, None]
+            for _, name, key, *_ in _ao_vector_passes(view_layer):
+                made = (_engine_module("vectorpass").shown(data) if key == "vector"
+                        else data.get(key))
+                if made is not None:
+                    buffers[name] = made
+            groups = _engine_module("lightgroups")
+            for group, name in light_group_passes(view_layer):
+                if groups.key(group) in data:
+                    buffers[name] = data[groups.key(group)]
             # The light passes as Blender shows them (Direct / Indirect / Color).
             scene = view_layer.id_data
             shown = _engine_module("lightpasses").shown(data, _volume_bounces(scene))

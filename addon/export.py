@@ -964,7 +964,8 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
               # camera visibility (measured: Cycles 5.0.1, a 20-degree sun in view reads 0);
               # a Sky Texture's disc is (world.sky_sun_lights).
               visible_camera=kind != "SUN" and bool(getattr(obj, "visible_camera", False)),
-              **{flag: bool(getattr(obj, flag, True)) for flag in VISIBILITY_FLAGS[1:4]})
+              **{flag: bool(getattr(obj, flag, True)) for flag in VISIBILITY_FLAGS[1:4]},
+              lightgroup=str(getattr(obj, "lightgroup", "") or ""))
     if kind in ("POINT", "SPOT"):
         kw["radius"] = float(L.shadow_soft_size)
         # Soft Falloff (Blender >= 4.0, on by default): off, Cycles' light is a sphere
@@ -1569,6 +1570,25 @@ def hash_uint2(kx, ky):
                           np.full_like(kx, init))
 
 
+def _world_group(world) -> str:
+    return str(getattr(world, "lightgroup", "") or "") if world is not None else ""
+
+
+def set_world_lightgroup(scene, world) -> None:
+    """scene.world_lightgroup from Blender's world.lightgroup (World > Settings > Light
+    Group; engine/lightgroups.py)."""
+    scene.world_lightgroup = _world_group(world)
+
+
+def world_lights(pm, environment, seen, world) -> list:
+    """The lights the world brings (a Sky Texture's sun disc: world.sky_sun_lights), in
+    the world's light group."""
+    out = sky_sun_lights(pm, environment, seen)
+    for light in out:
+        light.lightgroup = _world_group(world)
+    return out
+
+
 def object_info(obj, inst, attribute_requests=()) -> dict:
     """Mesh keywords of the Object Info node: random (Cycles' random_number: the
     random_id / (2^32 - 1) in float32, scene/object.cpp; an instance's random_id from the
@@ -1587,8 +1607,14 @@ def object_info(obj, inst, attribute_requests=()) -> dict:
     location = tuple(float(x) for x in matrix[:3, 3])
     # A Displacement node's Object space: the matrix's linear part.
     linear = tuple(tuple(float(x) for x in row) for row in matrix[:3, :3])
+    # Light Group (engine/lightgroups.py): the object's, else its instancer's (Cycles:
+    # an instance without one of its own takes its parent's).
+    group = str(getattr(obj, "lightgroup", "") or "")
+    if not group and getattr(inst, "is_instance", False):
+        group = str(getattr(getattr(inst, "parent", None), "lightgroup", "") or "")
     return dict(random=random, object_color=color, location=location, object_linear=linear,
-                object_attributes=object_attributes(obj, inst, attribute_requests))
+                object_attributes=object_attributes(obj, inst, attribute_requests),
+                lightgroup=group)
 
 
 def _property_rgba(idblock, name):
@@ -1858,7 +1884,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                         "Cycles' other rays do")
     lights, portals = split_portals(pm, lights)
     resolve_light_links(lights, meshes, info.pop("owners", {}))
-    lights = lights + sky_sun_lights(pm, environment, seen)  # a Sky Texture's sun disc
+    lights = lights + world_lights(pm, environment, seen, scene_eval.world)
     fog = world_medium(pm, scene_eval.world, warnings)
     volume_bounces_warning(scene_eval, materials, warnings, fog)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
@@ -1867,6 +1893,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                      **camera_world(seen),
                      mist=world_mist(pm, scene_eval.world), portals=portals,
                      world_medium=fog)
+    set_world_lightgroup(scene, scene_eval.world)
     scene.warnings.extend(warnings)
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0
@@ -2081,13 +2108,14 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     warnings.extend(cache.worlds[1])
     lights, portals = split_portals(pm, lights)
     resolve_light_links(lights, meshes, info.pop("owners", {}))
-    lights = lights + sky_sun_lights(pm, environment, seen)  # a Sky Texture's sun disc
+    lights = lights + world_lights(pm, environment, seen, scene_eval.world)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
                      background_is_light=True, environment=environment,
                      **camera_world(seen),
                      mist=world_mist(pm, scene_eval.world), portals=portals,
                      world_medium=world_medium(pm, scene_eval.world, warnings))
+    set_world_lightgroup(scene, scene_eval.world)
     scene.warnings.extend(warnings)
     light_names = [li.name for li in lights]
     info.update(

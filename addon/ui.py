@@ -306,6 +306,8 @@ class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
         if getattr(vl, "cycles", None) is not None:
             col.prop(vl.cycles, "denoising_store_passes", text="Denoising Data")
         col = layout.column(heading="Data")
+        # Vector: made with Motion Blur off, as Cycles (engine/vectorpass.py).
+        col.prop(vl, "use_pass_vector")
         col.prop(vl, "use_pass_position")
         col.prop(vl, "use_pass_uv")
         col.prop(vl, "use_pass_mist")
@@ -318,11 +320,85 @@ class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
         col.prop(vl, "use_pass_diffuse_color", text="Diffuse")
         col.prop(vl, "use_pass_glossy_color", text="Glossy")
         col.prop(vl, "use_pass_transmission_color", text="Transmission")
+        col = layout.column(heading="Light")
+        col.prop(vl, "use_pass_ambient_occlusion", text="Ambient Occlusion")  # aopass.py
         if getattr(vl, "cycles", None) is not None:
             # Cycles' switch (engine/shadowcatcher.py): the pass, and Combined without
             # the shadow.
-            col = layout.column(heading="Light")
             col.prop(vl.cycles, "use_pass_shadow_catcher")
+
+
+def _light_group_field(layout, owner, view_layer):
+    """owner's Light Group (an object's, the world's) picked among the view layer's, with
+    Cycles' button that adds a typed name as a group (its CYCLES_OBJECT_PT_lightgroup)."""
+    row = layout.row(align=True)
+    row.use_property_decorate = False
+    sub = row.column(align=True)
+    sub.prop_search(owner, "lightgroup", view_layer, "lightgroups", text="Light Group",
+                    results_are_suggestions=True)
+    sub = row.column(align=True)
+    sub.enabled = bool(owner.lightgroup) and not any(
+        lg.name == owner.lightgroup for lg in view_layer.lightgroups)
+    sub.operator("scene.view_layer_add_lightgroup", icon="ADD", text="").name = \
+        owner.lightgroup
+
+
+try:  # Blender's View Layer > Light Groups list (its helper; Cycles' panel is its own)
+    from bl_ui.properties_view_layer import ViewLayerLightgroupsPanelHelper
+except ImportError:  # (older Blender: the list is drawn below)
+    ViewLayerLightgroupsPanelHelper = None
+
+
+class PHOTONMAP_PT_passes_lightgroups(PhotonMapButtonsPanel, bpy.types.Panel):
+    """View Layer > Passes > Light Groups: one pass "Combined_<group>" each
+    (engine/lightgroups.py)."""
+    bl_label = "Light Groups"
+    bl_context = "view_layer"
+    bl_parent_id = "PHOTONMAP_PT_passes"
+
+    def draw(self, context):
+        if ViewLayerLightgroupsPanelHelper is not None:
+            ViewLayerLightgroupsPanelHelper.draw(self, context)
+            return
+        vl = context.view_layer
+        row = self.layout.row()
+        row.template_list("UI_UL_list", "lightgroups", vl, "lightgroups", vl,
+                          "active_lightgroup_index", rows=3)
+        col = row.column(align=True)
+        col.operator("scene.view_layer_add_lightgroup", icon="ADD", text="")
+        col.operator("scene.view_layer_remove_lightgroup", icon="REMOVE", text="")
+
+
+class PHOTONMAP_PT_object_lightgroup(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Object > Shading > Light Group: the pass its light goes to (lamps, emissive
+    objects; engine/lightgroups.py)."""
+    bl_label = "Light Group"
+    bl_context = "object"
+    bl_parent_id = "OBJECT_PT_shading"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.object is not None
+
+    def draw(self, context):
+        self.layout.use_property_split = True
+        _light_group_field(self.layout, context.object, context.view_layer)
+
+
+class PHOTONMAP_PT_world_lightgroup(PhotonMapButtonsPanel, bpy.types.Panel):
+    """World > Light Group: the pass the world's light goes to (engine/lightgroups.py)."""
+    bl_label = "Light Group"
+    bl_context = "world"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.world is not None
+
+    def draw(self, context):
+        self.layout.use_property_split = True
+        _light_group_field(self.layout, context.world, context.view_layer)
 
 
 # Object types with surfaces (Cycles' has_geometry_visibility, less its light case).
@@ -479,7 +555,9 @@ classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_viewpor
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_motion_blur, PHOTONMAP_PT_performance,
            PHOTONMAP_PT_distributed,
-           PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching, PHOTONMAP_PT_material_settings,
+           PHOTONMAP_PT_passes, PHOTONMAP_PT_passes_lightgroups,
+           PHOTONMAP_PT_object_lightgroup, PHOTONMAP_PT_world_lightgroup,
+           PHOTONMAP_PT_teaching, PHOTONMAP_PT_material_settings,
            PHOTONMAP_PT_object_visibility)
 
 _patched = []

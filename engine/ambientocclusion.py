@@ -78,14 +78,15 @@ def concentric_disk(a, b):
     return np.column_stack([r * np.cos(phi), r * np.sin(phi)])
 
 
-def ao_directions(n, samples: int, prim, u, v):
+def ao_directions(n, samples: int, prim, u, v, salt: int = 0x94D049BB133111EB):
     """(N, S, 3) unit directions, cosine-weighted about the unit normals n (N,3): sample s
     of hit i is the Fibonacci lattice point ((s + 0.5) / S, s / phi) shifted by the hit's
     hash pair (toroidally), mapped to the disk (concentric_disk) and lifted to the
-    hemisphere in n's frame (Cycles' make_orthonormals)."""
+    hemisphere in n's frame (Cycles' make_orthonormals). salt: hash_pair's (another
+    user of the directions than the node: engine/aopass.py)."""
     n = np.asarray(n, np.float64)
     s = np.arange(samples, dtype=np.float64)
-    h1, h2 = hash_pair(prim, u, v)
+    h1, h2 = hash_pair(prim, u, v, salt)
     a = np.mod((s[None, :] + 0.5) / samples + h1[:, None], 1.0)
     b = np.mod(s[None, :] * _GOLDEN + h2[:, None], 1.0)
     d = concentric_disk(a.ravel(), b.ravel()).reshape(len(n), samples, 2)

@@ -253,7 +253,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "Normal / Albedo / Depth), color (Diffuse / Glossy / Transmission "
                         "Color), light (Cycles' Diffuse / Glossy / Transmission Direct and "
                         "Indirect, Emission, Environment; brings color), object_index, "
-                        "material_index, position, uv, mist; written with --save-passes")
+                        "material_index, position, uv, mist, ao (Ambient Occlusion, rays of "
+                        "--ao-distance); written with --save-passes")
+    r.add_argument("--light-groups", type=lambda t: tuple(x.strip() for x in t.split(",")
+                                                          if x.strip()),
+                   metavar="NAMES",
+                   help="Light Group passes to make, comma-separated group names (the "
+                        "scene file's lightgroup = \"NAME\" on lights, objects and "
+                        "world_lightgroup): each the image of its emitters alone, written "
+                        "with --save-passes as name.lightgroup_NAME.exr")
+    r.add_argument("--ao-distance", type=float, metavar="M",
+                   help="the Ambient Occlusion pass' ray length in metres (Blender's World > "
+                        "Ambient Occlusion > Distance; default 10)")
     r.add_argument("--strip", action="store_true",
                    help="also write the effect passes and their sum side by side, labelled, "
                         "as name.strip.png (docs/teaching.md)")
@@ -389,7 +400,8 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
                  "method", "max_bounces", "diffuse_bounces", "glossy_bounces",
                  "transmission_bounces", "adaptive_threshold", "adaptive_min_samples",
                  "clamp_direct", "clamp_indirect",
-                 "data_passes", "cryptomatte", "cryptomatte_levels"):
+                 "data_passes", "ao_distance", "light_groups", "cryptomatte",
+                 "cryptomatte_levels"):
         v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v

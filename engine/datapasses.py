@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import lightpasses
+from . import aopass, lightpasses, vectorpass
 from .camerakernels import film_add, film_add_scalar, hit_closures, view_depth
 from .closures import principled as pr
 
@@ -83,9 +83,14 @@ SURFACE = {"object_index": (("Object Index", "object_index", 1),),
            "mist": (("Mist", "mist", 1),)}
 # Cycles' light passes (engine/lightpasses.py: raw sums, divided by colour when shown).
 LIGHT = lightpasses.PASSES
-PASSES = {"denoising": DENOISING, "color": COLOR, "light": LIGHT, **SURFACE}
+# Ambient Occlusion (engine/aopass.py) and Vector (engine/vectorpass.py: two sums, shown
+# as one RGBA pass by vectorpass.shown).
+AO = (("Ambient Occlusion", aopass.KEY, 3),)
+VECTOR = tuple(("Vector", key, 3) for key in vectorpass.KEYS)
+PASSES = {"denoising": DENOISING, "color": COLOR, "light": LIGHT, **SURFACE, "ao": AO,
+          "vector": VECTOR}
 ORDER = ("denoising", "color", "light", "object_index", "material_index", "position", "uv",
-         "mist")
+         "mist", "ao", "vector")
 # Written by each pixel's first sample and kept as written (not per-sample averages).
 FIRST_SAMPLE = frozenset(("object_index", "material_index", "position"))
 
@@ -132,8 +137,9 @@ def _aov_keys(want) -> list:
 
 
 def surface_wanted(data_passes) -> bool:
-    """Some of the surface data passes (SURFACE) or a Shader AOV is asked for."""
-    return any(name in data_passes for name in SURFACE) or bool(_aov_keys(data_passes))
+    """Some of the surface data passes (SURFACE, Vector) or a Shader AOV is asked for."""
+    return (any(name in data_passes for name in SURFACE) or "vector" in data_passes
+            or bool(_aov_keys(data_passes)))
 
 
 def film_value(key, total, inv):
@@ -148,7 +154,7 @@ def film_value(key, total, inv):
 
 
 def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, done,
-                cam_pos, forward, ortho, mist, threshold, pano=False):
+                cam_pos, forward, ortho, mist, threshold, pano=False, motion=None):
     """One bounce's camera-chain hits into the Depth pass (acc.depth, always) and the
     surface data passes asked for (module docstring).
     rows (K,) int64: the hits reached by the camera ray or transparent passes only;
@@ -157,7 +163,8 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
     first sample; done (N,) bool: the single pass written; cam_pos (3,) re-centred,
     forward (3,) unit view axis, ortho: orthographic camera; mist: Scene.mist (start m,
     depth m, falloff exponent); threshold: RenderSettings.pass_alpha_threshold; pano: a
-    panoramic camera (its Depth is the distance, Cycles' camera_z_depth).
+    panoramic camera (its Depth is the distance, Cycles' camera_z_depth); motion: the
+    Vector pass' vectorpass.VectorMotion (None: no Vector pass).
     Returns done after this bounce (a fresh array where it changed)."""
     if len(rows) == 0:
         return done
@@ -216,6 +223,13 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
             uvw[~has] = 0.0
             film_add(_buf(acc, "uv", 3), acc.lo, np.ascontiguousarray(pix, np.int64), fin,
                      _NO_TP, uvw)
+        if "vector" in want and motion is not None:
+            pre, post = motion.vectors(hit.p[fin] + geo.offset,
+                                       np.take(geo.object_id, prim[fin]), prim[fin],
+                                       u[fin], v[fin])
+            at = np.ascontiguousarray(pix, np.int64)
+            for key, vec in zip(vectorpass.KEYS, (pre, post)):
+                film_add(_buf(acc, key, 3), acc.lo, at, fin, _NO_TP, vec)
         done = done.copy()
         done[fin] = True
     return done

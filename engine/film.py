@@ -89,7 +89,13 @@ class Film:
         from .lightpasses import shown
         paths = []
         # (The light passes as Blender shows them: Direct / Indirect divided by Color.)
-        for key, img in {**self.data, **shown(self.data)}.items():
+        from .vectorpass import KEYS as VECTOR_KEYS, shown as vector_shown
+        vec = vector_shown(self.data)
+        made = {k: v for k, v in self.data.items() if k not in VECTOR_KEYS}
+        if vec is not None:  # (pixels a frame as Blender shows them: x, y, 0 each)
+            for key, xy in zip(VECTOR_KEYS, (vec[..., :2], vec[..., 2:])):
+                made[key] = np.concatenate([xy, np.zeros_like(xy[..., :1])], axis=2)
+        for key, img in {**made, **shown(self.data)}.items():
             rgb = img if img.ndim == 3 else np.repeat(img[..., None], 3, axis=2)
             # (a Shader AOV's key holds its name: any character but a file name's kept)
             paths.append(f"{root}.{re.sub(r'[^0-9A-Za-z_.-]', '_', key)}.exr")

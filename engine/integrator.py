@@ -28,9 +28,9 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
-from . import (adaptive, chaincounts, datapasses, heterogeneous, lightpasses, media,
+from . import (adaptive, aopass, chaincounts, datapasses, heterogeneous, lightpasses, media,
                photonvisibility, raymaterials, sampleclamp, shadelight, volumeemission,
-               volumescatter, volumewalk, worldmedium)
+               vectorpass, volumescatter, volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -2542,6 +2542,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # pass" done, and whether it is its pixel's first sample (the first adaptive round's
     # sample 0), whose surface writes them as Cycles' sample 0 does.
     single = np.zeros(len(o), bool)
+    # The Vector pass' motion (engine/vectorpass.py), the Ambient Occlusion pass.
+    motion = vectorpass.for_context(ctx) if "vector" in want_data else None
+    want_ao = "ao" in want_data
     # Cycles' light passes (engine/lightpasses.py): each path's class and bends.
     lpass = acc.light = (lightpasses.PathPasses(acc, len(o)) if "light" in want_data
                          else None)
@@ -2912,7 +2915,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         single = datapasses.add_surface(
             acc, want_data, ctx.geo, ctx.table, hit, prim, u, v, pix, tp,
             np.nonzero(ray_cls == CAMERA)[0], first, single, cam_pos, forward, ortho,
-            ctx.scene.mist, s.pass_alpha_threshold, pano=cam.panorama is not None)
+            ctx.scene.mist, s.pass_alpha_threshold, pano=cam.panorama is not None,
+            motion=motion)
+        if want_ao:  # (the camera chain's surfaces: Cycles' PATH_RAY_CAMERA paths)
+            aopass.add_ao(acc, ctx, hit, prim, u, v, pix, tp, np.nonzero(ray_cls == CAMERA)[0],
+                          s.ao_distance, counters)
         # The paths from a glossy hit that took the shade samples, meeting a shade: each
         # served lamp's light through it weighted against those samples (its NEE here in
         # the glass stage, its emission met by the refraction next bounce: lamp_w).

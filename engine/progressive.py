@@ -235,6 +235,8 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
         tell(film.warnings)
         return film
     tell(scene.all_warnings() + ctx.plan.warnings)  # before the first pass
+    if settings.light_groups:  # (their scenes built once, for every pass)
+        ctx.light_group_contexts = {}
     # The passes' own warnings (a hand-set search radius: render.radius_warnings), told
     # as each pass' photon maps are built, before its camera pass; once each
     # (render.warning_key: every pass words the same advice with its own photon count).

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import adaptive, cryptomatte, panorama, shadowcatcher
+from . import adaptive, cryptomatte, lightgroups, panorama, shadowcatcher
 from .accel import Accel
 from .ambientocclusion import attach_tracer
 from .chaincounts import GatherCounts
@@ -106,6 +106,9 @@ class Context:
     links: object = None
     # Heterogeneous media (engine/heterogeneous.py: density textures; None: none).
     hetero: object = None
+    # Light groups' contexts kept between passes (render_progressive: {name: Context});
+    # None: each group's context is built and closed within its pass (_render_light_groups).
+    light_group_contexts: dict | None = None
 
 
     def serial(self) -> "Context":
@@ -198,6 +201,8 @@ def close_context(ctx: Context) -> None:
         ctx.links.close()
     if ctx.catcher_alone is not None:
         ctx.catcher_alone.accel.close()
+    for group in (ctx.light_group_contexts or {}).values():
+        close_context(group)
     if getattr(ctx.hetero, "accel", None) is not None:
         ctx.hetero.accel.close()  # (the textured media's boundaries: heterogeneous.py)
 
@@ -338,6 +343,8 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
         stats["photon_hits_fraction"] = fraction
         if ctx.catcher_alone is not None:
             _render_alone(ctx, region, film, progress, should_cancel)
+        if settings.light_groups:
+            _render_light_groups(ctx, region, film, progress, should_cancel)
     except Cancelled:
         stats["cancelled"] = True  # the film holds what was finished
     return film
@@ -379,6 +386,49 @@ def _render_alone(ctx: Context, region, film: Film, progress, should_cancel) -> 
         raise Cancelled()
     shadowcatcher.add_alone(film, one)
     film.stats["time_shadow_catcher"] = time.perf_counter() - t0
+
+
+def _render_light_groups(ctx: Context, region, film: Film, progress, should_cancel) -> None:
+    """Each light group's render (engine/lightgroups.py): a photon and camera pass of the
+    scene with only the group's emitters, its Combined into film.data; raises
+    Cancelled. A group without emitters is black without a render. Its context is built
+    for the pass and closed after it, or kept in ctx.light_group_contexts when that is a
+    dict (progressive passes: built once)."""
+    t0 = time.perf_counter()
+    x0, y0, x1, y1 = region
+    settings = lightgroups.group_settings(ctx.settings)
+    names = ctx.settings.light_groups
+    for i, name in enumerate(names):
+        if lightgroups.members(ctx.scene, name) == 0:
+            film.data[lightgroups.key(name)] = np.zeros((y1 - y0, x1 - x0, 3), np.float32)
+            continue
+        inner = StageSpans(settings.uses_photon_maps,
+                           settings.photons + settings.caustic_photons,
+                           max((x1 - x0) * (y1 - y0), 1) * settings.spp)
+
+        def told(stage, fraction, text, _i=i, _name=name, _inner=inner):
+            if progress is not None:
+                whole = _inner.whole(stage, fraction)
+                progress("light groups", (_i + (fraction if whole is None else whole))
+                         / len(names), f"Light group '{_name}': {text}")
+
+        kept = ctx.light_group_contexts
+        group = None if kept is None else kept.get(name)
+        if group is None:
+            group = prepare_context(lightgroups.group_scene(ctx.scene, name), settings,
+                                    should_cancel=should_cancel)
+            if kept is not None:
+                kept[name] = group
+        group.settings = settings  # (this pass' seed and photon counts)
+        try:
+            one = _render_pass(group, region, told, should_cancel, True, None, inner.plan)
+        finally:
+            if kept is None:
+                close_context(group)
+        if one.stats.get("cancelled"):
+            raise Cancelled()
+        film.data[lightgroups.key(name)] = one.combined
+    film.stats["time_light_groups"] = time.perf_counter() - t0
 
 
 class _side_job:

@@ -368,7 +368,7 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         + (BYTES_PER_PIXEL_BLENDER if in_blender else 0)
     est.parts["image"] = pixels * per_pixel
     est.drivers["image"] = "resolution"
-    channels = data_pass_channels(s)
+    channels = data_pass_channels(s) + 3 * len(getattr(s, "light_groups", ()))
     if channels and pixels:
         per_channel = BYTES_PER_DATA_CHANNEL \
             + (BYTES_PER_DATA_CHANNEL_PROGRESSIVE if progressive else 0) \
@@ -390,6 +390,13 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         saved = (copies - shared) * BYTES_PER_TRIANGLE - count * BYTES_PER_INSTANCE
     est.parts["triangles"] = tris * BYTES_PER_TRIANGLE - saved
     est.drivers["triangles"] = "the scene's triangle count"
+    if getattr(s, "light_groups", ()):
+        # A light group's render (engine/lightgroups.py) builds its own scene, one group
+        # at a time, while the main render's is held: its triangles and photon maps;
+        # progressive passes keep every group's scene.
+        est.parts["light group render"] = (est.parts["triangles"] + est.parts.get(
+            "photon maps", 0)) * (len(s.light_groups) if progressive else 1)
+        est.drivers["light group render"] = "light_groups"
     env = getattr(scene, "environment", None)
     if env is not None and getattr(scene, "background_is_light", True):
         shoots = bool(s.uses_photon_maps and (s.photons or s.caustic_photons))

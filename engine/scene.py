@@ -593,6 +593,9 @@ class Mesh:
     location: tuple = (0.0, 0.0, 0.0)
     object_linear: tuple | None = None
     object_attributes: dict | None = None
+    # Blender's Object > Shading > Light Group (engine/lightgroups.py): the light group
+    # its materials' emission (surface and volume) goes to; "" none.
+    lightgroup: str = ""
     warnings: list = field(default_factory=list, repr=False)
 
     @property
@@ -785,7 +788,7 @@ class Mesh:
             "visible_shadow", "holdout", "shadow_catcher", "shadow_terminator_offset",
             "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
             "pass_index", "random", "object_color", "location", "object_linear",
-            "object_attributes", "receivers", "non_receivers")}
+            "object_attributes", "receivers", "non_receivers", "lightgroup")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)
@@ -942,6 +945,9 @@ class Light:
     skew_axis_v: tuple | np.ndarray | None = None
     ies_path: str | None = None
     ies_profile: object = None
+    # Blender's Object > Shading > Light Group (engine/lightgroups.py): the light group
+    # whose pass its light goes to; "" none.
+    lightgroup: str = ""
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -1402,6 +1408,12 @@ class Scene:
     # Blender's World > Volume (WorldMedium, None: vacuum): a homogeneous medium filling
     # all space outside the objects' media (engine/worldmedium.py).
     world_medium: "WorldMedium | None" = None
+    # The Vector pass' motion (engine/vectorpass.SceneMotion: the camera and each mesh's
+    # object transform one frame before and after); None: nothing moves.
+    vector_motion: "object | None" = None
+    # Blender's World > Settings > Light Group (engine/lightgroups.py): the group the
+    # world's light goes to; "" none.
+    world_lightgroup: str = ""
 
     def add_material(self, material: Material) -> Material:
         self.materials[material.name] = material

@@ -226,7 +226,9 @@ _OBJECT_COMMON = {
     # A template is drawn only through its [[instances]] (not itself).
     "template": _BOOL,
     # An emitting object's Light Linking (engine/lightlinking.py): object names.
-    "receivers": _NAMES, "non_receivers": _NAMES}
+    "receivers": _NAMES, "non_receivers": _NAMES,
+    # An emitting object's Light Group (engine/lightgroups.py; [render] light_groups).
+    "lightgroup": _STRING}
 _INLINE = {"type": "array", "maxItems": MAX_INLINE_ELEMENTS,
            "what": f"a list of at most {MAX_INLINE_ELEMENTS:,} [a, b, c] rows"}
 OBJECT_SCHEMAS = {
@@ -262,7 +264,8 @@ LIGHT_SCHEMA = _table({
     "angle": _number(0.0, 180.0), "spread": _number(0.0, 180.0), "visible": _BOOL,
     "visible_diffuse": _BOOL, "visible_glossy": _BOOL, "visible_transmission": _BOOL,
     "cast_shadow": _BOOL, "soft_falloff": _BOOL, "receivers": _NAMES,
-    "non_receivers": _NAMES, "blockers": _NAMES, "non_blockers": _NAMES, "ies": _STRING})
+    "non_receivers": _NAMES, "blockers": _NAMES, "non_blockers": _NAMES, "ies": _STRING,
+    "lightgroup": _STRING})
 
 
 ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
@@ -311,7 +314,9 @@ def scene_schema() -> dict:
         "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA,
         "camera_background": _vec3(nonneg=True),
         "sky": SKY_SCHEMA, "mist": MIST_SCHEMA,
-        "world_medium": WORLD_MEDIUM_SCHEMA})
+        "world_medium": WORLD_MEDIUM_SCHEMA,
+        # The world's Light Group (engine/lightgroups.py; [render] light_groups).
+        "world_lightgroup": _STRING})
 
 
 _VALIDATORS = {}
@@ -526,6 +531,8 @@ def _build(data: dict, base: str):
                                          scattering=_vec(w.get("scattering", (0.0, 0.0, 0.0))),
                                          anisotropy=float(w.get("anisotropy", 0.0)),
                                          emission=_vec(w.get("emission", (0.0, 0.0, 0.0))))
+    if "world_lightgroup" in data:
+        scene.world_lightgroup = str(data["world_lightgroup"])
     if "mist" in data:
         m = data["mist"]
         scene.mist = (float(m.get("start", 5.0)), float(m.get("depth", 25.0)),
@@ -832,7 +839,7 @@ def _object(scene, obj, i, base):
         path = os.path.join(base, obj["path"])
         mesh = scene.add_mesh(_load_mesh_file(path, name or os.path.basename(path),
                                               scene._material(mat)))
-    for key in VISIBILITY_KEYS + ("pass_index", "receivers", "non_receivers"):
+    for key in VISIBILITY_KEYS + ("pass_index", "receivers", "non_receivers", "lightgroup"):
         if key in obj:
             setattr(mesh, key, obj[key])
     if any(k in obj for k in ("translate", "scale", "rotate")):
@@ -963,4 +970,5 @@ def _light(scene, spec, i, base=""):
                           blockers=get("blockers"),
                           non_blockers=get("non_blockers", []),
                           ies_path=(None if get("ies") is None else
-                                    os.path.join(base, os.path.expanduser(get("ies"))))))
+                                    os.path.join(base, os.path.expanduser(get("ies")))),
+                          lightgroup=str(get("lightgroup", ""))))

@@ -57,8 +57,8 @@ CYCLES_DEFAULT_BOUNCES = (12, 4, 4, 12)
 
 
 # RenderSettings.data_passes' values (engine/datapasses.py)
-DATA_PASSES = ("color", "denoising", "light", "material_index", "mist", "object_index",
-               "position", "uv")
+DATA_PASSES = ("ao", "color", "denoising", "light", "material_index", "mist", "object_index",
+               "position", "uv", "vector")
 # RenderSettings.cryptomatte's values (engine/cryptomatte.py KINDS)
 CRYPTOMATTE_KINDS = ("asset", "material", "object")
 
@@ -205,9 +205,13 @@ class RenderSettings:
     # Cycles' data passes to make besides the image (engine/datapasses.py): "denoising"
     # (Denoising Normal / Albedo / Depth), "color" (Diffuse / Glossy / Transmission Color),
     # "object_index", "material_index", "position", "uv", "mist" (one pass each), "light"
-    # (Cycles' light passes, engine/lightpasses.py; it brings "color").
+    # (Cycles' light passes, engine/lightpasses.py; it brings "color"), "ao" (Ambient
+    # Occlusion, engine/aopass.py), "vector" (motion vectors: Scene.vector_motion).
     # Extra outputs: the image's bits do not depend on them.
     data_passes: tuple = ()
+    # The Ambient Occlusion pass' ray length, m (Blender's World > Settings > Ambient
+    # Occlusion > Distance, world.light_settings.distance; Cycles takes 10 without a world).
+    ao_distance: float = 10.0
     # Shader AOVs (Blender's View Layer > Shader AOV): ((name, "value" | "color"), ...),
     # written by the materials' AOV Output nodes (engine/datapasses.py, Material.aovs).
     shader_aovs: tuple = ()
@@ -216,6 +220,10 @@ class RenderSettings:
     # from primary rays of their own: the image's bits do not depend on them.
     cryptomatte: tuple = ()
     cryptomatte_levels: int = 6
+    # Light Group passes to make (Blender's View Layer > Light Groups: their names;
+    # engine/lightgroups.py): each a render of its own of the group's emitters, in
+    # Film.data["lightgroup:" + name]. The image's bits do not depend on them.
+    light_groups: tuple = ()
     # Blender's View Layer > Passes > Data > Alpha Threshold (pass_alpha_threshold):
     # the UV pass is written at the first camera-chain surface whose alpha reaches it
     # (Cycles' film_write_data_passes; 0: the first surface whatever its alpha).
@@ -338,12 +346,24 @@ class RenderSettings:
                                  f"{name[16:].title()}) must be True or False, got {v!r}")
             setattr(self, name, bool(v))
         self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
+        ad = self.ao_distance
+        if isinstance(ad, bool) or not isinstance(ad, (int, float, np.floating, np.integer)) \
+                or not math.isfinite(float(ad)) or float(ad) < 0.0:
+            raise ValueError("setting 'ao_distance' (the Ambient Occlusion pass' distance, m) "
+                             f"must be a number >= 0, got {ad!r}")
+        self.ao_distance = float(ad)
         self.shader_aovs = _shader_aovs(self.shader_aovs)
         if "light" in self.data_passes and "color" not in self.data_passes:
             # Blender shows the light passes divided by the Color passes (Cycles adds
             # them to its buffer when a light pass is asked for): made with them.
             self.data_passes = tuple(sorted(self.data_passes + ("color",)))
         self.cryptomatte = _word_set("cryptomatte", self.cryptomatte, CRYPTOMATTE_KINDS)
+        groups = (self.light_groups,) if isinstance(self.light_groups, str) else \
+            tuple(self.light_groups or ())
+        if not all(isinstance(g, str) and g for g in groups):
+            raise ValueError("setting 'light_groups' takes light group names (non-empty "
+                             f"strings), got {self.light_groups!r}")
+        self.light_groups = tuple(dict.fromkeys(groups))  # (in order, once each)
         lv = self.cryptomatte_levels
         if isinstance(lv, bool) or not isinstance(lv, (int, np.integer)) or not 1 <= lv <= 16:
             raise ValueError("setting 'cryptomatte_levels' must be a whole number from 1 to "

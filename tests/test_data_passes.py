@@ -101,7 +101,7 @@ def test_progressive_averages_passes():
 def test_settings_refuse_unknown_pass():
     assert RenderSettings(data_passes="Color").data_passes == ("color",)
     with pytest.raises(ValueError, match="data_passes"):
-        RenderSettings(data_passes=("vector",))
+        RenderSettings(data_passes=("shadow",))
 
 
 def test_cli_writes_data_passes_as_exr(tmp_path, capsys):

@@ -158,12 +158,13 @@ def test_unmade_passes_one_warning(bpy_addon, tmp_path):
     scene.render.engine = "PHOTONMAP"
     cheap(scene, width=16, height=12, spp=1, photons=2_000, caustic_photons=200)
     vl = scene.view_layers[0]
-    vl.use_pass_vector = vl.use_pass_ambient_occlusion = True
+    vl.use_pass_shadow = True
+    vl.use_pass_vector = vl.use_pass_ambient_occlusion = True  # (made since passes41)
     vl.use_pass_diffuse_direct = True  # (made: engine/lightpasses.py)
     vl.use_pass_emit = True
     vl.cycles.use_pass_volume_direct = True
     vl.aovs.add().name = "rust"  # (made since s40: tests/blender/test_blender_aovs.py)
-    vl.lightgroups.add().name = "key"
+    vl.lightgroups.add().name = "key"  # (made since passes41)
     seen = []
     listener = (lambda event, value: seen.append(value) if event == "warning" else None)
     addon.engine.status_listeners.append(listener)
@@ -171,7 +172,7 @@ def test_unmade_passes_one_warning(bpy_addon, tmp_path):
         render_exr(bpy, scene, tmp_path / "w.exr", multilayer=True)
     finally:
         addon.engine.status_listeners.remove(listener)
-        vl.use_pass_vector = vl.use_pass_ambient_occlusion = False
+        vl.use_pass_vector = vl.use_pass_ambient_occlusion = vl.use_pass_shadow = False
         vl.use_pass_diffuse_direct = False
         vl.use_pass_emit = False
         vl.cycles.use_pass_volume_direct = False
@@ -179,11 +180,12 @@ def test_unmade_passes_one_warning(bpy_addon, tmp_path):
         vl.lightgroups.remove(vl.lightgroups[0])
     unmade = [w for w in seen if "does not make" in w]
     assert len(unmade) == 1, seen
-    for name in ("Vector", "Ambient Occlusion", "Light Group 'key'"):
+    for name in ("Shadow",):
         assert name in unmade[0], (name, unmade[0])
     # (Volume Direct: made at the scene's Volume bounces 0)
     for name in ("Denoising", "Color", "Normal", "Depth", "Diffuse Direct", "Emission",
-                 "Volume Direct", "rust"):
+                 "Volume Direct", "rust", "Vector", "Ambient Occlusion", "Light Group",
+                 "key"):
         assert name not in unmade[0], (name, unmade[0])
     assert unmade[0] in addon.engine.last_render["warnings"]
 
