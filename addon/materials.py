@@ -1764,6 +1764,19 @@ class MaterialConverter:
         if depth > MAX_NODE_DEPTH:
             self._warn(f"material '{self._mat.name}': node tree too deep at node '{n.name}'")
             return self._default(socket)
+        if getattr(n, "mute", False) and n.type not in ("GROUP", "REROUTE"):
+            # A muted node passes the input its internal link joins to this output (as
+            # Cycles' blender/shader.cpp: a proxy per internal link); an output without
+            # one leaves the socket unlinked: its own value (newuser41: a muted
+            # Hue/Saturation read as "not supported", the ball red instead of blue).
+            via = next((link.from_socket for link in getattr(n, "internal_links", ())
+                        if link.to_socket.identifier == out.identifier), None)
+            if via is None:
+                return self._default(socket)
+            val = self._input(n, via, depth + 1)
+            if getattr(via, "type", "") == "VECTOR" and getattr(socket, "type", "") == "VALUE":
+                return self._vector_to_value(val)
+            return val
         val = self._node_output(n, out, depth + 1)
         if val is None:
             own = self._default(socket)

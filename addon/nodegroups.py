@@ -70,6 +70,18 @@ class GroupNode:
     def outputs(self):
         return GroupSockets(self._node.outputs, self._ctx)
 
+    @property
+    def internal_links(self):
+        """The node's internal links (what a muted node passes through), from its input
+        proxies (their links followed out of the groups) to its outputs."""
+        out = []
+        for link in getattr(self._node, "internal_links", ()):
+            ident = link.from_socket.identifier
+            frm = next((s for s in self.inputs if s.identifier == ident), None)
+            if frm is not None:
+                out.append(GroupLink(self, frm, link.to_socket))
+        return out
+
     def _key(self):
         return (self._node.as_pointer(), tuple(g.as_pointer() for g in self._ctx))
 

@@ -216,3 +216,59 @@ def test_an_image_that_cannot_load_is_magenta_as_in_cycles(fresh_scene, bpy_addo
     np.testing.assert_allclose(mat.texture.sample(uvs), np.tile([1.0, 0.0, 1.0], (3, 1)))
     told = [w for w in mat.warnings if "magenta" in w]
     assert len(told) == 1 and not [w for w in mat.warnings if "not supported" in w]
+
+
+def test_a_muted_node_passes_its_input_through_as_blender(fresh_scene, bpy_addon):
+    """A muted colour or value node passes the input its internal link joins to the used
+    output (Cycles' proxies for a muted node's internal links), silently: newuser41's
+    muted Hue/Saturation on an RGB blue read as "not supported" and the Base Color's own
+    red; a muted Math on Roughness read 0.5 instead of its input 0.05. Inside a node group
+    too; an output with no internal link leaves the socket its own value."""
+    bpy = bpy_addon
+    m, nt, out = _material(bpy, "Muted")
+    p = _principled(nt, out)
+    p.inputs["Base Color"].default_value = (0.8, 0.2, 0.2, 1.0)
+    rgb = nt.nodes.new("ShaderNodeRGB")
+    rgb.outputs[0].default_value = (0.1, 0.2, 0.9, 1.0)
+    hs = nt.nodes.new("ShaderNodeHueSaturation")
+    hs.inputs["Hue"].default_value = 0.2
+    nt.links.new(rgb.outputs[0], hs.inputs["Color"])
+    nt.links.new(hs.outputs[0], p.inputs["Base Color"])
+    math = nt.nodes.new("ShaderNodeMath")
+    math.operation = "MULTIPLY"
+    math.inputs[0].default_value, math.inputs[1].default_value = 0.05, 10.0
+    nt.links.new(math.outputs[0], p.inputs["Roughness"])
+    unmuted = _convert(m)
+    assert unmuted.roughness == pytest.approx(0.5)
+    assert not np.allclose(unmuted.base_color, (0.1, 0.2, 0.9))
+    hs.mute = math.mute = True
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    np.testing.assert_allclose(mat.base_color, (0.1, 0.2, 0.9), rtol=1e-6)
+    assert mat.roughness == pytest.approx(0.05)
+    # Inside a group: a muted Invert passes its Color (the group's input) through.
+    group = bpy.data.node_groups.new("Tint", "ShaderNodeTree")
+    group.interface.new_socket("Color", in_out="INPUT", socket_type="NodeSocketColor")
+    group.interface.new_socket("Color", in_out="OUTPUT", socket_type="NodeSocketColor")
+    gin, gout = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    inv = group.nodes.new("ShaderNodeInvert")
+    group.links.new(gin.outputs[0], inv.inputs["Color"])
+    group.links.new(inv.outputs[0], gout.inputs[0])
+    inv.mute = True
+    g = nt.nodes.new("ShaderNodeGroup")
+    g.node_tree = group
+    nt.links.new(rgb.outputs[0], g.inputs[0])
+    nt.links.new(g.outputs[0], p.inputs["Base Color"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    np.testing.assert_allclose(mat.base_color, (0.1, 0.2, 0.9), rtol=1e-6)
+    # A muted node whose output has no internal link: the socket's own value, no warning.
+    tex = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(tex.outputs["Fac"], p.inputs["Metallic"])
+    p.inputs["Metallic"].default_value = 0.25
+    tex.mute = True
+    if not any(link.to_socket.identifier == tex.outputs["Fac"].identifier
+               for link in tex.internal_links):
+        mat = _convert(m)
+        assert not mat.warnings, mat.warnings
+        assert mat.metallic == pytest.approx(0.25)
