@@ -801,6 +801,25 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
     assert "glossy blur" in effects(b) and "glossy blur" not in effects(a)
 
 
+def test_glossy_blur_line_names_a_sharp_dielectric_layer():
+    """A smooth dielectric layer (a wet road: Principled roughness 0.05 over a dark base)
+    reflects most of the light it meets at grazing angles onto the wall beside it, which
+    Cycles' Filter Glossy blurs (newuser41: the wall 1.07x Cycles at Filter Glossy 1,
+    1.003 at 0): named; a rough one (0.4: plastic) is not."""
+    for rough, named in ((0.05, True), (0.4, False)):
+        s = PaperScene(width=16, height=12)
+        s.add_material(Material("road", (0.02, 0.02, 0.02), roughness=rough, specular=1.0))
+        s.add_plane((0, 0, 0), (0, 0, 1), 12, "road", name="Road")
+        s.add_plane((0, 3, 1.5), (0, -1, 0), (12, 3), "white_diffuse", name="Wall")
+        s.add_point_light((0, -2, 3), power=500, name="Lamp")
+        s.set_camera((0, -5, 1.3), (0, 2, 1.0))
+        lines = [r for r in _plan(s, cycles_filter_glossy=1.0).report()
+                 if r.startswith("glossy blur")]
+        assert bool(lines) == named, (rough, lines)
+        if named:
+            assert "'Road' throws onto diffuse surfaces" in lines[0], lines[0]
+
+
 def test_cycles_caustics_switches_are_named_where_they_change_cycles_image():
     """Cycles' Light Paths > Caustics > Reflective / Refractive off drop the light its
     paths would find off a mirror / through glass after a diffuse bounce, and its shadow
