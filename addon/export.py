@@ -626,7 +626,10 @@ def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
     """World-space vertices, faces, normals, uvs for one instance."""
     R = matrix[:3, :3]
     t = matrix[:3, 3]
-    verts = g.co @ R.T + t
+    with np.errstate(invalid="ignore", over="ignore"):
+        # (NaN / inf vertices stay so: the engine drops their faces and warns, naming
+        # the object; numpy's own RuntimeWarning said nothing a user could act on)
+        verts = g.co @ R.T + t
     faces, normals, uvs = g.faces, g.normals, g.uvs
     det = np.linalg.det(R)
     if normals is not None:
@@ -637,9 +640,10 @@ def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
         if N is None:
             normals = None
         else:
-            normals = normals @ N
-            length = np.linalg.norm(normals, axis=-1, keepdims=True)
-            normals = normals / np.maximum(length, 1e-30)
+            with np.errstate(invalid="ignore", over="ignore"):
+                normals = normals @ N
+                length = np.linalg.norm(normals, axis=-1, keepdims=True)
+                normals = normals / np.maximum(length, 1e-30)
     if det < 0:
         # Mirrored instance: keep the winding (outside) consistent with the normals.
         faces = faces[:, [0, 2, 1]]

@@ -143,6 +143,20 @@ def warnings_for(scene) -> list:
         out.append("world volume: a colour channel with no extinction lets the world's "
                    "light through in Cycles; here the world light and suns are off in "
                    "every channel")
+    lamps = [li for li in scene.lights if li.kind != "SUN"]
+    emitters = any(np.any(np.asarray(m.emission, np.float64) > 0)
+                   or getattr(m, "emission_texture", None) is not None
+                   or np.any(np.asarray(getattr(m, "volume_emission", 0.0), np.float64) > 0)
+                   for m in scene.materials.values())
+    glow = np.any(np.asarray(getattr(scene.world_medium, "emission", 0.0), np.float64) > 0)
+    if not lamps and not emitters and not glow:
+        # (newuser41: a World Volume under a sky and a sun rendered black, the reason
+        # only in the effect report)
+        out.append("world volume: it fills the space around the objects, so the world's "
+                   "light and the sun lamps, infinitely far beyond it, light nothing (as in "
+                   "Cycles) and no other light is left: the image is black. For fog lit by "
+                   "the sky or the sun, give a box around the scene a Volume Scatter "
+                   "material instead")
     return out
 
 

@@ -140,6 +140,23 @@ def test_the_world_light_and_suns_are_off_and_the_report_says_so():
     assert lines and "sun" in lines[0] and "black" in lines[0]
 
 
+def test_a_world_volume_with_only_the_sky_and_suns_warns_that_the_image_is_black():
+    """A World Volume with a lit world and a sun but no lamp or emitter: the image is
+    black (as in Cycles); one warning says why and what to do (newuser41: only the
+    effect report said so). A lamp, an emissive surface or a glowing world volume: no
+    such warning."""
+    from engine.worldmedium import warnings_for
+    s = _floor_scene((0.1, 0.1, 0.1), lit_world=True)
+    assert not [w for w in warnings_for(s) if "image is black" in w]
+    s.lights = [li for li in s.lights if li.kind == "SUN"]
+    hits = [w for w in warnings_for(s) if "image is black" in w]
+    assert len(hits) == 1 and "Volume Scatter" in hits[0]
+    glowing = _floor_scene((0.1, 0.1, 0.1), lit_world=True)
+    glowing.lights = [li for li in glowing.lights if li.kind == "SUN"]
+    glowing.world_medium = WorldMedium(absorption=(0.1, 0.1, 0.1), emission=(0.2, 0.2, 0.2))
+    assert not [w for w in warnings_for(glowing) if "image is black" in w]
+
+
 def test_world_medium_checks_and_scene_file(tmp_path):
     with pytest.raises(SceneError, match="world_medium"):
         s = _floor_scene((-1.0, 0.0, 0.0))

@@ -231,6 +231,29 @@ def test_bad_light_power_warns_once_and_render_goes_on(fresh_scene, bpy_addon):
     assert engine.last_render["width"] == 40
 
 
+def test_nan_vertices_warn_once_without_numpy_noise(fresh_scene, bpy_addon):
+    """A mesh with NaN and infinite vertices: one warning naming it, the faces dropped,
+    and no numpy RuntimeWarning from the export's transform (newuser41 saw
+    "export.py: RuntimeWarning: invalid value encountered in matmul" first)."""
+    import warnings as pywarnings
+    bpy = bpy_addon
+    _mesh_object(bpy, "NaNMesh", [(0, 0, 0), (1, 0, 0), (float("nan"), 1, 0),
+                                  (0, float("inf"), 1)], [(0, 1, 2), (0, 1, 3)],
+                 location=(0.2, 0.1, 0.0))
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    bpy.context.scene.collection.objects.link(cam)
+    cam.location = (0, -5, 1)
+    cam.rotation_euler = (math.radians(80), 0, 0)
+    bpy.context.scene.camera = cam
+    from addon import export
+    from addon.core import load_engine
+    with pywarnings.catch_warnings():
+        pywarnings.simplefilter("error", RuntimeWarning)
+        scene, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                       width=8, height=6)
+    assert [m for m in scene.meshes if m.name == "NaNMesh"]
+
+
 def test_instances_share_a_prototype(fresh_scene, bpy_addon):
     """Geometry placed more than once (the quad, instanced twice by a collection) gets
     one engine Prototype with each placement's matrix; the cube, placed once, none. The
