@@ -1574,11 +1574,15 @@ class MaterialConverter:
                        "hit, but their 'Normal' inputs differ: one shading normal per "
                        "material is used for both (the first side's that has one)")
         if a.node != b.node:
-            model = {"glossy": "Glossy BSDF", "glass": "Glass BSDF",
-                     "refraction": "Refraction BSDF"}.get(out.node, "Principled BSDF")
-            self._warn(f"material '{self._mat.name}': {who} picks one of two surfaces per "
-                       f"hit of different colour models ({a.node}, {b.node}): both sides "
-                       f"render with the {model}'s")
+            names = {"glossy": "Glossy BSDF", "glass": "Glass BSDF",
+                     "refraction": "Refraction BSDF"}
+            model = names.get(out.node, "Principled BSDF")
+            sides = " and a ".join(names.get(x, "Principled BSDF") for x in (a.node, b.node))
+            # (newuser41 read "of different colour models" as jargon)
+            self._warn(f"material '{self._mat.name}': {who} mixes a {sides} by a factor "
+                       "that varies over the surface; a material keeps one way of "
+                       f"colouring its reflection, so both sides reflect as the {model} "
+                       "does (the mix's weights stay)")
 
     def _normal(self, node):
         """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an

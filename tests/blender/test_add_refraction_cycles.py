@@ -431,11 +431,11 @@ def test_picked_mix_warns_what_stays_one_per_material(fresh_scene, bpy_addon):
         ln.new(bump.outputs["Normal"], side.node.inputs["Normal"])
         return _noise_mix(nd, ln, side, _gold_metal(nd))
     w = convert_material(_material(bpy, "Models", models)).warnings
-    assert any("'Models'" in x and "Mix Shader" in x and "colour models" in x for x in w), w
+    assert any("'Models'" in x and "Mix Shader" in x and "way of colouring" in x for x in w), w
     w = convert_material(_material(bpy, "Normals", normals)).warnings
     assert any("'Normals'" in x and "'Normal' inputs differ" in x for x in w), w
     w = convert_material(_material(bpy, "Plain", MIX_CASES["dielectric+metal noise"])).warnings
-    assert not any("colour models" in x or "inputs differ" in x for x in w), w
+    assert not any("way of colouring" in x or "inputs differ" in x for x in w), w
 
 
 def _glass_cylinder(bpy, scene, roughness):
