@@ -820,6 +820,17 @@ def test_glossy_blur_line_names_a_sharp_dielectric_layer():
             assert "'Road' throws onto diffuse surfaces" in lines[0], lines[0]
 
 
+def test_clamping_line_names_the_caustic_casters():
+    """Cycles' Clamp Indirect cuts caustics too (newuser41: glass eyes' rims 1.12x Cycles
+    at Indirect 10, 1.000 with it off): the clamping line names the casters; without a
+    caster it does not."""
+    s = _room(Material("plain", (0.6, 0.6, 0.6)), extra=[("glass", "Eye")])
+    line = _line(_plan(s, clamp_indirect=10.0), "clamping: on - ")
+    assert "the caustics of 'Eye' likewise reach Cycles' paths" in line, line
+    plain = _room(Material("plain", (0.6, 0.6, 0.6)))
+    assert "caustics of" not in _line(_plan(plain, clamp_indirect=10.0), "clamping: on - ")
+
+
 def test_cycles_caustics_switches_are_named_where_they_change_cycles_image():
     """Cycles' Light Paths > Caustics > Reflective / Refractive off drop the light its
     paths would find off a mirror / through glass after a diffuse bounce, and its shadow
