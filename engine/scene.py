@@ -561,6 +561,9 @@ class Mesh:
     object_attributes  {name: RGBA} the Attribute node of type Object / Instancer reads
               per object (Blender's object, instancer or mesh property of that name);
               a name a mesh lacks reads (0, 0, 0, 0)
+    volume_grids  {name: engine.voxelgrid.VoxelGrid} a Volume object's grids (world
+              space) that its material's nodes read (voxelgrid.GridAttribute); None for
+              a mesh. The mesh is then the grid's boundary (a box around its lattice)
     """
 
     name: str
@@ -593,6 +596,7 @@ class Mesh:
     location: tuple = (0.0, 0.0, 0.0)
     object_linear: tuple | None = None
     object_attributes: dict | None = None
+    volume_grids: dict | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     @property

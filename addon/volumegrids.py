@@ -1,0 +1,268 @@
+"""Volume objects (OpenVDB grids, Mesh to Volume, Volume Displace, Geometry Nodes volumes)
+as heterogeneous media: their grids read through Geometry Nodes, their boundary a box.
+
+Blender's Python has no OpenVDB module, but Geometry Nodes 5.0 reads grids: a temporary
+mesh object whose vertices sit at the grid's voxel centres carries a node group
+
+    Object Info (the volume object, Original space) -> Get Named Grid (name)
+      -> Sample Grid (Position) -> Store Named Attribute ("<name>" on the points)
+
+one chain per grid, evaluated in a temporary scene's depsgraph (the render's depsgraph
+cannot take new objects) at the render's frame; the values are read from the evaluated
+mesh with foreach_get, and every temporary datablock (scene, object, mesh, node group)
+is removed in a `finally`, on error too. The lattice: the grid's own voxel centres (the
+integer points of its index space, grid.matrix_object) over the object's bounds (Blender
+bounds a volume by its grids' active voxels, half a voxel beyond their centres), one
+background voxel of padding on every side so the interpolated field falls to 0 at the
+box's faces. At voxel centres Sample Grid returns the voxel's own value, whatever its
+interpolation, so the engine's trilinear interpolation of the lattice
+(engine/voxelgrid.py) is Cycles' linear interpolation of the grid.
+
+Memory: at most MAX_VOXELS lattice points per object (256^3 float32 = 64 MiB per scalar
+grid, 3x for a colour grid; the temporary mesh's positions take 12 bytes a point while
+sampling). A larger grid is sampled at every s-th voxel (s the smallest stride that fits,
+a point sample of the voxels there: small features may alias) and warned.
+
+Which grids: the ones the volume object's material reads (MaterialConverter records the
+GridAttribute nodes it makes for a volume object's material: Principled Volume's
+Density Attribute, its Temperature Attribute when Blackbody Intensity > 0, Attribute and
+Volume Info nodes), of those the object has. Blender 4.2 - 4.5 lack the grid nodes:
+there a volume object is warned and left out.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+MAX_VOXELS = 256 ** 3  # lattice points per volume object (see the module docstring)
+_TMP = "photonmap-volume-grids"  # the temporary datablocks' name
+
+
+def has_grid_nodes(bpy) -> bool:
+    """Whether this Blender's Geometry Nodes read grids (5.0 and later)."""
+    return all(hasattr(bpy.types, n) for n in ("GeometryNodeGetNamedGrid",
+                                               "GeometryNodeSampleGrid"))
+
+
+def grid_kind(data_type: str) -> str:
+    """The Geometry Nodes data type that reads a VolumeGrid of data_type: FLOAT_VECTOR for
+    vector grids, FLOAT for the rest (a boolean / integer grid read as a value)."""
+    return "FLOAT_VECTOR" if str(data_type).startswith("VECTOR") else "FLOAT"
+
+
+def object_grids(obj) -> dict:
+    """{name: data_type} of the grids of an evaluated Volume object."""
+    grids = getattr(getattr(obj, "data", None), "grids", None)
+    if grids is None:
+        return {}
+    try:
+        grids.load()
+    except Exception:  # noqa: BLE001 - an unreadable file has no grids (warned by caller)
+        pass
+    return {g.name: g.data_type for g in grids}
+
+
+def _grid_matrix(obj, name) -> np.ndarray | None:
+    for g in obj.data.grids:
+        if g.name == name:
+            return np.array(g.matrix_object, np.float64)
+    return None
+
+
+def lattice(bounds_lo, bounds_hi, index_to_object, max_voxels: int = MAX_VOXELS):
+    """The lattice of voxel centres over an object-space box [bounds_lo, bounds_hi] (3,)
+    of a grid whose index -> object map is index_to_object (4,4): (first (3,) int,
+    counts (3,) int, stride int). Voxel centres are the integer index points; the box
+    reaches half a voxel beyond the active ones (Blender's bounds); one voxel of padding
+    on each side; the stride grows until the count fits max_voxels."""
+    lo, hi = np.asarray(bounds_lo, np.float64), np.asarray(bounds_hi, np.float64)
+    c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                  for z in (lo[2], hi[2])])
+    inv = np.linalg.inv(index_to_object)
+    idx = c @ inv[:3, :3].T + inv[:3, 3]
+    first = np.floor(idx.min(axis=0) + 0.5 + 1e-6).astype(np.int64) - 1
+    last = np.ceil(idx.max(axis=0) - 0.5 - 1e-6).astype(np.int64) + 1
+    span = np.maximum(last - first, 1)
+    stride = 1
+    while np.prod(span // stride + 1) > max_voxels:
+        stride += 1
+    counts = span // stride + 1
+    # (the stride's lattice covers last: one more point where it falls short)
+    counts = np.where(first + (counts - 1) * stride < last, counts + 1, counts)
+    return first, counts, stride
+
+
+def sample_grids(bpy, obj, names: dict, frame, max_voxels: int = MAX_VOXELS):
+    """Sample grids `names` ({name: data_type}) of the evaluated Volume object obj at
+    its lattice (`lattice`): ({name: values (nx,ny,nz) or (nx,ny,nz,3) float32},
+    lattice_to_object (4,4), stride, counts (3,)). frame: (frame, subframe) the temporary scene
+    evaluates at. Every temporary datablock is removed before returning or raising."""
+    ref = "density" if "density" in names else sorted(names)[0]
+    M = _grid_matrix(obj, ref)
+    if M is None or abs(np.linalg.det(M[:3, :3])) < 1e-30:
+        raise ValueError(f"grid '{ref}' has no usable transform")
+    bb = np.array([tuple(v) for v in obj.bound_box], np.float64)
+    first, counts, stride = lattice(bb.min(axis=0), bb.max(axis=0), M, max_voxels)
+    axes = [first[a] + stride * np.arange(counts[a]) for a in range(3)]
+    ijk = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    pts = ijk @ M[:3, :3].T + M[:3, 3]
+    lat_to_obj = M @ np.array([[stride, 0, 0, first[0]], [0, stride, 0, first[1]],
+                               [0, 0, stride, first[2]], [0, 0, 0, 1]], np.float64)
+    data = bpy.data
+    scene = mesh = ob = tree = None
+    try:
+        scene = data.scenes.new(_TMP)
+        scene.frame_set(int(frame[0]), subframe=float(frame[1]))
+        mesh = data.meshes.new(_TMP)
+        mesh.vertices.add(len(pts))
+        mesh.vertices.foreach_set("co", pts.astype(np.float32).ravel())
+        ob = data.objects.new(_TMP, mesh)
+        scene.collection.objects.link(ob)
+        tree = data.node_groups.new(_TMP, "GeometryNodeTree")
+        tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        nodes, links = tree.nodes, tree.links
+        gin, gout = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
+        info = nodes.new("GeometryNodeObjectInfo")
+        info.inputs["Object"].default_value = getattr(obj, "original", None) or obj
+        info.transform_space = "ORIGINAL"  # the grid in the volume object's own space
+        pos = nodes.new("GeometryNodeInputPosition")
+        geom = gin.outputs[0]
+        keys = {}
+        for i, (name, dtype) in enumerate(sorted(names.items())):
+            kind = grid_kind(dtype)
+            get = nodes.new("GeometryNodeGetNamedGrid")
+            get.data_type = kind
+            get.inputs["Name"].default_value = name
+            smp = nodes.new("GeometryNodeSampleGrid")
+            smp.data_type = kind
+            store = nodes.new("GeometryNodeStoreNamedAttribute")
+            store.data_type = kind
+            store.domain = "POINT"
+            keys[name] = f"pmvdb_{i}"
+            store.inputs["Name"].default_value = keys[name]
+            links.new(info.outputs["Geometry"], get.inputs["Volume"])
+            links.new(get.outputs["Grid"], smp.inputs["Grid"])
+            links.new(pos.outputs["Position"], smp.inputs["Position"])
+            links.new(geom, store.inputs["Geometry"])
+            links.new(smp.outputs[0], store.inputs["Value"])
+            geom = store.outputs[0]
+        links.new(geom, gout.inputs[0])
+        mod = ob.modifiers.new(_TMP, "NODES")
+        mod.node_group = tree
+        layer = scene.view_layers[0]
+        layer.update()
+        ev = ob.evaluated_get(layer.depsgraph)
+        me = ev.to_mesh()
+        try:
+            out = {}
+            n = len(me.vertices)
+            if n != len(pts):
+                raise ValueError(f"sampled {n} points of {len(pts)}")
+            shape = tuple(int(c) for c in counts)
+            for name, dtype in names.items():
+                attr = me.attributes.get(keys[name])
+                if attr is None:
+                    raise ValueError(f"grid '{name}' was not sampled")
+                if grid_kind(dtype) == "FLOAT_VECTOR":
+                    buf = np.zeros(n * 3, np.float32)
+                    attr.data.foreach_get("vector", buf)
+                    out[name] = buf.reshape(shape + (3,))
+                else:
+                    buf = np.zeros(n, np.float32)
+                    attr.data.foreach_get("value", buf)
+                    out[name] = buf.reshape(shape)
+        finally:
+            ev.to_mesh_clear()
+        return out, lat_to_obj, stride, counts
+    finally:
+        if ob is not None:
+            data.objects.remove(ob)
+        if mesh is not None:
+            data.meshes.remove(mesh)
+        if tree is not None:
+            data.node_groups.remove(tree)
+        if scene is not None:
+            data.scenes.remove(scene)
+
+
+def box_faces() -> np.ndarray:
+    """(12,3) int32 the triangles of the box whose 8 corners are ordered i*4 + j*2 + k
+    (corner (i, j, k) of the lattice), wound counter-clockwise seen from outside."""
+    q = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    f = []
+    for a, b, c, d in q:
+        f += [(a, b, c), (a, c, d)]
+    return np.array(f, np.int32)
+
+
+def boundary_box(grid) -> tuple:
+    """(vertices (8,3), faces (12,3)) the world-space box of a VoxelGrid's lattice, its
+    faces facing outward (a mirrored matrix flips their winding)."""
+    v = grid.corners()
+    f = box_faces()
+    if np.linalg.det(grid.index_to_world[:3, :3]) < 0:
+        f = f[:, [0, 2, 1]]
+    return v, f
+
+
+def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings: list,
+                       name: str, frame, extra: dict, max_voxels: int = MAX_VOXELS):
+    """The engine Mesh of a Volume object instance: its lattice's box in world space
+    carrying the object's material (converted for a volume object: its nodes read the
+    grids) and the grids it reads (engine Mesh.volume_grids); None (warned, naming the
+    object) when it has no grid, its grids are empty, or Blender cannot read them.
+    extra: the Mesh's other keywords (ray visibility, Object Info, Cryptomatte)."""
+    from importlib import import_module
+    VoxelGrid = import_module(pm.__name__ + ".voxelgrid").VoxelGrid
+    owner = inst.parent.name if inst.is_instance and inst.parent is not None else obj.name
+    if not has_grid_nodes(bpy):
+        warnings.append(f"object '{owner}': volume objects need Blender 5.0's grid nodes "
+                        "to be read; not rendered in this Blender version")
+        return None
+    grids = object_grids(obj)
+    if not grids:
+        warnings.append(f"object '{owner}': the volume has no grids (an empty or missing "
+                        "OpenVDB file, or a modifier that made none); nothing to render, "
+                        "as in Cycles")
+        return None
+    slot = obj.material_slots[0].material if len(obj.material_slots) else None
+    if len(obj.material_slots) > 1:
+        warnings.append(f"object '{owner}': a volume renders with its first material "
+                        "slot, as in Cycles; the others are not used")
+    mat = converter.convert_volume_object(slot)
+    materials[mat.name] = mat
+    wanted = converter.volume_grid_names.get(mat.name, set())
+    names = {n: grids[n] for n in wanted if n in grids}
+    try:
+        # (no grid the material reads: the lattice of one grid, the box the medium fills)
+        first = sorted(grids)[0]
+        values, lat_to_obj, stride, counts = sample_grids(
+            bpy, obj, names or {first: grids[first]}, frame, max_voxels)
+        if not names:
+            values = {}
+    except Exception as exc:  # noqa: BLE001 - a grid Blender cannot read: warned
+        warnings.append(f"object '{owner}': its grids could not be read ({type(exc).__name__}:"
+                        f" {exc}); not rendered")
+        return None
+    if stride > 1:
+        warnings.append(f"object '{owner}': its grids exceed {max_voxels} voxels "
+                        f"({round(max_voxels ** (1 / 3))}^3); sampled at every {stride}th "
+                        "voxel (fine detail may alias)")
+    if values and all(not np.any(v) for v in values.values()):
+        warnings.append(f"object '{owner}': its grids {sorted(values)} are empty (every "
+                        "voxel 0); nothing to render")
+        return None
+    to_world = np.array(inst.matrix_world, np.float64) @ lat_to_obj
+    vgrids = {n: VoxelGrid(v, to_world, n) for n, v in values.items()}
+    verts, faces = boundary_box(VoxelGrid(np.zeros(tuple(int(c) for c in counts),
+                                                   np.float32), to_world))
+    interp = "LINEAR"
+    if slot is not None:
+        interp = str(getattr(getattr(slot, "cycles", None), "volume_interpolation",
+                             "LINEAR") or "LINEAR")
+    if interp != "LINEAR":
+        warnings.append(f"material '{slot.name}': Volume Interpolation {interp.title()} on "
+                        f"volume object '{owner}' is rendered Linear")
+    return pm.Mesh(name=name, vertices=verts, faces=faces, materials=[mat.name],
+                   material_ids=np.zeros(len(faces), np.int32),
+                   volume_grids=vgrids or None, **extra)
