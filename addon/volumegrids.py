@@ -91,11 +91,12 @@ def lattice(bounds_lo, bounds_hi, index_to_object, max_voxels: int = MAX_VOXELS)
     return first, counts, stride
 
 
-def sample_grids(bpy, obj, names: dict, frame, max_voxels: int = MAX_VOXELS):
+def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
     """Sample grids `names` ({name: data_type}) of the evaluated Volume object obj at
     its lattice (`lattice`): ({name: values (nx,ny,nz) or (nx,ny,nz,3) float32},
     lattice_to_object (4,4), stride, counts (3,)). frame: (frame, subframe) the temporary scene
     evaluates at. Every temporary datablock is removed before returning or raising."""
+    max_voxels = MAX_VOXELS if max_voxels is None else max_voxels
     ref = "density" if "density" in names else sorted(names)[0]
     M = _grid_matrix(obj, ref)
     if M is None or abs(np.linalg.det(M[:3, :3])) < 1e-30:
@@ -206,13 +207,14 @@ def boundary_box(grid) -> tuple:
 
 
 def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings: list,
-                       name: str, frame, extra: dict, max_voxels: int = MAX_VOXELS):
+                       name: str, frame, extra: dict, max_voxels: int | None = None):
     """The engine Mesh of a Volume object instance: its lattice's box in world space
     carrying the object's material (converted for a volume object: its nodes read the
     grids) and the grids it reads (engine Mesh.volume_grids); None (warned, naming the
     object) when it has no grid, its grids are empty, or Blender cannot read them.
     extra: the Mesh's other keywords (ray visibility, Object Info, Cryptomatte)."""
     from importlib import import_module
+    max_voxels = MAX_VOXELS if max_voxels is None else max_voxels
     VoxelGrid = import_module(pm.__name__ + ".voxelgrid").VoxelGrid
     owner = inst.parent.name if inst.is_instance and inst.parent is not None else obj.name
     if not has_grid_nodes(bpy):

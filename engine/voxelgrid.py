@@ -112,8 +112,9 @@ class VoxelGrid:
     def box_ranges(self, lo, hi, luminance: bool = False):
         """(lo (C,), hi (C,)) the smallest and largest value the interpolated grid takes
         in each world box [lo_c, hi_c] (C,3): the voxels whose trilinear footprint meets
-        the box (their extremes bound the interpolant), and 0 where the box reaches past
-        the lattice (the background). luminance: a vector grid read through Rec.709
+        the box (their extremes bound the interpolant); a box's part beyond the lattice
+        lies outside the medium (its boundary is the lattice's box: no point there is
+        ever evaluated), a box wholly beyond it reads 0. luminance: a vector grid read through Rec.709
         weights (a colour into a value socket)."""
         lo = np.asarray(lo, np.float64)
         hi = np.asarray(hi, np.float64)
@@ -128,7 +129,6 @@ class VoxelGrid:
         dims = np.array(self.shape)
         a = np.floor(idx.min(axis=1)).astype(np.int64)
         b = np.floor(idx.max(axis=1)).astype(np.int64) + 1
-        outside = np.any((a < 0) | (b > dims - 1), axis=1)
         a = np.clip(a, 0, dims - 1)
         b = np.clip(b, 0, dims - 1)
         empty = np.any(idx.max(axis=1) < 0, axis=1) | np.any(idx.min(axis=1) > dims - 1,
@@ -140,9 +140,7 @@ class VoxelGrid:
             blk = s[a[c, 0]:b[c, 0] + 1, a[c, 1]:b[c, 1] + 1, a[c, 2]:b[c, 2] + 1]
             out_lo[c] = float(blk.min())
             out_hi[c] = float(blk.max())
-        lo_v = np.where(outside | empty, np.minimum(out_lo, 0.0), out_lo)
-        hi_v = np.where(outside | empty, np.maximum(out_hi, 0.0), out_hi)
-        return lo_v, hi_v
+        return out_lo, out_hi
 
 
 class GridAttribute:
