@@ -442,7 +442,7 @@ def point_info(centres, radius, faces, point) -> dict:
 
 
 def volume_mesh(pm, inst, obj, converter, materials: dict, warnings: list, info: dict,
-                view_layer, scene):
+                view_layer, scene, cache=None):
     """The engine Mesh of a Volume object instance (OpenVDB grids, Mesh to Volume, a
     Geometry Nodes volume): the box around its grids with the grids its material reads
     (addon/volumegrids.py), named as a mesh instance is; None when nothing renders
@@ -456,7 +456,7 @@ def volume_mesh(pm, inst, obj, converter, materials: dict, warnings: list, info:
                  **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
     frame = (getattr(scene, "frame_current", 1), getattr(scene, "frame_subframe", 0.0))
     mesh = volume_object_mesh(pm, bpy, inst, obj, converter, materials, warnings, name,
-                              frame, extra)
+                              frame, extra, cache=cache)
     if mesh is not None:
         info["objects"] = info.get("objects", 0) + 1
         warn_unsupported_object_options(obj, warnings)
@@ -1790,7 +1790,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             continue
         if otype == "VOLUME":
             mesh = volume_mesh(pm, inst, obj, converter, materials, warnings, info,
-                               view_layer, scene_eval)
+                               view_layer, scene_eval, cache)
             if mesh is not None:
                 meshes.append(mesh)
                 info["triangles"] += len(mesh.faces)

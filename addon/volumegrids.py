@@ -207,12 +207,14 @@ def boundary_box(grid) -> tuple:
 
 
 def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings: list,
-                       name: str, frame, extra: dict, max_voxels: int | None = None):
+                       name: str, frame, extra: dict, max_voxels: int | None = None,
+                       cache: dict | None = None):
     """The engine Mesh of a Volume object instance: its lattice's box in world space
     carrying the object's material (converted for a volume object: its nodes read the
     grids) and the grids it reads (engine Mesh.volume_grids); None (warned, naming the
     object) when it has no grid, its grids are empty, or Blender cannot read them.
-    extra: the Mesh's other keywords (ray visibility, Object Info, Cryptomatte)."""
+    extra: the Mesh's other keywords (ray visibility, Object Info, Cryptomatte). cache:
+    the export's, so the copies of one instanced volume sample its grids once."""
     from importlib import import_module
     max_voxels = MAX_VOXELS if max_voxels is None else max_voxels
     VoxelGrid = import_module(pm.__name__ + ".voxelgrid").VoxelGrid
@@ -235,13 +237,20 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
     materials[mat.name] = mat
     wanted = converter.volume_grid_names.get(mat.name, set())
     names = {n: grids[n] for n in wanted if n in grids}
+    key = ("volume grids", getattr(getattr(obj, "original", None), "name", obj.name),
+           obj.data.as_pointer(), tuple(sorted(names)), max_voxels)
     try:
-        # (no grid the material reads: the lattice of one grid, the box the medium fills)
-        first = sorted(grids)[0]
-        values, lat_to_obj, stride, counts = sample_grids(
-            bpy, obj, names or {first: grids[first]}, frame, max_voxels)
-        if not names:
-            values = {}
+        if cache is not None and key in cache:
+            values, lat_to_obj, stride, counts = cache[key]
+        else:
+            # (no grid the material reads: one grid's lattice, the box the medium fills)
+            first = sorted(grids)[0]
+            values, lat_to_obj, stride, counts = sample_grids(
+                bpy, obj, names or {first: grids[first]}, frame, max_voxels)
+            if not names:
+                values = {}
+            if cache is not None:
+                cache[key] = (values, lat_to_obj, stride, counts)
     except Exception as exc:  # noqa: BLE001 - a grid Blender cannot read: warned
         warnings.append(f"object '{owner}': its grids could not be read ({type(exc).__name__}:"
                         f" {exc}); not rendered")
