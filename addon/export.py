@@ -2011,9 +2011,30 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
                 lights.append(light)
             continue
         if obj.type == "VOLUME":
-            scene_eval = getattr(depsgraph, "scene_eval", None) or depsgraph.scene
-            mesh = volume_mesh(pm, inst, obj, converter, materials, warnings, info,
-                               view_layer, scene_eval)
+            # Sampled again only when the volume, its material or its placement changed
+            # (reading the grids evaluates the volume once more: addon/volumegrids.py)
+            data = getattr(obj, "data", None)
+            slot = obj.material_slots[0].material if len(obj.material_slots) else None
+            vkey = ("volume", obj.name, data.as_pointer() if data is not None else 0,
+                    np.array(inst.matrix_world, np.float64).tobytes(),
+                    inst.parent.name if inst.is_instance and inst.parent else None,
+                    slot.name if slot is not None else None)
+            stale = (obj.name in updates.geometry or vkey not in cache.geometry
+                     or (data is not None and data.name in updates.data)
+                     or (slot is not None and slot.name in updates.materials)
+                     or updates.all_materials)
+            if stale:
+                n0 = len(warnings)
+                cache.geometry[vkey] = (volume_mesh(pm, inst, obj, converter, materials,
+                                                    warnings, info, view_layer, scene_eval),
+                                        warnings[n0:])
+                info["geometry_read"].append(obj.name)
+            mesh, said = cache.geometry[vkey]
+            seen.add(vkey)
+            if not stale:
+                warnings.extend(w for w in said if w not in warnings)
+                if mesh is not None:
+                    materials[mesh.materials[0]] = converter.convert_volume_object(slot)
             if mesh is not None:
                 meshes.append(mesh)
                 info["triangles"] += len(mesh.faces)

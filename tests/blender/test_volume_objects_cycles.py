@@ -207,6 +207,36 @@ def test_broken_volumes_are_warned(bpy_addon, monkeypatch):
     assert g.sample(np.array([[0.0, 0.0, 1.2]]))[0] == pytest.approx(1.0)
 
 
+def test_the_viewport_samples_a_volume_once(bpy_addon):
+    """The rendered viewport's export: the volume's box and grids as a render's; a
+    second update that does not touch it keeps its mesh (no second sampling), one that
+    names it samples it again."""
+    bpy = bpy_addon
+    from addon import export
+    from addon.core import load_engine
+    scene, mb, white = _base_scene(bpy)
+    mesh_to_volume(bpy, scene, mb, white, material=smoke_material(bpy))
+    pm = load_engine()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    cache = export.ViewportExport(pm)
+    camera = pm.Camera.look_at((0, -4, 2), (0, 0, 0))
+    view, info = export.export_viewport(cache, depsgraph, camera, 16, 12)
+    (smoke,) = [m for m in view.meshes if m.volume_grids]
+    assert "Smoke" in info["geometry_read"] and smoke.materials[0] in view.materials
+    view2, info2 = export.export_viewport(cache, depsgraph, camera, 16, 12,
+                                          export.ViewportUpdates())
+    (again,) = [m for m in view2.meshes if m.volume_grids]
+    assert again is smoke and "Smoke" not in info2["geometry_read"]
+    assert smoke.materials[0] in view2.materials
+    updates = export.ViewportUpdates()
+    updates.geometry.add("Smoke")
+    view3, info3 = export.export_viewport(cache, depsgraph, camera, 16, 12, updates)
+    (third,) = [m for m in view3.meshes if m.volume_grids]
+    assert third is not smoke and "Smoke" in info3["geometry_read"]
+    np.testing.assert_array_equal(third.volume_grids["density"].values,
+                                  smoke.volume_grids["density"].values)
+
+
 def _render(bpy, scene, path, engine, spp, bounces=0):
     """Cycles plain / ours at spp; bounces 0: direct light only (ours without photons),
     else Max Bounces `bounces` (ours with 200,000 photons); Volume bounces 0."""
