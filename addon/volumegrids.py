@@ -191,6 +191,79 @@ def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
             data.scenes.remove(scene)
 
 
+BLOCKS = 48  # blocks of the boundary mesh along the lattice's longest axis (at most)
+
+
+def active_voxels(values: dict, clipping: float) -> np.ndarray:
+    """(nx,ny,nz) bool: voxels where a sampled grid is active as Cycles' volume mesh
+    counts them (scene/volume.cpp: the used grids' active voxels, the density below the
+    Volume's Clipping left out): "density" above `clipping`, any other grid nonzero."""
+    act = None
+    for name, v in values.items():
+        a = np.abs(v) if v.ndim == 3 else np.abs(v).max(axis=3)
+        a = a > (clipping if name == "density" else 0.0)
+        act = a if act is None else act | a
+    return act
+
+
+def block_boundary(active: np.ndarray, to_world: np.ndarray, block: int):
+    """(vertices (V,3), faces (F,3) int32) the outward faces of the union of blocks of
+    `block`^3 lattice voxels whose trilinear footprint meets an active voxel (a voxel
+    centre c shapes the field on (c - 1, c + 1): block i, spanning index i*block ..
+    (i+1)*block, holds it when an active c lies in that closed range), in world space
+    (to_world: lattice index -> world). Cycles builds its mesh from the active voxels
+    dilated by the interpolation's reach (VolumeMeshBuilder); blocks keep the triangle
+    count bounded (at most BLOCKS along an axis)."""
+    dims = np.array(active.shape)
+    a = active.copy()
+    for axis in range(3):  # a[c] |= a[c + 1]: the block's far face reaches the next voxel
+        sl = [slice(None)] * 3
+        sl2 = [slice(None)] * 3
+        sl[axis], sl2[axis] = slice(0, -1), slice(1, None)
+        a[tuple(sl)] |= a[tuple(sl2)]
+    nb = -(-(dims - 1) // block)  # blocks along each axis (spanning 0 .. dims - 1)
+    pad = [(0, int(nb[k] * block - a.shape[k])) if nb[k] * block > a.shape[k] else (0, 0)
+           for k in range(3)]
+    a = np.pad(a, pad)[:nb[0] * block, :nb[1] * block, :nb[2] * block]
+    occ = a.reshape(nb[0], block, nb[1], block, nb[2], block).any(axis=(1, 3, 5))
+    # block corners: index i * block, the last clipped to the lattice's last voxel
+    cx, cy, cz = (np.minimum(np.arange(nb[k] + 1) * block, dims[k] - 1) for k in range(3))
+    shape = (nb[0] + 1, nb[1] + 1, nb[2] + 1)
+
+    def vid(i, j, k):
+        return (i * shape[1] + j) * shape[2] + k
+
+    quads = []
+    o = np.pad(occ, 1)
+    for axis in range(3):
+        lo = np.diff(o.astype(np.int8), axis=axis)  # +1: empty -> full, -1: full -> empty
+        sl = [slice(1, -1)] * 3
+        sl[axis] = slice(None)
+        d = lo[tuple(sl)]
+        for sign in (1, -1):
+            i, j, k = np.nonzero(d == sign)  # the face plane index along `axis`
+            if axis == 0:
+                q = [vid(i, j, k), vid(i, j + 1, k), vid(i, j + 1, k + 1), vid(i, j, k + 1)]
+            elif axis == 1:
+                q = [vid(i, j, k), vid(i, j, k + 1), vid(i + 1, j, k + 1), vid(i + 1, j, k)]
+            else:
+                q = [vid(i, j, k), vid(i + 1, j, k), vid(i + 1, j + 1, k), vid(i, j + 1, k)]
+            q = np.stack(q, axis=1)
+            # the quads above face +axis; full -> empty (sign -1) is the solid's far
+            # side: outward +axis; empty -> full: outward -axis (reversed)
+            quads.append(q if sign == -1 else q[:, ::-1])
+    q = np.concatenate(quads) if quads else np.zeros((0, 4), np.int64)
+    used, inv = np.unique(q, return_inverse=True)
+    q = inv.reshape(-1, 4)
+    ii = np.stack(np.unravel_index(used, shape), axis=1)
+    idx = np.stack([cx[ii[:, 0]], cy[ii[:, 1]], cz[ii[:, 2]]], axis=1).astype(np.float64)
+    verts = idx @ to_world[:3, :3].T + to_world[:3, 3]
+    faces = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]).astype(np.int32)
+    if np.linalg.det(to_world[:3, :3]) < 0:
+        faces = faces[:, [0, 2, 1]]
+    return verts, faces
+
+
 def box_faces() -> np.ndarray:
     """(12,3) int32 the triangles of the box whose 8 corners are ordered i*4 + j*2 + k
     (corner (i, j, k) of the lattice), wound counter-clockwise seen from outside."""
@@ -252,8 +325,6 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
             first = sorted(grids)[0]
             values, lat_to_obj, stride, counts = sample_grids(
                 bpy, obj, names or {first: grids[first]}, frame, max_voxels)
-            if not names:
-                values = {}
             if cache is not None:
                 cache[key] = (values, lat_to_obj, stride, counts)
     except Exception as exc:  # noqa: BLE001 - a grid Blender cannot read: warned
@@ -264,14 +335,17 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
         warnings.append(f"object '{owner}': its grids exceed {max_voxels} voxels "
                         f"({round(max_voxels ** (1 / 3))}^3); sampled at every {stride}th "
                         "voxel (fine detail may alias)")
-    if values and all(not np.any(v) for v in values.values()):
-        warnings.append(f"object '{owner}': its grids {sorted(values)} are empty (every "
-                        "voxel 0); nothing to render")
+    clipping = float(getattr(getattr(obj.data, "render", None), "clipping", 0.001) or 0.0)
+    active = active_voxels(values, clipping)
+    if not active.any():
+        warnings.append(f"object '{owner}': its grids {sorted(values)} are empty (no "
+                        f"voxel above the Clipping {clipping:g}); nothing to render")
         return None
     to_world = np.array(inst.matrix_world, np.float64) @ lat_to_obj
-    vgrids = {n: VoxelGrid(v, to_world, n) for n, v in values.items()}
-    verts, faces = boundary_box(VoxelGrid(np.zeros(tuple(int(c) for c in counts),
-                                                   np.float32), to_world))
+    # (no grid the material reads: the sampled one shapes the boundary, none is attached)
+    vgrids = {n: VoxelGrid(v, to_world, n) for n, v in values.items() if n in names}
+    block = max(1, -(-int(max(counts)) // BLOCKS))
+    verts, faces = block_boundary(active, to_world, block)
     interp = "LINEAR"
     if slot is not None:
         interp = str(getattr(getattr(slot, "cycles", None), "volume_interpolation",
