@@ -464,7 +464,7 @@ class MaterialConverter:
         multiplies the grid its Density Attribute names, its Temperature the Temperature
         Attribute's grid (when Blackbody Intensity > 0), Attribute and Volume Info nodes
         read grids (engine/voxelgrid.GridAttribute; addon/volumegrids.py samples them);
-        a surface is not rendered (the box around the grid is only the medium's
+        a surface is not rendered (the mesh around the grid is only the medium's
         boundary). The grid names it reads go to volume_grid_names."""
         key = f"{mat.name if mat is not None else 'default'} (volume object)"
         if key in self.cache:

@@ -1,5 +1,6 @@
 """Volume objects (OpenVDB grids, Mesh to Volume, Volume Displace, Geometry Nodes volumes)
-as heterogeneous media: their grids read through Geometry Nodes, their boundary a box.
+as heterogeneous media: their grids read through Geometry Nodes, their boundary the voxel
+blocks around their active voxels.
 
 Blender's Python has no OpenVDB module, but Geometry Nodes 5.0 reads grids: a temporary
 mesh object whose vertices sit at the grid's voxel centres carries a node group
@@ -14,9 +15,11 @@ is removed in a `finally`, on error too. The lattice: the grid's own voxel centr
 integer points of its index space, grid.matrix_object) over the object's bounds (Blender
 bounds a volume by its grids' active voxels, half a voxel beyond their centres), one
 background voxel of padding on every side so the interpolated field falls to 0 at the
-box's faces. At voxel centres Sample Grid returns the voxel's own value, whatever its
+lattice's faces. At voxel centres Sample Grid returns the voxel's own value, whatever its
 interpolation, so the engine's trilinear interpolation of the lattice
-(engine/voxelgrid.py) is Cycles' linear interpolation of the grid.
+(engine/voxelgrid.py) is Cycles' linear interpolation of the grid. The medium's boundary:
+the box of its active voxels above the Volume's Clipping, padded as Cycles pads them
+(active_box: measured against Cycles 5.0).
 
 Memory: at most MAX_VOXELS lattice points per object (256^3 float32 = 64 MiB per scalar
 grid, 3x for a colour grid; the temporary mesh's positions take 12 bytes a point while
@@ -94,7 +97,9 @@ def lattice(bounds_lo, bounds_hi, index_to_object, max_voxels: int = MAX_VOXELS)
 def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
     """Sample grids `names` ({name: data_type}) of the evaluated Volume object obj at
     its lattice (`lattice`): ({name: values (nx,ny,nz) or (nx,ny,nz,3) float32},
-    lattice_to_object (4,4), stride, counts (3,)). frame: (frame, subframe) the temporary scene
+    active (nx,ny,nz) bool: a voxel active in one of the grids (OpenVDB's topology,
+    tiles included: whatever its value), lattice_to_object (4,4), stride, counts (3,),
+    first (3,): the grid index of lattice index 0). frame: (frame, subframe) the temporary scene
     evaluates at. Every temporary datablock is removed before returning or raising."""
     max_voxels = MAX_VOXELS if max_voxels is None else max_voxels
     ref = "density" if "density" in names else sorted(names)[0]
@@ -152,6 +157,30 @@ def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
             links.new(geom, store.inputs["Geometry"])
             links.new(smp.outputs[0], store.inputs["Value"])
             geom = store.outputs[0]
+        # the active voxels (tiles included) of each grid: Field to Grid of 1 on its
+        # topology, sampled as the values are
+        for i, (name, dtype) in enumerate(sorted(names.items())):
+            kind = grid_kind(dtype)
+            get = nodes.new("GeometryNodeGetNamedGrid")
+            get.data_type = kind
+            get.inputs["Name"].default_value = name
+            topo = nodes.new("GeometryNodeFieldToGrid")
+            topo.data_type = kind
+            topo.grid_items.new("FLOAT", "Active")
+            topo.inputs[1].default_value = 1.0
+            smp = nodes.new("GeometryNodeSampleGrid")
+            smp.data_type = "FLOAT"
+            store = nodes.new("GeometryNodeStoreNamedAttribute")
+            store.data_type = "FLOAT"
+            store.domain = "POINT"
+            store.inputs["Name"].default_value = f"pmvdb_active_{i}"
+            links.new(info.outputs["Geometry"], get.inputs["Volume"])
+            links.new(get.outputs["Grid"], topo.inputs["Topology"])
+            links.new(topo.outputs[0], smp.inputs["Grid"])
+            links.new(pos.outputs["Position"], smp.inputs["Position"])
+            links.new(geom, store.inputs["Geometry"])
+            links.new(smp.outputs[0], store.inputs["Value"])
+            geom = store.outputs[0]
         links.new(geom, gout.inputs[0])
         mod = ob.modifiers.new(_TMP, "NODES")
         mod.node_group = tree
@@ -177,9 +206,17 @@ def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
                     buf = np.zeros(n, np.float32)
                     attr.data.foreach_get("value", buf)
                     out[name] = buf.reshape(shape)
+            active = np.zeros(n, bool)
+            buf = np.zeros(n, np.float32)
+            for i in range(len(names)):
+                attr = me.attributes.get(f"pmvdb_active_{i}")
+                if attr is None:
+                    raise ValueError("the grids' active voxels were not sampled")
+                attr.data.foreach_get("value", buf)
+                active |= buf > 0.5
         finally:
             ev.to_mesh_clear()
-        return out, lat_to_obj, stride, counts
+        return out, active.reshape(shape), lat_to_obj, stride, counts, first
     finally:
         if ob is not None:
             data.objects.remove(ob)
@@ -191,104 +228,51 @@ def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
             data.scenes.remove(scene)
 
 
-BLOCKS = 48  # blocks of the boundary mesh along the lattice's longest axis (at most)
+def active_voxels(values: dict, topology: np.ndarray, clipping: float) -> np.ndarray:
+    """(nx,ny,nz) bool: the voxels Cycles' volume region is built around: active in the
+    used grids' topology (`topology`: Field to Grid's mask, tiles included) and, for a
+    scalar grid, above the Volume's Clipping (0.001 by default: "value under which
+    voxels are considered empty space"); a vector grid's nonzero voxels."""
+    keep = np.zeros(topology.shape, bool)
+    for v in values.values():
+        keep |= (np.abs(v) > clipping) if v.ndim == 3 else np.any(v != 0.0, axis=3)
+    return topology & keep if values else topology
 
 
-def active_voxels(values: dict, clipping: float) -> np.ndarray:
-    """(nx,ny,nz) bool: voxels where a sampled grid is active as Cycles' volume mesh
-    counts them (scene/volume.cpp: the used grids' active voxels, the density below the
-    Volume's Clipping left out): "density" above `clipping`, any other grid nonzero."""
-    act = None
-    for name, v in values.items():
-        a = np.abs(v) if v.ndim == 3 else np.abs(v).max(axis=3)
-        a = a > (clipping if name == "density" else 0.0)
-        act = a if act is None else act | a
-    return act
+def active_box(active: np.ndarray, stride: int) -> tuple:
+    """(lo (3,), hi (3,)) lattice index coordinates of the volume's region: the active
+    voxels' bounding box from one grid voxel below the first to two above the last.
+    Measured against Cycles 5.0 (a Mesh to Volume sphere of 0.1 m voxels, emission
+    only, seen orthographically along each axis): its volume fills exactly that box
+    (x -0.8 .. 0.9, z 0.4 .. 2.1 for voxels above the Clipping at indices -7 .. 7 and
+    5 .. 19: Cycles' mesh builder pads the active voxels by the linear interpolation's
+    1 voxel and converts the last voxel's exclusive bound to an inclusive one, +1;
+    scene/volume.cpp), a box, not the sphere's shape."""
+    idx = np.argwhere(active)
+    return (idx.min(axis=0) - 1.0 / stride, idx.max(axis=0) + 2.0 / stride)
 
 
-def block_boundary(active: np.ndarray, to_world: np.ndarray, block: int):
-    """(vertices (V,3), faces (F,3) int32) the outward faces of the union of blocks of
-    `block`^3 lattice voxels whose trilinear footprint meets an active voxel (a voxel
-    centre c shapes the field on (c - 1, c + 1): block i, spanning index i*block ..
-    (i+1)*block, holds it when an active c lies in that closed range), in world space
-    (to_world: lattice index -> world). Cycles builds its mesh from the active voxels
-    dilated by the interpolation's reach (VolumeMeshBuilder); blocks keep the triangle
-    count bounded (at most BLOCKS along an axis)."""
-    dims = np.array(active.shape)
-    a = active.copy()
-    for axis in range(3):  # a[c] |= a[c + 1]: the block's far face reaches the next voxel
-        sl = [slice(None)] * 3
-        sl2 = [slice(None)] * 3
-        sl[axis], sl2[axis] = slice(0, -1), slice(1, None)
-        a[tuple(sl)] |= a[tuple(sl2)]
-    nb = -(-(dims - 1) // block)  # blocks along each axis (spanning 0 .. dims - 1)
-    pad = [(0, int(nb[k] * block - a.shape[k])) if nb[k] * block > a.shape[k] else (0, 0)
-           for k in range(3)]
-    a = np.pad(a, pad)[:nb[0] * block, :nb[1] * block, :nb[2] * block]
-    occ = a.reshape(nb[0], block, nb[1], block, nb[2], block).any(axis=(1, 3, 5))
-    # block corners: index i * block, the last clipped to the lattice's last voxel
-    cx, cy, cz = (np.minimum(np.arange(nb[k] + 1) * block, dims[k] - 1) for k in range(3))
-    shape = (nb[0] + 1, nb[1] + 1, nb[2] + 1)
-
-    def vid(i, j, k):
-        return (i * shape[1] + j) * shape[2] + k
-
-    quads = []
-    o = np.pad(occ, 1)
-    for axis in range(3):
-        lo = np.diff(o.astype(np.int8), axis=axis)  # +1: empty -> full, -1: full -> empty
-        sl = [slice(1, -1)] * 3
-        sl[axis] = slice(None)
-        d = lo[tuple(sl)]
-        for sign in (1, -1):
-            i, j, k = np.nonzero(d == sign)  # the face plane index along `axis`
-            if axis == 0:
-                q = [vid(i, j, k), vid(i, j + 1, k), vid(i, j + 1, k + 1), vid(i, j, k + 1)]
-            elif axis == 1:
-                q = [vid(i, j, k), vid(i, j, k + 1), vid(i + 1, j, k + 1), vid(i + 1, j, k)]
-            else:
-                q = [vid(i, j, k), vid(i + 1, j, k), vid(i + 1, j + 1, k), vid(i, j + 1, k)]
-            q = np.stack(q, axis=1)
-            # the quads above face +axis; full -> empty (sign -1) is the solid's far
-            # side: outward +axis; empty -> full: outward -axis (reversed)
-            quads.append(q if sign == -1 else q[:, ::-1])
-    q = np.concatenate(quads) if quads else np.zeros((0, 4), np.int64)
-    used, inv = np.unique(q, return_inverse=True)
-    q = inv.reshape(-1, 4)
-    ii = np.stack(np.unravel_index(used, shape), axis=1)
-    idx = np.stack([cx[ii[:, 0]], cy[ii[:, 1]], cz[ii[:, 2]]], axis=1).astype(np.float64)
-    verts = idx @ to_world[:3, :3].T + to_world[:3, 3]
-    faces = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]).astype(np.int32)
+def box_mesh(lo, hi, to_world: np.ndarray) -> tuple:
+    """(vertices (8,3), faces (12,3) int32) the box [lo, hi] (lattice index
+    coordinates) in world space (to_world: lattice index -> world), faces outward."""
+    c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                  for z in (lo[2], hi[2])], np.float64)
+    verts = c @ to_world[:3, :3].T + to_world[:3, 3]
+    # corners i*4 + j*2 + k; each face counter-clockwise seen from outside
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
+             (1, 5, 7, 3)]
+    faces = np.array([t for a, b, c_, d in quads for t in ((a, b, c_), (a, c_, d))],
+                     np.int32)
     if np.linalg.det(to_world[:3, :3]) < 0:
         faces = faces[:, [0, 2, 1]]
     return verts, faces
 
 
-def box_faces() -> np.ndarray:
-    """(12,3) int32 the triangles of the box whose 8 corners are ordered i*4 + j*2 + k
-    (corner (i, j, k) of the lattice), wound counter-clockwise seen from outside."""
-    q = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    f = []
-    for a, b, c, d in q:
-        f += [(a, b, c), (a, c, d)]
-    return np.array(f, np.int32)
-
-
-def boundary_box(grid) -> tuple:
-    """(vertices (8,3), faces (12,3)) the world-space box of a VoxelGrid's lattice, its
-    faces facing outward (a mirrored matrix flips their winding)."""
-    v = grid.corners()
-    f = box_faces()
-    if np.linalg.det(grid.index_to_world[:3, :3]) < 0:
-        f = f[:, [0, 2, 1]]
-    return v, f
-
-
 def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings: list,
                        name: str, frame, extra: dict, max_voxels: int | None = None,
                        cache: dict | None = None):
-    """The engine Mesh of a Volume object instance: its lattice's box in world space
-    carrying the object's material (converted for a volume object: its nodes read the
+    """The engine Mesh of a Volume object instance: the box around its active voxels in
+    world space (active_box) carrying the object's material (converted for a volume object: its nodes read the
     grids) and the grids it reads (engine Mesh.volume_grids); None (warned, naming the
     object) when it has no grid, its grids are empty, or Blender cannot read them.
     extra: the Mesh's other keywords (ray visibility, Object Info, Cryptomatte). cache:
@@ -319,14 +303,15 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
            obj.data.as_pointer(), tuple(sorted(names)), max_voxels)
     try:
         if cache is not None and key in cache:
-            values, lat_to_obj, stride, counts = cache[key]
+            values, active, lat_to_obj, stride, counts, first = cache[key]
         else:
-            # (no grid the material reads: one grid's lattice, the box the medium fills)
-            first = sorted(grids)[0]
-            values, lat_to_obj, stride, counts = sample_grids(
-                bpy, obj, names or {first: grids[first]}, frame, max_voxels)
+            # (no grid the material reads: one grid's lattice and active voxels, the
+            # region the medium fills)
+            one = sorted(grids)[0]
+            values, active, lat_to_obj, stride, counts, first = sample_grids(
+                bpy, obj, names or {one: grids[one]}, frame, max_voxels)
             if cache is not None:
-                cache[key] = (values, lat_to_obj, stride, counts)
+                cache[key] = (values, active, lat_to_obj, stride, counts, first)
     except Exception as exc:  # noqa: BLE001 - a grid Blender cannot read: warned
         warnings.append(f"object '{owner}': its grids could not be read ({type(exc).__name__}:"
                         f" {exc}); not rendered")
@@ -336,16 +321,15 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
                         f"({round(max_voxels ** (1 / 3))}^3); sampled at every {stride}th "
                         "voxel (fine detail may alias)")
     clipping = float(getattr(getattr(obj.data, "render", None), "clipping", 0.001) or 0.0)
-    active = active_voxels(values, clipping)
+    active = active_voxels(values, active, clipping)
     if not active.any():
         warnings.append(f"object '{owner}': its grids {sorted(values)} are empty (no "
-                        f"voxel above the Clipping {clipping:g}); nothing to render")
+                        f"active voxel above the Clipping {clipping:g}); nothing to render")
         return None
     to_world = np.array(inst.matrix_world, np.float64) @ lat_to_obj
     # (no grid the material reads: the sampled one shapes the boundary, none is attached)
     vgrids = {n: VoxelGrid(v, to_world, n) for n, v in values.items() if n in names}
-    block = max(1, -(-int(max(counts)) // BLOCKS))
-    verts, faces = block_boundary(active, to_world, block)
+    verts, faces = box_mesh(*active_box(active, stride), to_world)
     interp = "LINEAR"
     if slot is not None:
         interp = str(getattr(getattr(slot, "cycles", None), "volume_interpolation",

@@ -38,7 +38,7 @@ def main(argv=None):
         grids = volumegrids.object_grids(ve)
         scene = bpy.context.scene
         t = time.perf_counter()
-        values, _, stride, counts = volumegrids.sample_grids(
+        values, _, _, stride, counts, _ = volumegrids.sample_grids(
             bpy, ve, {"density": grids["density"]}, (scene.frame_current, 0.0))
         dt = time.perf_counter() - t
         v = values["density"]

@@ -563,7 +563,8 @@ class Mesh:
               a name a mesh lacks reads (0, 0, 0, 0)
     volume_grids  {name: engine.voxelgrid.VoxelGrid} a Volume object's grids (world
               space) that its material's nodes read (voxelgrid.GridAttribute); None for
-              a mesh. The mesh is then the grid's boundary (a box around its lattice)
+              a mesh. The mesh is then the grids' boundary (voxel blocks around their
+              active voxels: addon/volumegrids.py)
     """
 
     name: str

@@ -14,9 +14,10 @@ solvers write.
 The add-on (addon/volumegrids.py) samples each grid the material reads at the voxel
 centres of one lattice per object (the grid's own voxels, coarser when the lattice
 would exceed a memory budget), one background voxel of padding on every side, so the
-interpolated field falls to 0 at the lattice's faces: the medium's boundary box
-(heterogeneous.py's triangles) is the lattice's box and the field holds no density
-beyond it.
+interpolated field falls to 0 at the lattice's faces; the medium's boundary
+(heterogeneous.py's triangles) is the box of the grid's active voxels, padded as Cycles
+pads its volume mesh (addon/volumegrids.active_box); where it reaches past the lattice
+the grid reads its background 0.
 
 `VoxelGrid` holds one grid's lattice values and its index -> world map; `GridAttribute`
 is the shader node (engine/shadernodes.py terms: evaluate(geo, prim, u, v)) that reads
@@ -112,9 +113,10 @@ class VoxelGrid:
     def box_ranges(self, lo, hi, luminance: bool = False):
         """(lo (C,), hi (C,)) the smallest and largest value the interpolated grid takes
         in each world box [lo_c, hi_c] (C,3): the voxels whose trilinear footprint meets
-        the box (their extremes bound the interpolant); a box's part beyond the lattice
-        lies outside the medium (its boundary is the lattice's box: no point there is
-        ever evaluated), a box wholly beyond it reads 0. luminance: a vector grid read through Rec.709
+        the box (their extremes bound the interpolant); a box wholly beyond the
+        lattice reads 0. A box's part beyond it reads 0 too, which the lower bound
+        leaves out: the residual tracking stays unbiased with it (engine/majorant.py),
+        and the upper bound, which the distance sampling needs, holds. luminance: a vector grid read through Rec.709
         weights (a colour into a value socket)."""
         lo = np.asarray(lo, np.float64)
         hi = np.asarray(hi, np.float64)

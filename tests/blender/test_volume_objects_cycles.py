@@ -117,10 +117,11 @@ def _datablocks(bpy):
 
 
 def test_the_export_samples_the_density_grid(bpy_addon):
-    """A Mesh to Volume sphere (radius 0.8, voxels 0.1 m): the exported boundary (voxel
-    blocks) holds the voxels above the Clipping 0.001 and their trilinear footprint,
-    the sphere and no more than a voxel around it; its "density" grid is 1 at the
-    centre and 0 on the boundary, trilinear between voxel centres; the material is the
+    """A Mesh to Volume sphere (radius 0.8, voxels 0.1 m): the exported boundary is the
+    box Cycles fills (the voxels above the Clipping 0.001, one voxel below and two
+    above: measured with an emission-only volume seen orthographically, x -0.8 .. 0.9,
+    z 0.4 .. 2.1); its "density" grid is 1 at the centre and below the Clipping on the
+    boundary, trilinear between voxel centres; the material is the
     Principled Volume's coefficients at density 1, its field 2 x the grid; no temporary
     datablock is left."""
     bpy = bpy_addon
@@ -133,8 +134,10 @@ def test_the_export_samples_the_density_grid(bpy_addon):
     (smoke,) = [m for m in out.meshes if m.volume_grids]
     g = smoke.volume_grids["density"]
     lo, hi = smoke.vertices.min(axis=0), smoke.vertices.max(axis=0)
-    assert np.all(lo < [-0.79, -0.79, 0.41]) and np.all(hi > [0.79, 0.79, 1.99])
-    assert np.all(lo > [-0.91, -0.91, 0.29]) and np.all(hi < [0.91, 0.91, 2.11])
+    # (the voxels above the Clipping: indices -7 .. 7 about the centre; the box one
+    # voxel below, two above, as Cycles' region measured)
+    np.testing.assert_allclose(lo, [-0.8, -0.8, 0.4], atol=1e-6)
+    np.testing.assert_allclose(hi, [0.9, 0.9, 2.1], atol=1e-6)
     assert g.sample(np.array([[0.0, 0.0, 1.2]]))[0] == pytest.approx(1.0)
     # (below the Clipping there: left out, as Cycles' mesh leaves them)
     assert np.all(g.sample(smoke.vertices) < 0.001)
@@ -151,41 +154,28 @@ def test_the_export_samples_the_density_grid(bpy_addon):
                                                             np.zeros(2)), [2.0, 0.0])
 
 
-def test_the_boundary_mesh_closes_the_active_blocks(bpy_addon):
-    """block_boundary: a closed mesh (every edge on two triangles, wound outward: its
-    divergence-theorem volume is the occupied blocks' volume) around every block an
-    active voxel's trilinear footprint reaches, under a scaling matrix and a mirroring
-    one."""
-    from addon.volumegrids import block_boundary
-    rng = np.random.default_rng(5)
-    active = np.zeros((20, 17, 13), bool)
-    active[3:9, 4:12, 2:6] = True
-    active[tuple(rng.integers(0, [20, 17, 13], (6, 3)).T)] = True
-    for to_world in (np.diag([0.1, 0.2, 0.05, 1.0]), np.diag([-0.1, 0.2, 0.05, 1.0])):
-        for block in (1, 3, 4):
-            v, f = block_boundary(active, to_world, block)
-            edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-            _, count = np.unique(edges, axis=0, return_counts=True)
-            assert np.all(count % 2 == 0)
-            a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+def test_the_boundary_box_of_the_active_voxels(bpy_addon):
+    """active_box / box_mesh: the active voxels' bounding box, one grid voxel below and
+    two above (Cycles' padding), closed and wound outward under a scaling and a
+    mirroring matrix (its divergence-theorem volume is the box's); the active voxels:
+    the topology's, a scalar grid's above the Clipping."""
+    from addon.volumegrids import active_box, active_voxels, box_mesh
+    v = np.zeros((12, 10, 8), np.float32)
+    v[3:7, 2:5, 4] = 0.5
+    v[8, 8, 6] = 0.0005  # below the Clipping
+    topo = v > 0
+    topo[0, 0, 0] = True  # active but 0: not kept
+    act = active_voxels({"density": v}, topo, 0.001)
+    assert act.sum() == 12 and act[3:7, 2:5, 4].all()
+    for stride in (1, 2):
+        lo, hi = active_box(act, stride)
+        np.testing.assert_allclose(lo, np.array([3, 2, 4]) - 1.0 / stride)
+        np.testing.assert_allclose(hi, np.array([6, 4, 4]) + 2.0 / stride)
+        for to_world in (np.diag([0.1, 0.2, 0.05, 1.0]), np.diag([-0.1, 0.2, 0.05, 1.0])):
+            verts, f = box_mesh(lo, hi, to_world)
+            a, b, c = verts[f[:, 0]], verts[f[:, 1]], verts[f[:, 2]]
             vol = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
-            # the blocks an active voxel c reaches: its footprint (c - 1, c + 1) meets
-            # block i's (i*block, (i+1)*block): i*block <= c <= (i+1)*block
-            idx = np.argwhere(active)
-            nb = -(-(np.array(active.shape) - 1) // block)
-            reach = set()
-            for c in idx:
-                lo = np.maximum(-(-c // block) - 1, 0)
-                hi = np.minimum(c // block, nb - 1)
-                for i in range(lo[0], hi[0] + 1):
-                    for j in range(lo[1], hi[1] + 1):
-                        for k in range(lo[2], hi[2] + 1):
-                            reach.add((i, j, k))
-            dims = np.array(active.shape) - 1
-            size = [np.minimum((np.array(r) + 1) * block, dims) - np.array(r) * block
-                    for r in reach]
-            expect = sum(float(np.prod(s)) for s in size) * abs(np.linalg.det(to_world))
-            assert vol == pytest.approx(expect, rel=1e-9), (block, vol, expect)
+            assert vol == pytest.approx(np.prod(hi - lo) * abs(np.linalg.det(to_world)))
 
 
 def test_no_material_is_cycles_default_volume(bpy_addon):
