@@ -2558,8 +2558,8 @@ def volume_object_smoke():
     "density" grid 1 inside, ramping to 0 over a voxel or two at the rim), Principled
     Volume Color 0.8, Density 3 (x the grid: its Density Attribute "density"), floating
     over the floor under a spot: the grid read through Geometry Nodes at its voxel
-    centres, trilinear between them, the voxel blocks around its active voxels the
-    medium's boundary (addon/volumegrids.py, engine/voxelgrid.py, docs/compatibility.md
+    centres, trilinear between them, the box of its active voxels the medium's boundary
+    (addon/volumegrids.py, engine/voxelgrid.py, docs/compatibility.md
     vdb41; it was warned and not rendered)."""
     white = _stage()
     src = mb.sphere("Puff source", 0.7, white, (0.0, 0.0, 1.0), segments=24, rings=12)
