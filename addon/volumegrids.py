@@ -236,7 +236,7 @@ def active_voxels(values: dict, topology: np.ndarray, clipping: float) -> np.nda
     keep = np.zeros(topology.shape, bool)
     for v in values.values():
         keep |= (np.abs(v) > clipping) if v.ndim == 3 else np.any(v != 0.0, axis=3)
-    return topology & keep if values else topology
+    return topology & keep
 
 
 def active_box(active: np.ndarray, stride: int) -> tuple:
@@ -299,17 +299,22 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
     materials[mat.name] = mat
     wanted = converter.volume_grid_names.get(mat.name, set())
     names = {n: grids[n] for n in wanted if n in grids}
+    if not names:
+        # Cycles loads the grids its shader asks for and builds the volume's mesh from
+        # them: none, no mesh (measured: a volume with only a "temperature" grid renders
+        # nothing under the default volume shader, a density-1 box under a Blackbody one)
+        warnings.append(f"object '{owner}': none of the grids its material reads "
+                        f"({', '.join(sorted(wanted)) or 'none'}) is in the volume (it has "
+                        f"{', '.join(sorted(grids))}); nothing to render, as in Cycles")
+        return None
     key = ("volume grids", getattr(getattr(obj, "original", None), "name", obj.name),
            obj.data.as_pointer(), tuple(sorted(names)), max_voxels)
     try:
         if cache is not None and key in cache:
             values, active, lat_to_obj, stride, counts, first = cache[key]
         else:
-            # (no grid the material reads: one grid's lattice and active voxels, the
-            # region the medium fills)
-            one = sorted(grids)[0]
             values, active, lat_to_obj, stride, counts, first = sample_grids(
-                bpy, obj, names or {one: grids[one]}, frame, max_voxels)
+                bpy, obj, names, frame, max_voxels)
             if cache is not None:
                 cache[key] = (values, active, lat_to_obj, stride, counts, first)
     except Exception as exc:  # noqa: BLE001 - a grid Blender cannot read: warned
@@ -327,8 +332,7 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
                         f"active voxel above the Clipping {clipping:g}); nothing to render")
         return None
     to_world = np.array(inst.matrix_world, np.float64) @ lat_to_obj
-    # (no grid the material reads: the sampled one shapes the boundary, none is attached)
-    vgrids = {n: VoxelGrid(v, to_world, n) for n, v in values.items() if n in names}
+    vgrids = {n: VoxelGrid(v, to_world, n) for n, v in values.items()}
     verts, faces = box_mesh(*active_box(active, stride), to_world)
     interp = "LINEAR"
     if slot is not None:

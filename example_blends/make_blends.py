@@ -258,7 +258,8 @@ def grid_volume(name, grids, lo, hi, res=24, mat=None):
     """A Volume object made by Geometry Nodes: a Volume Cube from lo to hi (res voxels a
     side) whose "density" grid ramps linearly along z, with more named grids beside it
     (Store Named Grid, each another Volume Cube's grid): grids {name: (value at lo.z,
-    value at hi.z)} ("density" 1 when not given). mat: set by a Set Material node (a
+    value at hi.z)} (without "density": the volume has no such grid). mat: set by a Set
+    Material node (a
     Geometry Nodes volume has no material of its own: Cycles then renders its default
     volume)."""
     vo = bpy.data.objects.new(name, bpy.data.volumes.new(name))
@@ -298,6 +299,12 @@ def grid_volume(name, grids, lo, hi, res=24, mat=None):
         links.new(vol, store.inputs["Volume"])
         links.new(get.outputs["Grid"], store.inputs["Grid"])
         vol = store.outputs["Volume"]
+    if "density" not in grids:
+        drop = nodes.new("GeometryNodeGetNamedGrid")
+        drop.inputs["Name"].default_value = "density"
+        drop.inputs["Remove"].default_value = True
+        links.new(vol, drop.inputs["Volume"])
+        vol = drop.outputs["Volume"]
     if mat is not None:
         setm = nodes.new("GeometryNodeSetMaterial")
         setm.inputs["Material"].default_value = mat
