@@ -94,6 +94,50 @@ def lattice(bounds_lo, bounds_hi, index_to_object, max_voxels: int = MAX_VOXELS)
     return first, counts, stride
 
 
+START_WAIT = 5.0  # s a render thread waits for the main thread to take the sampling
+
+
+def on_main_thread(bpy, fn):
+    """fn() on Blender's main thread: a final render runs the engine on a render thread,
+    and datablocks made or removed there race the interface (Cycles never writes to
+    bpy.data while it renders). From another thread fn goes to a bpy.app.timers call
+    and this waits for it; when the main thread does not take it within START_WAIT
+    seconds (its event loop busy), fn runs here after all. On the main thread (background
+    renders, scripts, the viewport's update): fn() directly."""
+    import threading
+    if threading.current_thread() is threading.main_thread():
+        return fn()
+    lock = threading.Lock()
+    started, done = threading.Event(), threading.Event()
+    state: dict = {"who": None}
+
+    def run():
+        with lock:
+            if state["who"] is not None:
+                return None
+            state["who"] = "main"
+        started.set()
+        try:
+            state["value"] = fn()
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
+            state["error"] = exc
+        finally:
+            done.set()
+        return None
+
+    bpy.app.timers.register(run, first_interval=0.0)
+    if not started.wait(START_WAIT):
+        with lock:
+            if state["who"] is None:
+                state["who"] = "here"
+        if state["who"] == "here":
+            return fn()
+    done.wait()
+    if "error" in state:
+        raise state["error"]
+    return state["value"]
+
+
 def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
     """Sample grids `names` ({name: data_type}) of the evaluated Volume object obj at
     its lattice (`lattice`): ({name: values (nx,ny,nz) or (nx,ny,nz,3) float32},
@@ -313,8 +357,8 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
         if cache is not None and key in cache:
             values, active, lat_to_obj, stride, counts, first = cache[key]
         else:
-            values, active, lat_to_obj, stride, counts, first = sample_grids(
-                bpy, obj, names, frame, max_voxels)
+            values, active, lat_to_obj, stride, counts, first = on_main_thread(
+                bpy, lambda: sample_grids(bpy, obj, names, frame, max_voxels))
             if cache is not None:
                 cache[key] = (values, active, lat_to_obj, stride, counts, first)
     except Exception as exc:  # noqa: BLE001 - a grid Blender cannot read: warned

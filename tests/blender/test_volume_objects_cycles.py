@@ -324,6 +324,56 @@ def test_the_viewport_samples_a_volume_once(bpy_addon):
                                   smoke.volume_grids["density"].values)
 
 
+def test_sampling_from_a_render_thread_goes_to_the_main_thread(bpy_addon, monkeypatch):
+    """on_main_thread: called on the main thread, fn runs there; from another thread it
+    is handed to bpy.app.timers (here a stand-in that runs it on the main thread), and
+    when no timer takes it within START_WAIT the calling thread runs it itself; an
+    error reaches the caller."""
+    import threading
+    from addon import volumegrids
+    bpy = bpy_addon
+    main = threading.main_thread()
+    assert volumegrids.on_main_thread(bpy, lambda: threading.current_thread()) is main
+    queue = []
+
+    class Timers:
+        @staticmethod
+        def register(fn, first_interval=0.0):
+            queue.append(fn)
+
+    class FakeBpy:
+        app = type("app", (), {"timers": Timers})
+
+    box = {}
+    t = threading.Thread(target=lambda: box.update(
+        who=volumegrids.on_main_thread(FakeBpy, lambda: threading.current_thread())))
+    t.start()
+    while not queue:
+        pass
+    queue.pop()()
+    t.join()
+    assert box["who"] is main
+    monkeypatch.setattr(volumegrids, "START_WAIT", 0.01)
+    t = threading.Thread(target=lambda: box.update(
+        who=volumegrids.on_main_thread(FakeBpy, lambda: threading.current_thread())))
+    t.start()
+    t.join()
+    assert box["who"] is t and queue and queue.pop()() is None  # (the late timer: nothing)
+
+    def fail():
+        raise ValueError("no grid")
+
+    t = threading.Thread(target=lambda: box.update(error=pytest.raises(
+        ValueError, volumegrids.on_main_thread, FakeBpy, fail)))
+    monkeypatch.setattr(volumegrids, "START_WAIT", 5.0)
+    t.start()
+    while not queue:
+        pass
+    queue.pop()()
+    t.join()
+    assert "no grid" in str(box["error"].value)
+
+
 def _render(bpy, scene, path, engine, spp, bounces=0):
     """Cycles plain / ours at spp; bounces 0: direct light only (ours without photons),
     else Max Bounces `bounces` (ours with 200,000 photons); Volume bounces 0."""
