@@ -765,9 +765,6 @@ class MaterialConverter:
             return (self._density(node) * (1.0 - color), np.zeros(3),
                     np.zeros(3), np.zeros(3))
         if t == "PRINCIPLED_VOLUME":
-            if self._grid_attribute(node, "Color Attribute"):
-                self._warn(f"material '{name}': the Color Attribute of '{node.name}' is not "
-                           "read; the Color socket used")
             color = np.clip(self._albedo_color(node), 0.0, None)
             density = self._density(node)
             absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
@@ -983,6 +980,13 @@ class MaterialConverter:
         colour (within 0..1) returned for the coefficients. Otherwise _volume_color (a
         texture warned, its own value used)."""
         rgb, tex = self._color(node, "Color")
+        attr = self._grid_attribute(node, "Color Attribute")
+        if attr and self._fields is not None:
+            # A volume object: Color x the grid (svm_node_principled_volume), an albedo
+            # field like a texture on the Color
+            tex = self.pm.shadernodes.VectorMath(
+                "MULTIPLY", tex if tex is not None else np.asarray(rgb, np.float64),
+                self._grid(attr, "COLOR", 1.0))
         if tex is None:
             return np.asarray(rgb, np.float64)
         ab = node.inputs.get("Absorption Color")

@@ -47,9 +47,9 @@ def has_grid_nodes(bpy) -> bool:
 
 
 def grid_kind(data_type: str) -> str:
-    """The Geometry Nodes data type that reads a VolumeGrid of data_type: FLOAT_VECTOR for
-    vector grids, FLOAT for the rest (a boolean / integer grid read as a value)."""
-    return "FLOAT_VECTOR" if str(data_type).startswith("VECTOR") else "FLOAT"
+    """The grid nodes' data type that reads a VolumeGrid of data_type: VECTOR for vector
+    grids, FLOAT for the rest (a boolean / integer grid read as a value)."""
+    return "VECTOR" if str(data_type).startswith("VECTOR") else "FLOAT"
 
 
 def object_grids(obj) -> dict:
@@ -191,7 +191,7 @@ def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
             smp = nodes.new("GeometryNodeSampleGrid")
             smp.data_type = kind
             store = nodes.new("GeometryNodeStoreNamedAttribute")
-            store.data_type = kind
+            store.data_type = "FLOAT_VECTOR" if kind == "VECTOR" else "FLOAT"
             store.domain = "POINT"
             keys[name] = f"pmvdb_{i}"
             store.inputs["Name"].default_value = keys[name]
@@ -242,7 +242,7 @@ def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
                 attr = me.attributes.get(keys[name])
                 if attr is None:
                     raise ValueError(f"grid '{name}' was not sampled")
-                if grid_kind(dtype) == "FLOAT_VECTOR":
+                if grid_kind(dtype) == "VECTOR":
                     buf = np.zeros(n * 3, np.float32)
                     attr.data.foreach_get("vector", buf)
                     out[name] = buf.reshape(shape + (3,))

@@ -254,14 +254,15 @@ def mesh_to_volume(name, source, voxel_size=0.1, mat=None):
     return vo
 
 
-def grid_volume(name, grids, lo, hi, res=24, mat=None):
+def grid_volume(name, grids, lo, hi, res=24, mat=None, colors=None):
     """A Volume object made by Geometry Nodes: a Volume Cube from lo to hi (res voxels a
     side) whose "density" grid ramps linearly along z, with more named grids beside it
     (Store Named Grid, each another Volume Cube's grid): grids {name: (value at lo.z,
     value at hi.z)} (without "density": the volume has no such grid). mat: set by a Set
     Material node (a
     Geometry Nodes volume has no material of its own: Cycles then renders its default
-    volume)."""
+    volume). colors: {name: rgb} constant vector grids on the density's voxels (Field to
+    Grid)."""
     vo = bpy.data.objects.new(name, bpy.data.volumes.new(name))
     bpy.context.scene.collection.objects.link(vo)
     tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
@@ -298,6 +299,21 @@ def grid_volume(name, grids, lo, hi, res=24, mat=None):
         store.inputs["Name"].default_value = gname
         links.new(vol, store.inputs["Volume"])
         links.new(get.outputs["Grid"], store.inputs["Grid"])
+        vol = store.outputs["Volume"]
+    for gname, rgb in (colors or {}).items():
+        topo = nodes.new("GeometryNodeGetNamedGrid")
+        topo.inputs["Name"].default_value = "density"
+        topo.inputs["Remove"].default_value = False
+        links.new(vol, topo.inputs["Volume"])
+        ftg = nodes.new("GeometryNodeFieldToGrid")
+        ftg.grid_items.new("VECTOR", "Color")
+        ftg.inputs[1].default_value = rgb
+        links.new(topo.outputs["Grid"], ftg.inputs["Topology"])
+        store = nodes.new("GeometryNodeStoreNamedGrid")
+        store.data_type = "VECTOR_FLOAT"
+        store.inputs["Name"].default_value = gname
+        links.new(topo.outputs["Volume"], store.inputs["Volume"])
+        links.new(ftg.outputs[0], store.inputs["Grid"])
         vol = store.outputs["Volume"]
     if "density" not in grids:
         drop = nodes.new("GeometryNodeGetNamedGrid")
