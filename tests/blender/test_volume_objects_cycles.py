@@ -178,6 +178,18 @@ def test_the_boundary_box_of_the_active_voxels(bpy_addon):
             assert vol == pytest.approx(np.prod(hi - lo) * abs(np.linalg.det(to_world)))
 
 
+def test_cubic_interpolation_is_warned(bpy_addon):
+    bpy = bpy_addon
+    scene, mb, white = _base_scene(bpy)
+    mat = smoke_material(bpy)
+    mat.cycles.volume_interpolation = "CUBIC"
+    mesh_to_volume(bpy, scene, mb, white, material=mat)
+    out = _export(bpy)
+    assert any("Volume Interpolation Cubic on volume object 'Smoke' is rendered Linear" in w
+               for w in out.warnings), out.warnings
+    assert [m for m in out.meshes if m.volume_grids]
+
+
 def test_no_material_is_cycles_default_volume(bpy_addon):
     bpy = bpy_addon
     scene, mb, white = _base_scene(bpy)
