@@ -1977,7 +1977,9 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         converter.coordinate_users.clear()
     for name in updates.materials:
         converter.cache.pop(name, None)
-        converter.cache.pop(f"{name} (volume object)", None)  # (convert_volume_object)
+        for key in [k for k in converter.cache  # (convert_volume_object's, scaled too)
+                    if k.startswith(f"{name} (volume object)")]:
+            converter.cache.pop(key)
         converter.coordinate_users.discard(name)
     info = dict(geometry_read=[], transformed=[], reused=[], deleted=[],
                 materials=sorted(updates.materials), triangles=0, lights=0, instances=0)
@@ -2034,7 +2036,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             if not stale:
                 warnings.extend(w for w in said if w not in warnings)
                 if mesh is not None:
-                    materials[mesh.materials[0]] = converter.convert_volume_object(slot)
+                    materials[mesh.materials[0]] = (converter.cache.get(mesh.materials[0])
+                                                    or converter.convert_volume_object(slot))
             if mesh is not None:
                 meshes.append(mesh)
                 info["triangles"] += len(mesh.faces)

@@ -457,7 +457,7 @@ class MaterialConverter:
         self.cache[key] = m
         return m
 
-    def convert_volume_object(self, mat):
+    def convert_volume_object(self, mat, density_scale: float = 1.0):
         """Engine Material of a Volume object's material (None: Cycles' default volume
         shader, a Principled Volume at its defaults; Blender's ShaderManager default
         volume), named '<material> (volume object)': its Principled Volume Density
@@ -465,8 +465,32 @@ class MaterialConverter:
         Attribute's grid (when Blackbody Intensity > 0), Attribute and Volume Info nodes
         read grids (engine/voxelgrid.GridAttribute; addon/volumegrids.py samples them);
         a surface is not rendered (the mesh around the grid is only the medium's
-        boundary). The grid names it reads go to volume_grid_names."""
+        boundary). The grid names it reads go to volume_grid_names.
+
+        density_scale: Cycles' object volume density (addon/volumegrids.py
+        volume_density_scale: a Volume in Object space scaled by its object), which
+        multiplies every volume closure's weight (svm_node_principled_volume's `weight`,
+        svm_node_closure_emission): the coefficients, the constant emission and an
+        emission field; another material named '<material> (volume object) x<scale>'."""
         key = f"{mat.name if mat is not None else 'default'} (volume object)"
+        s = float(density_scale)
+        if s != 1.0:
+            base = self.convert_volume_object(mat)
+            skey = f"{key} x{s:.6g}"
+            if skey not in self.cache:
+                import copy
+                m = copy.copy(base)
+                m.name = skey
+                m.warnings = list(base.warnings)
+                m.absorption = np.asarray(base.absorption, np.float64) * s
+                m.scattering = np.asarray(base.scattering, np.float64) * s
+                m.volume_emission = np.asarray(base.volume_emission, np.float64) * s
+                if base.volume_emission_texture is not None:
+                    m.volume_emission_texture = self.pm.shadernodes.VectorMath(
+                        "MULTIPLY", base.volume_emission_texture, np.full(3, s))
+                self.volume_grid_names[skey] = set(self.volume_grid_names[key])
+                self.cache[skey] = m
+            return self.cache[skey]
         if key in self.cache:
             return self.cache[key]
         self._volume_object, self._grid_names = True, set()

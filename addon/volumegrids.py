@@ -312,6 +312,19 @@ def box_mesh(lo, hi, to_world: np.ndarray) -> tuple:
     return verts, faces
 
 
+def volume_density_scale(volume, matrix) -> float:
+    """Cycles' object volume density of a Volume object (object.cpp, from Blender's
+    BKE_volume_density_scale): in Object space (Volume > Render > Space, the default)
+    1 / |M (1, 1, 1) / sqrt(3)| for the object's matrix M (a volume scaled 2x is half
+    as dense: its density is per unit of object space), 1 in World space."""
+    space = str(getattr(getattr(volume, "render", None), "space", "OBJECT") or "OBJECT")
+    if space != "OBJECT":
+        return 1.0
+    u = np.asarray(matrix, np.float64)[:3, :3] @ (np.ones(3) / np.sqrt(3.0))
+    n = float(np.linalg.norm(u))
+    return 1.0 / n if n > 0.0 else 1.0
+
+
 def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings: list,
                        name: str, frame, extra: dict, max_voxels: int | None = None,
                        cache: dict | None = None):
@@ -339,7 +352,8 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
     if len(obj.material_slots) > 1:
         warnings.append(f"object '{owner}': a volume renders with its first material "
                         "slot, as in Cycles; the others are not used")
-    mat = converter.convert_volume_object(slot)
+    scale = volume_density_scale(obj.data, np.array(inst.matrix_world, np.float64))
+    mat = converter.convert_volume_object(slot, 1.0 if abs(scale - 1.0) < 1e-6 else scale)
     materials[mat.name] = mat
     wanted = converter.volume_grid_names.get(mat.name, set())
     names = {n: grids[n] for n in wanted if n in grids}
