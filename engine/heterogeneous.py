@@ -342,10 +342,13 @@ class HeterogeneousMedia:
         grid finer than it (a 256^3 grid under 32^3 cells of 3 samples each); where the
         density tree is bounded by voxelgrid.field_bounds (the grid's largest and
         smallest voxels under each cell, through the tree's arithmetic), ctrl, rad and
-        sup follow those exact bounds instead (module docstring of engine/majorant.py)."""
+        sup follow those exact bounds instead (module docstring of engine/majorant.py);
+        other trees (a Noise x the grid) keep the sampled bounds, raised to the largest
+        sampled value in cells where a grid they read has voxels but the samples read
+        nothing."""
         if not self.volume_grids:
             return
-        from .voxelgrid import field_bounds
+        from .voxelgrid import field_bounds, occupied
         g = self.grid
         off = np.asarray(self.geo.offset, np.float64)
         for slot, (k, m) in enumerate(pairs):
@@ -358,11 +361,22 @@ class HeterogeneousMedia:
             lo = g.origin[slot] + ii * g.cell[slot] + off
             hi = lo + g.cell[slot]
             b = field_bounds(self.fields[m].node, k, grids, lo, hi)
+            s = slice(int(g.offset[slot]), int(g.offset[slot]) + len(ii))
             if b is None:
+                # A tree these bounds do not follow (a Noise x the grid): where a grid
+                # it reads has voxels under a cell its sampled lattice read as empty, the
+                # cell takes the largest sampled value as its bound (a distance pdf of 0
+                # where the field is not would bias the scattering)
+                occ = occupied(self.fields[m].node, grids, lo, hi)
+                if occ is None:
+                    continue
+                top = max(float(np.max(g.sup[s])) if len(ii) else 0.0, 1e-6)
+                empty = occ & (g.sup[s] <= 0.0)
+                g.rad[s] = np.where(empty, np.maximum(g.rad[s], top), g.rad[s])
+                g.sup[s] = np.where(empty, g.ctrl[s] + g.rad[s], g.sup[s])
                 continue
             # the field is max(tree, 0) (_field_values)
             f_lo, f_hi = np.maximum(b[0], 0.0), np.maximum(b[1], 0.0)
-            s = slice(int(g.offset[slot]), int(g.offset[slot]) + len(ii))
             g.ctrl[s] = 0.5 * (f_lo + f_hi)
             g.rad[s] = 0.5 * (f_hi - f_lo)
             g.sup[s] = f_hi

@@ -240,3 +240,37 @@ def field_bounds(node, obj: int, grids: dict, lo, hi):
         prods = np.stack([al * bl, al * bh, ah * bl, ah * bh])
         return prods.min(axis=0), prods.max(axis=0)
     return None
+
+
+def grid_nodes(node) -> list:
+    """The GridAttribute nodes of a node tree (inputs followed through any node's
+    attributes, lists included)."""
+    out, seen, stack = [], set(), [node]
+    while stack:
+        n = stack.pop()
+        if id(n) in seen or not hasattr(n, "evaluate"):
+            continue
+        seen.add(id(n))
+        if isinstance(n, GridAttribute):
+            out.append(n)
+            continue
+        for v in vars(n).values():
+            if hasattr(v, "evaluate"):
+                stack.append(v)
+            elif isinstance(v, (list, tuple)):
+                stack.extend(x for x in v if hasattr(x, "evaluate"))
+    return out
+
+
+def occupied(node, grids: dict, lo, hi) -> np.ndarray | None:
+    """(C,) bool: world boxes [lo, hi] (C,3) where a grid the tree reads has a nonzero
+    voxel under the box (the tree may be nonzero there whatever a lattice of samples
+    read); None when the tree reads no grid of the object."""
+    found = [g for g in (grids.get(n.name) for n in grid_nodes(node)) if g is not None]
+    if not found:
+        return None
+    occ = np.zeros(len(lo), bool)
+    for g in found:
+        a, b = g.box_ranges(lo, hi)
+        occ |= (a != 0.0) | (b != 0.0)
+    return occ

@@ -177,3 +177,42 @@ def test_mesh_keeps_its_grids():
     # the box of the lattice: corners at the first and last voxel centres
     np.testing.assert_allclose(g.corners().min(axis=0), 0.0)
     np.testing.assert_allclose(g.corners().max(axis=0), 1.0)
+
+
+def test_a_tree_the_bounds_do_not_follow_keeps_the_voxels_cells_open():
+    """Density = (Noise + 0.5) x a grid of zeros with one voxel of 4 (a wisp between the
+    majorant's lattice points): field_bounds cannot bound the Noise, the sampled lattice
+    reads 0 around the wisp, and the cell holding it must still have a positive
+    sampling majorant (a pdf of 0 there would lose its scattering; checked to fail
+    without voxelgrid.occupied)."""
+    from engine.shadernodes import Noise, ObjectSpacePosition
+    # 192 voxels across under 32 majorant cells sampled every 3 voxels: the wisp's
+    # footprint (91 +- 1 voxels) lies between the samples at 90 and 93
+    v = np.zeros((193, 193, 193), np.float32)
+    v[91, 91, 91] = 4.0
+    g = VoxelGrid(v, _lattice_to_world((-1.0, -1.0, 0.0), (2.0 / 192,) * 3))
+    tree = Math("MULTIPLY", Math("ADD", Noise(ObjectSpacePosition(np.eye(4)), {}), 0.5),
+                GridAttribute("density", "FAC", 1.0))
+    s = PaperScene(8, 8)
+    s.add_material(Material("wisp", volume_only=True, absorption=SIGMA_A,
+                            scattering=(0.5, 0.5, 0.5), density_texture=tree))
+    s.add_box((0, 0, 1.0), (2.0, 2.0, 2.0), "wisp", name="wisp")
+    s.meshes[-1].volume_grids = {"density": g}
+    s.add_sun((0, 0, -1), 1.0)
+    s.set_camera((0, -5, 1), (0, 0, 1))
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    het = ctx.hetero
+    (m, _), = het.fields.items()
+    k = int(het.object[0])
+    grid = het.grid
+    slot = int(grid.slot_of[k, m])
+    p = np.array([-1.0, -1.0, 0.0]) + np.array([91, 91, 91]) * 2.0 / 192
+    n = grid.dims[slot]
+    i = np.clip(np.floor((p - ctx.geo.offset - grid.origin[slot]) / grid.cell[slot])
+                .astype(int), 0, n - 1)
+    flat = grid.offset[slot] + (i[0] * n[1] + i[1]) * n[2] + i[2]
+    f = het.density(m, (p - ctx.geo.offset)[None], np.array([k]))[0]
+    assert f > 1.0
+    assert grid.sup[flat] > 0.0 and grid.rad[flat] > 0.0
+    # cells far from the wisp stay empty (no tracking there)
+    assert (grid.sup[grid.offset[slot]:grid.offset[slot] + np.prod(n)] == 0).mean() > 0.9
