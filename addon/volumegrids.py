@@ -1,6 +1,6 @@
 """Volume objects (OpenVDB grids, Mesh to Volume, Volume Displace, Geometry Nodes volumes)
-as heterogeneous media: their grids read through Geometry Nodes, their boundary the voxel
-blocks around their active voxels.
+as heterogeneous media: their grids read through Geometry Nodes, their boundary the box
+around their active voxels.
 
 Blender's Python has no OpenVDB module, but Geometry Nodes 5.0 reads grids: a temporary
 mesh object whose vertices sit at the grid's voxel centres carries a node group
@@ -8,7 +8,8 @@ mesh object whose vertices sit at the grid's voxel centres carries a node group
     Object Info (the volume object, Original space) -> Get Named Grid (name)
       -> Sample Grid (Position) -> Store Named Attribute ("<name>" on the points)
 
-one chain per grid, evaluated in a temporary scene's depsgraph (the render's depsgraph
+one chain per grid (and one more per grid for its active voxels: Field to Grid of 1 on
+its topology), evaluated in a temporary scene's depsgraph (the render's depsgraph
 cannot take new objects) at the render's frame; the values are read from the evaluated
 mesh with foreach_get, and every temporary datablock (scene, object, mesh, node group)
 is removed in a `finally`, on error too. The lattice: the grid's own voxel centres (the
@@ -28,9 +29,11 @@ a point sample of the voxels there: small features may alias) and warned.
 
 Which grids: the ones the volume object's material reads (MaterialConverter records the
 GridAttribute nodes it makes for a volume object's material: Principled Volume's
-Density Attribute, its Temperature Attribute when Blackbody Intensity > 0, Attribute and
-Volume Info nodes), of those the object has. Blender 4.2 - 4.5 lack the grid nodes:
-there a volume object is warned and left out.
+Density and Color Attribute, its Temperature Attribute when Blackbody Intensity > 0,
+Attribute and Volume Info nodes), of those the object has; none of them: nothing renders,
+as in Cycles (its volume mesh is built from the grids its shader asks for). The
+temporary datablocks are made on Blender's main thread (on_main_thread). Blender 4.2 -
+4.5 lack the grid nodes: there a volume object is warned and left out.
 """
 from __future__ import annotations
 
@@ -329,9 +332,11 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
                        name: str, frame, extra: dict, max_voxels: int | None = None,
                        cache: dict | None = None):
     """The engine Mesh of a Volume object instance: the box around its active voxels in
-    world space (active_box) carrying the object's material (converted for a volume object: its nodes read the
-    grids) and the grids it reads (engine Mesh.volume_grids); None (warned, naming the
-    object) when it has no grid, its grids are empty, or Blender cannot read them.
+    world space (active_box) carrying the object's material (converted for a volume
+    object: its nodes read the grids; scaled by Cycles' object volume density) and the
+    grids it reads (engine Mesh.volume_grids); None (warned, naming the object) when it
+    has no grid, none its material reads, its grids are empty, or Blender cannot read
+    them.
     extra: the Mesh's other keywords (ray visibility, Object Info, Cryptomatte). cache:
     the export's, so the copies of one instanced volume sample its grids once."""
     from importlib import import_module
