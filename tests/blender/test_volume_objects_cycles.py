@@ -218,6 +218,30 @@ def test_a_moved_volume_object_carries_its_grid(bpy_addon):
     np.testing.assert_allclose(out.materials[smoke.materials[0]].scattering, 0.8, rtol=1e-6)
 
 
+def test_blender_without_grid_nodes_is_warned(bpy_addon):
+    """Blender 4.2-4.5 (no Get Named Grid / Sample Grid node types): the volume object is
+    warned, naming it, and left out."""
+    bpy = bpy_addon
+    from addon import volumegrids
+    from addon.core import load_engine
+    from addon.materials import MaterialConverter
+    scene, mb, white = _base_scene(bpy)
+    vo = mesh_to_volume(bpy, scene, mb, white)
+
+    class OldBpy:
+        types = type("types", (), {})
+
+    class Inst:
+        is_instance, parent, matrix_world = False, None, np.eye(4)
+
+    pm = load_engine()
+    warnings = []
+    out = volumegrids.volume_object_mesh(pm, OldBpy, Inst, vo, MaterialConverter(pm), {},
+                                         warnings, "Smoke", (1, 0.0), {})
+    assert out is None and len(warnings) == 1
+    assert "object 'Smoke': volume objects need Blender 5.0's grid nodes" in warnings[0]
+
+
 def test_cubic_interpolation_is_warned(bpy_addon):
     bpy = bpy_addon
     scene, mb, white = _base_scene(bpy)
