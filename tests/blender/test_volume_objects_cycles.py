@@ -351,6 +351,24 @@ def test_the_color_attribute_is_the_albedo(bpy_addon):
     assert mat.albedo_texture is not None
 
 
+def test_a_material_that_reads_no_grid_renders_nothing(bpy_addon):
+    """Volume Scatter (Density 2) on a Mesh to Volume sphere reads no grid: Cycles asks
+    for none, builds no volume mesh and renders nothing (measured: the floor under it as
+    bright as without it, no volume in the image); ours warns and leaves it out."""
+    bpy = bpy_addon
+    from blender_helpers import node_material
+    scene, mb, white = _base_scene(bpy)
+    m, nt, out = node_material(bpy, "scatter only")
+    v = nt.nodes.new("ShaderNodeVolumeScatter")
+    v.inputs["Density"].default_value = 2.0
+    nt.links.new(v.outputs[0], out.inputs["Volume"])
+    mesh_to_volume(bpy, scene, mb, white, material=m)
+    res = _export(bpy)
+    assert any("'Smoke': none of the grids its material reads (none)" in w
+               for w in res.warnings), res.warnings
+    assert not [x for x in res.meshes if x.name == "Smoke"]
+
+
 def test_volume_info_reads_the_grids(bpy_addon):
     """Volume Info's Density / Flame / Temperature / Color are the grids of those names
     on a volume object (the ones it has sampled) and 0 on a mesh."""
