@@ -441,16 +441,26 @@ def point_info(centres, radius, faces, point) -> dict:
             "point_info": (info, info[..., 0], ones)}
 
 
-def warn_unrendered_object(inst, obj, warnings: list) -> None:
-    """A Volume object (OpenVDB grids, Mesh to Volume) renders nothing here: said once,
-    naming it (it was skipped silently)."""
-    if obj.type == "VOLUME":
-        owner = inst.parent.name if inst.is_instance and inst.parent is not None else obj.name
-        text = (f"object '{owner}': volume objects (OpenVDB grids, Mesh to Volume) are not "
-                "rendered; a mesh with a Principled Volume material renders a homogeneous "
-                "medium")
-        if text not in warnings:
-            warnings.append(text)
+def volume_mesh(pm, inst, obj, converter, materials: dict, warnings: list, info: dict,
+                view_layer, scene, cache=None):
+    """The engine Mesh of a Volume object instance (OpenVDB grids, Mesh to Volume, a
+    Geometry Nodes volume): the box around its grids with the grids its material reads
+    (addon/volumegrids.py), named as a mesh instance is; None when nothing renders
+    (warned there)."""
+    import bpy
+
+    from .volumegrids import volume_object_mesh
+    name = _instance_name(inst, obj, info)
+    extra = dict(pass_index=pass_index(obj),
+                 **object_info(obj, inst, converter.object_attribute_names),
+                 **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
+    frame = (getattr(scene, "frame_current", 1), getattr(scene, "frame_subframe", 0.0))
+    mesh = volume_object_mesh(pm, bpy, inst, obj, converter, materials, warnings, name,
+                              frame, extra, cache=cache)
+    if mesh is not None:
+        info["objects"] = info.get("objects", 0) + 1
+        warn_unsupported_object_options(obj, warnings)
+    return mesh
 
 
 def camera_world(seen) -> dict:
@@ -1811,12 +1821,18 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             if light is not None:
                 lights.append(light)
             continue
+        if otype == "VOLUME":
+            mesh = volume_mesh(pm, inst, obj, converter, materials, warnings, info,
+                               view_layer, scene_eval, cache)
+            if mesh is not None:
+                meshes.append(mesh)
+                info["triangles"] += len(mesh.faces)
+            continue
         if otype not in GEOMETRY_TYPES:
             # Curve, surface, text and metaball objects: the depsgraph also yields their
             # evaluated geometry as MESH instances (parent = the object). Like Cycles
             # (blender/object.cpp, object_is_geometry: only Mesh data is geometry), the
             # object itself is skipped, or its geometry would be exported twice.
-            warn_unrendered_object(inst, obj, warnings)
             continue
         key = _geometry_key(obj)
         if key not in cache:
@@ -2004,6 +2020,9 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         converter.coordinate_users.clear()
     for name in updates.materials:
         converter.cache.pop(name, None)
+        for key in [k for k in converter.cache  # (convert_volume_object's, scaled too)
+                    if k.startswith(f"{name} (volume object)")]:
+            converter.cache.pop(key)
         converter.coordinate_users.discard(name)
     info = dict(geometry_read=[], transformed=[], reused=[], deleted=[],
                 materials=sorted(updates.materials), triangles=0, lights=0, instances=0)
@@ -2036,9 +2055,38 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             if light is not None:
                 lights.append(light)
             continue
+        if obj.type == "VOLUME":
+            # Sampled again only when the volume, its material or its placement changed
+            # (reading the grids evaluates the volume once more: addon/volumegrids.py)
+            data = getattr(obj, "data", None)
+            slot = obj.material_slots[0].material if len(obj.material_slots) else None
+            vkey = ("volume", obj.name, data.as_pointer() if data is not None else 0,
+                    np.array(inst.matrix_world, np.float64).tobytes(),
+                    inst.parent.name if inst.is_instance and inst.parent else None,
+                    slot.name if slot is not None else None)
+            stale = (obj.name in updates.geometry or vkey not in cache.geometry
+                     or (data is not None and data.name in updates.data)
+                     or (slot is not None and slot.name in updates.materials)
+                     or updates.all_materials)
+            if stale:
+                n0 = len(warnings)
+                cache.geometry[vkey] = (volume_mesh(pm, inst, obj, converter, materials,
+                                                    warnings, info, view_layer, scene_eval),
+                                        warnings[n0:])
+                info["geometry_read"].append(obj.name)
+            mesh, said = cache.geometry[vkey]
+            seen.add(vkey)
+            if not stale:
+                warnings.extend(w for w in said if w not in warnings)
+                if mesh is not None:
+                    materials[mesh.materials[0]] = (converter.cache.get(mesh.materials[0])
+                                                    or converter.convert_volume_object(slot))
+            if mesh is not None:
+                meshes.append(mesh)
+                info["triangles"] += len(mesh.faces)
+            continue
         if obj.type not in GEOMETRY_TYPES:
             # (the depsgraph yields other geometry as MESH instances: export_scene)
-            warn_unrendered_object(inst, obj, warnings)
             continue
         data = getattr(obj, "data", None)
         gkey = (obj.name, data.as_pointer() if data is not None else 0)

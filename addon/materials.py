@@ -407,6 +407,11 @@ class MaterialConverter:
 
     def __init__(self, pm):
         self.pm = pm            # the engine package
+        # Volume objects' materials (convert_volume_object): their nodes read the
+        # object's grids; engine material name -> the grid names they read
+        self.volume_grid_names = {}
+        self._volume_object = False
+        self._grid_names = set()
         self.images = {}        # (image name, extension, interpolation) -> ImageTexture
         self.cache = {}         # material name -> engine Material
         self.coordinate_users = set()  # materials reading Generated / Object coordinates
@@ -451,6 +456,81 @@ class MaterialConverter:
             m = self._convert_once(mat, key)
         self.cache[key] = m
         return m
+
+    def convert_volume_object(self, mat, density_scale: float = 1.0):
+        """Engine Material of a Volume object's material (None: Cycles' default volume
+        shader, a Principled Volume at its defaults; Blender's ShaderManager default
+        volume), named '<material> (volume object)': its Principled Volume Density
+        multiplies the grid its Density Attribute names, its Temperature the Temperature
+        Attribute's grid (when Blackbody Intensity > 0), Attribute and Volume Info nodes
+        read grids (engine/voxelgrid.GridAttribute; addon/volumegrids.py samples them);
+        a surface is not rendered (the mesh around the grid is only the medium's
+        boundary). The grid names it reads go to volume_grid_names.
+
+        density_scale: Cycles' object volume density (addon/volumegrids.py
+        volume_density_scale: a Volume in Object space scaled by its object), which
+        multiplies every volume closure's weight (svm_node_principled_volume's `weight`,
+        svm_node_closure_emission): the coefficients, the constant emission and an
+        emission field; another material named '<material> (volume object) x<scale>'."""
+        key = f"{mat.name if mat is not None else 'default'} (volume object)"
+        s = float(density_scale)
+        if s != 1.0:
+            base = self.convert_volume_object(mat)
+            skey = f"{key} x{s:.6g}"
+            if skey not in self.cache:
+                import copy
+                m = copy.copy(base)
+                m.name = skey
+                m.warnings = list(base.warnings)
+                m.absorption = np.asarray(base.absorption, np.float64) * s
+                m.scattering = np.asarray(base.scattering, np.float64) * s
+                m.volume_emission = np.asarray(base.volume_emission, np.float64) * s
+                if base.volume_emission_texture is not None:
+                    m.volume_emission_texture = self.pm.shadernodes.VectorMath(
+                        "MULTIPLY", base.volume_emission_texture, np.full(3, s))
+                self.volume_grid_names[skey] = set(self.volume_grid_names[key])
+                self.cache[skey] = m
+            return self.cache[skey]
+        if key in self.cache:
+            return self.cache[key]
+        self._volume_object, self._grid_names = True, set()
+        try:
+            if mat is None:
+                m = self._default_volume(key)
+            else:
+                m = self._convert_once(mat, key)
+                if not m.volume_only:
+                    m.warnings.append(f"material '{mat.name}': its Surface on volume object"
+                                      "s is not rendered (only the Volume)")
+                m.volume_only = True
+        finally:
+            self._volume_object = False
+        self.volume_grid_names[key] = set(self._grid_names)
+        self.cache[key] = m
+        return m
+
+    def _default_volume(self, key):
+        """Cycles' default volume shader: Principled Volume, Color 0.5, Density 1 x the
+        "density" grid, no emission (sigma_s = sigma_a = 0.5 x density)."""
+        return self.pm.Material(
+            name=key, base_color=np.zeros(3), absorption=np.full(3, 0.5), volume_only=True,
+            scattering=np.full(3, 0.5), anisotropy=0.0, volume_emission=np.zeros(3),
+            density_texture=self._grid("density", "FAC", 1.0))
+
+    def _grid(self, name, output, missing):
+        """A voxel-grid attribute node of a volume object's material (recorded)."""
+        from importlib import import_module
+        self._grid_names.add(name)
+        return import_module(self.pm.__name__ + ".voxelgrid").GridAttribute(name, output,
+                                                                            missing)
+
+    def _grid_attribute(self, node, socket_name):
+        """A Principled Volume's attribute name (Density / Temperature / Color Attribute)
+        when converting a volume object's material ('' otherwise or when empty)."""
+        if not self._volume_object:
+            return ""
+        s = node.inputs.get(socket_name)
+        return str(getattr(s, "default_value", "") or "") if s is not None else ""
 
     # The ray class whose Light Path values a conversion reads (addon/lightpath.py).
     _ray_class = "diffuse"
@@ -762,6 +842,11 @@ class MaterialConverter:
         if not hasattr(b, "evaluate") and not b > 0:
             return np.zeros(3)
         T = self._emission_input(node, "Temperature", 1000.0, 1)
+        attr = self._grid_attribute(node, "Temperature Attribute")
+        if attr and self._fields is not None:
+            # A volume object: T x max(the grid, 0) (svm_node_principled_volume)
+            T = self.pm.shadernodes.Math("MULTIPLY", T, self.pm.shadernodes.Math(
+                "MAXIMUM", self._grid(attr, "FAC", 1.0), 0.0))
         tint = self._emission_input(node, "Blackbody Tint", None, 3)
         sigma = 5.670373e-8 * 1e-6 / np.pi
         if any(hasattr(x, "evaluate") for x in (b, T, tint)):
@@ -850,6 +935,19 @@ class MaterialConverter:
         tree warned, its socket's own value used)."""
         self._volume_nodes += 1
         s = node.inputs.get("Density")
+        attr = self._grid_attribute(node, "Density Attribute")
+        if attr and self._fields is not None:
+            # A volume object: Density x the grid (svm_node_principled_volume: the
+            # attribute multiplies the density where the object has it)
+            val = (self._input(node, s, 0) if s is not None and self._source(s) is not None
+                   else max(self._float(node, "Density", 1.0), 0.0))
+            grid = self._grid(attr, "FAC", 1.0)
+            if not hasattr(val, "evaluate") and float(np.mean(val)) == 1.0:
+                tree = grid
+            else:
+                tree = self.pm.shadernodes.Math("MULTIPLY", val, grid)
+            self._fields.append((node, tree))
+            return 1.0
         if (self._fields is not None and s is not None
                 and self._source(s) is not None):
             val = self._input(node, s, 0)
@@ -906,6 +1004,13 @@ class MaterialConverter:
         colour (within 0..1) returned for the coefficients. Otherwise _volume_color (a
         texture warned, its own value used)."""
         rgb, tex = self._color(node, "Color")
+        attr = self._grid_attribute(node, "Color Attribute")
+        if attr and self._fields is not None:
+            # A volume object: Color x the grid (svm_node_principled_volume), an albedo
+            # field like a texture on the Color
+            tex = self.pm.shadernodes.VectorMath(
+                "MULTIPLY", tex if tex is not None else np.asarray(rgb, np.float64),
+                self._grid(attr, "COLOR", 1.0))
         if tex is None:
             return np.asarray(rgb, np.float64)
         ab = node.inputs.get("Absorption Color")
@@ -1862,6 +1967,15 @@ class MaterialConverter:
             return float(out.default_value)
         if t == "LIGHT_PATH":  # a constant per ray class (addon/lightpath.py)
             return lightpath.output_value(self, n, oname)
+        if t == "VOLUME_INFO":
+            # Volume Info: the grids "color", "density", "flame", "temperature" of a
+            # volume object (Cycles' standard volume attributes); 0 elsewhere
+            grid, kind = {"Color": ("color", "COLOR"), "Density": ("density", "FAC"),
+                          "Flame": ("flame", "FAC"),
+                          "Temperature": ("temperature", "FAC")}.get(oname, (None, None))
+            if grid is None or not self._volume_object:
+                return np.zeros(3) if oname == "Color" else 0.0
+            return self._grid(grid, kind, 0.0)
         if t == "VERTEX_COLOR":  # the Color Attribute node
             name = str(getattr(n, "layer_name", ""))
             if oname == "Color" and not name:
@@ -2199,6 +2313,11 @@ class MaterialConverter:
         (N,3), Fac (N,) or Alpha (N,); 0 (alpha 1) on meshes without it."""
         sn = self.pm.shadernodes
         fac = output in ("Fac", "Factor")  # (Blender 5 names it Factor)
+        if self._volume_object:
+            # A volume object's attributes are its grids (0 where it has none, as
+            # Cycles' attribute not found)
+            return self._grid(name, "FAC" if fac else "ALPHA" if output == "Alpha" else
+                              "VECTOR" if output == "Vector" else "COLOR", 0.0)
         if standard and name in CYCLES_STANDARD_ATTRIBUTES:
             if name in _ABSENT_ON_MESHES:
                 self._warn(f"material '{self._mat.name}': attribute '{name}' is a Cycles "

@@ -366,6 +366,8 @@ class Geometry:
                               # Displacement node's Object space); None reads identities
     object_attributes: dict | None = None  # name -> (O,4) float64 Mesh.object_attributes
                               # (Attribute node, type Object / Instancer); absent: zeros
+    volume_grids: dict | None = None  # object -> {name: voxelgrid.VoxelGrid}: Volume
+                              # objects' grids (Mesh.volume_grids); None: none
     camera_view: "object | None" = None  # shadernodes.CameraView of the scene's camera
                               # and frame (Texture Coordinate Camera / Window); None reads
                               # zeros. Set by prepare and again when a view moves
@@ -719,6 +721,8 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
                                   for m in meshes], np.float64).reshape(-1, 3),
         object_linear=_object_linear(meshes),
         object_attributes=_object_attributes(meshes),
+        volume_grids={i: m.volume_grids for i, m in enumerate(meshes)
+                      if getattr(m, "volume_grids", None)} or None,
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=colors,

@@ -105,13 +105,16 @@ def uniforms(keys: np.ndarray, step) -> np.ndarray:
 class PointGeometry:
     """A Geometry stand-in for evaluating a node tree at points inside objects: prim is
     the point's index; coordinates(name) applies each point's object's affine map
-    (world -> that texture space, fitted by HeterogeneousMedia)."""
+    (world -> that texture space, fitted by HeterogeneousMedia); volume_grids the
+    objects' voxel grids ({object: {name: voxelgrid.VoxelGrid}}: Volume objects, read by
+    voxelgrid.GridAttribute)."""
 
-    def __init__(self, points, obj, maps, offset):
+    def __init__(self, points, obj, maps, offset, volume_grids=None):
         self.points = np.asarray(points, np.float64)
         self.obj = np.asarray(obj, np.int64)
         self.maps = maps  # {(object, name): (4,3)}
         self.offset = offset
+        self.volume_grids = volume_grids
 
     def coordinates(self, name, prim, u, v):
         p = self.points[np.asarray(prim, np.int64)]
@@ -157,6 +160,8 @@ class HeterogeneousMedia:
         self.seed = int(seed)
         self.warnings: list[str] = []
         self.maps = {}
+        # Volume objects' voxel grids (engine/voxelgrid.py): {object: {name: VoxelGrid}}
+        self.volume_grids = getattr(geo, "volume_grids", None) or None
         mats = np.asarray(geo.material)
         rows = np.flatnonzero(np.isin(mats, list(fields)))
         self.rows = rows  # the triangles of heterogeneous materials
@@ -228,7 +233,8 @@ class HeterogeneousMedia:
         for m in list(fields):
             try:
                 probe = PointGeometry(np.zeros((2, 3)), np.zeros(2, np.int64), {},
-                                      np.asarray(geo.offset, np.float64))
+                                      np.asarray(geo.offset, np.float64),
+                                      getattr(geo, "volume_grids", None))
                 _field_values(fields[m].node, probe, 2)
             except Exception as exc:  # noqa: BLE001 - any node's failure, reported
                 warnings.append(f"material '{table.names[m]}': its density texture cannot "
@@ -315,6 +321,7 @@ class HeterogeneousMedia:
         self.grid = MajorantGrid.build(
             pairs, bounds, lambda m, p, o: self._density(self.fields[int(m)], p, o),
             n_obj, n_mat)
+        self._fit_voxel_bounds(pairs)
         # per material row: the tracking's coefficients (0 for rows without a field)
         self._unit_t = np.zeros((n_mat, 3))
         self._unit_s = np.zeros((n_mat, 3))
@@ -329,12 +336,59 @@ class HeterogeneousMedia:
         self._smax = np.ascontiguousarray(unit.max(axis=1))
         self._sbar = np.ascontiguousarray(unit.mean(axis=1))
 
+    def _fit_voxel_bounds(self, pairs):
+        """The majorant cells of Volume objects' fields from their voxels: a lattice of
+        field samples (MajorantGrid.build) misses the voxels between its points on a
+        grid finer than it (a 256^3 grid under 32^3 cells of 3 samples each); where the
+        density tree is bounded by voxelgrid.field_bounds (the grid's largest and
+        smallest voxels under each cell, through the tree's arithmetic), ctrl, rad and
+        sup follow those exact bounds instead (module docstring of engine/majorant.py);
+        other trees (a Noise x the grid) keep the sampled bounds, raised to the largest
+        sampled value in cells where a grid they read has voxels but the samples read
+        nothing."""
+        if not self.volume_grids:
+            return
+        from .voxelgrid import field_bounds, occupied
+        g = self.grid
+        off = np.asarray(self.geo.offset, np.float64)
+        for slot, (k, m) in enumerate(pairs):
+            grids = self.volume_grids.get(int(k))
+            if not grids:
+                continue
+            dims = g.dims[slot]
+            ii = np.stack(np.meshgrid(*[np.arange(int(d)) for d in dims], indexing="ij"),
+                          axis=-1).reshape(-1, 3)
+            lo = g.origin[slot] + ii * g.cell[slot] + off
+            hi = lo + g.cell[slot]
+            b = field_bounds(self.fields[m].node, k, grids, lo, hi)
+            s = slice(int(g.offset[slot]), int(g.offset[slot]) + len(ii))
+            if b is None:
+                # A tree these bounds do not follow (a Noise x the grid): where a grid
+                # it reads has voxels under a cell its sampled lattice read as empty, the
+                # cell takes the largest sampled value as its bound (a distance pdf of 0
+                # where the field is not would bias the scattering)
+                occ = occupied(self.fields[m].node, grids, lo, hi)
+                if occ is None:
+                    continue
+                top = max(float(np.max(g.sup[s])) if len(ii) else 0.0, 1e-6)
+                empty = occ & (g.sup[s] <= 0.0)
+                g.rad[s] = np.where(empty, np.maximum(g.rad[s], top), g.rad[s])
+                g.sup[s] = np.where(empty, g.ctrl[s] + g.rad[s], g.sup[s])
+                continue
+            # the field is max(tree, 0) (_field_values)
+            f_lo, f_hi = np.maximum(b[0], 0.0), np.maximum(b[1], 0.0)
+            g.ctrl[s] = 0.5 * (f_lo + f_hi)
+            g.rad[s] = 0.5 * (f_hi - f_lo)
+            g.sup[s] = f_hi
+            self.fields[m].f_max = max(self.fields[m].f_max, float(f_hi.max()))
+
     def _density(self, f: Field, points, obj) -> np.ndarray:
         """(n,) the field f at points (n,3) (re-centred world) of objects obj (n,)."""
         n = len(points)
         if n == 0:
             return np.zeros(0)
-        pg = PointGeometry(points, obj, self.maps, np.asarray(self.geo.offset, np.float64))
+        pg = PointGeometry(points, obj, self.maps, np.asarray(self.geo.offset, np.float64),
+                           self.volume_grids)
         return _field_values(f.node, pg, n)
 
     def density(self, m: int, points, obj) -> np.ndarray:

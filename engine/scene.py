@@ -561,6 +561,10 @@ class Mesh:
     object_attributes  {name: RGBA} the Attribute node of type Object / Instancer reads
               per object (Blender's object, instancer or mesh property of that name);
               a name a mesh lacks reads (0, 0, 0, 0)
+    volume_grids  {name: engine.voxelgrid.VoxelGrid} a Volume object's grids (world
+              space) that its material's nodes read (voxelgrid.GridAttribute); None for
+              a mesh. The mesh is then the grids' boundary (voxel blocks around their
+              active voxels: addon/volumegrids.py)
     """
 
     name: str
@@ -596,6 +600,7 @@ class Mesh:
     # Blender's Object > Shading > Light Group (engine/lightgroups.py): the light group
     # its materials' emission (surface and volume) goes to; "" none.
     lightgroup: str = ""
+    volume_grids: dict | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     @property

@@ -203,7 +203,8 @@ class MediumTextures:
 
     def _geometry(self, pts, obj):
         het = self.het
-        return PointGeometry(pts, obj, het.maps, np.asarray(het.geo.offset, np.float64))
+        return PointGeometry(pts, obj, het.maps, np.asarray(het.geo.offset, np.float64),
+                             het.volume_grids)
 
     # -- fields --------------------------------------------------------------------
     def emission_at(self, m, pts, obj) -> np.ndarray:

@@ -238,6 +238,99 @@ def sphere(name, radius, mat, location, segments=48, rings=24):
     return add_object(name, me, mat, location)
 
 
+def mesh_to_volume(name, source, voxel_size=0.1, mat=None):
+    """A Volume object whose Mesh to Volume modifier fills the mesh object `source` (its
+    "density" grid 1 inside; the source hidden in renders), voxels voxel_size m; `mat` in
+    its first slot (None: none, Cycles' default volume)."""
+    source.hide_render = True
+    vo = bpy.data.objects.new(name, bpy.data.volumes.new(name))
+    bpy.context.scene.collection.objects.link(vo)
+    mod = vo.modifiers.new("Mesh to Volume", "MESH_TO_VOLUME")
+    mod.object = source
+    mod.resolution_mode = "VOXEL_SIZE"
+    mod.voxel_size = voxel_size
+    if mat is not None:
+        vo.data.materials.append(mat)
+    return vo
+
+
+def grid_volume(name, grids, lo, hi, res=24, mat=None, colors=None):
+    """A Volume object made by Geometry Nodes: a Volume Cube from lo to hi (res voxels a
+    side) whose "density" grid ramps linearly along z, with more named grids beside it
+    (Store Named Grid, each another Volume Cube's grid): grids {name: (value at lo.z,
+    value at hi.z)} (without "density": the volume has no such grid). mat: set by a Set
+    Material node (a
+    Geometry Nodes volume has no material of its own: Cycles then renders its default
+    volume). colors: {name: rgb} constant vector grids on the density's voxels (Field to
+    Grid)."""
+    vo = bpy.data.objects.new(name, bpy.data.volumes.new(name))
+    bpy.context.scene.collection.objects.link(vo)
+    tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes, links = tree.nodes, tree.links
+    out = nodes.new("NodeGroupOutput")
+    sep = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(nodes.new("GeometryNodeInputPosition").outputs[0], sep.inputs[0])
+
+    def cube(a, b):
+        rng = nodes.new("ShaderNodeMapRange")
+        rng.clamp = False
+        for key, val in (("From Min", lo[2]), ("From Max", hi[2]), ("To Min", a),
+                         ("To Max", b)):
+            rng.inputs[key].default_value = val
+        links.new(sep.outputs["Z"], rng.inputs["Value"])
+        c = nodes.new("GeometryNodeVolumeCube")
+        c.inputs["Min"].default_value = lo
+        c.inputs["Max"].default_value = hi
+        for axis in "XYZ":
+            c.inputs[f"Resolution {axis}"].default_value = res
+        links.new(rng.outputs["Result"], c.inputs["Density"])
+        return c
+
+    vol = cube(*grids.get("density", (1.0, 1.0))).outputs["Volume"]
+    for gname, (a, b) in grids.items():
+        if gname == "density":
+            continue
+        get = nodes.new("GeometryNodeGetNamedGrid")
+        get.inputs["Name"].default_value = "density"
+        links.new(cube(a, b).outputs["Volume"], get.inputs["Volume"])
+        store = nodes.new("GeometryNodeStoreNamedGrid")
+        store.inputs["Name"].default_value = gname
+        links.new(vol, store.inputs["Volume"])
+        links.new(get.outputs["Grid"], store.inputs["Grid"])
+        vol = store.outputs["Volume"]
+    for gname, rgb in (colors or {}).items():
+        topo = nodes.new("GeometryNodeGetNamedGrid")
+        topo.inputs["Name"].default_value = "density"
+        topo.inputs["Remove"].default_value = False
+        links.new(vol, topo.inputs["Volume"])
+        ftg = nodes.new("GeometryNodeFieldToGrid")
+        ftg.grid_items.new("VECTOR", "Color")
+        ftg.inputs[1].default_value = rgb
+        links.new(topo.outputs["Grid"], ftg.inputs["Topology"])
+        store = nodes.new("GeometryNodeStoreNamedGrid")
+        store.data_type = "VECTOR_FLOAT"
+        store.inputs["Name"].default_value = gname
+        links.new(topo.outputs["Volume"], store.inputs["Volume"])
+        links.new(ftg.outputs[0], store.inputs["Grid"])
+        vol = store.outputs["Volume"]
+    if "density" not in grids:
+        drop = nodes.new("GeometryNodeGetNamedGrid")
+        drop.inputs["Name"].default_value = "density"
+        drop.inputs["Remove"].default_value = True
+        links.new(vol, drop.inputs["Volume"])
+        vol = drop.outputs["Volume"]
+    if mat is not None:
+        setm = nodes.new("GeometryNodeSetMaterial")
+        setm.inputs["Material"].default_value = mat
+        links.new(vol, setm.inputs["Geometry"])
+        vol = setm.outputs["Geometry"]
+    links.new(vol, out.inputs[0])
+    vo.modifiers.new("Grids", "NODES").node_group = tree
+    return vo
+
+
 def tuft(name, mat, count, keys, spread, height, lean, radius, seed):
     """A tuft of hair: a Curves object of `count` strands of `keys` points rooted
     uniformly in [-spread, spread]^2 at z 0, rising to `height`, bent sideways by a
