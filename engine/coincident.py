@@ -33,7 +33,14 @@ offset's reach is a surface at the point the ray left, and the ray meets it ther
 - a ray that left a glass triangle and whose closest hit is a touching non-glass one
   where a glass face lies too, crossed outwards, meets that glass face first
   (leave_glass_first): Embree returns either of two coincident triangles, and a photon
-  inside the bottle that met the floor directly kept the entry's 1 / n^2.
+  inside the bottle that met the floor directly kept the entry's 1 / n^2;
+- a photon that met such a glass face from inside and is reflected back into the glass
+  (Fresnel, total internal reflection) goes into the touching surface and ends
+  (reflected_inside, meet_hits' arrived): Cycles' reflected ray starts on that surface's
+  plane and meets it there in most placements (7 of 10 tried; the others pass as through
+  a gap). A pane standing on a sill threw the sun's total reflection off its bottom face
+  onto the ceiling as a bright line (docs/accuracy.md, streak41). Camera and gather rays
+  reflected there still go on inside the glass, as through a gap.
 
 "Touch" is faces in contact: boxes that meet and the glass triangle's corners in the
 other's plane, both to TOUCH_PAD of the coordinates (a cost filter: the probe's reach
