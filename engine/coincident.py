@@ -33,7 +33,14 @@ offset's reach is a surface at the point the ray left, and the ray meets it ther
 - a ray that left a glass triangle and whose closest hit is a touching non-glass one
   where a glass face lies too, crossed outwards, meets that glass face first
   (leave_glass_first): Embree returns either of two coincident triangles, and a photon
-  inside the bottle that met the floor directly kept the entry's 1 / n^2.
+  inside the bottle that met the floor directly kept the entry's 1 / n^2;
+- a photon that met such a glass face from inside and is reflected back into the glass
+  (Fresnel, total internal reflection) goes into the touching surface and ends
+  (reflected_inside, meet_hits' arrived): Cycles' reflected ray starts on that surface's
+  plane and meets it there in most placements (7 of 10 tried; the others pass as through
+  a gap). A pane standing on a sill threw the sun's total reflection off its bottom face
+  onto the ceiling as a bright line (docs/accuracy.md, streak41). Camera and gather rays
+  reflected there still go on inside the glass, as through a gap.
 
 "Touch" is faces in contact: boxes that meet and the glass triangle's corners in the
 other's plane, both to TOUCH_PAD of the coordinates (a cost filter: the probe's reach
@@ -262,6 +269,41 @@ class CoincidentSurfaces:
             return _NONE
         return tuple(np.concatenate(a) for a in zip(*out))
 
+    def reflected_inside(self, p, off, d, from_tri):
+        """Rows (K,) int64 of the rays leaving the points p (N,3) on glass triangles
+        from_tri (N,) int64 (< 0: none; origins moved off the face by off (N,3)) back
+        into the glass (d . n < 0: reflected off its inside, Fresnel or total internal
+        reflection) where another surface touches that face: a pane standing on a sill,
+        the light inside it meeting its bottom face. Cycles offsets no origin: the
+        reflected ray starts on the sill's plane and meets the sill there (t = 0, its back
+        face), and the light goes into it; with a gap under the pane it would be
+        reflected up and out (newuser40's window threw a bright line of it onto the
+        ceiling, docs/accuracy.md streak41). The same probe as probe's (from the mirror
+        image of the origin along d, against the touching non-glass faces)."""
+        side = np.take(self.side, np.maximum(from_tri, 0))
+        rows = np.nonzero((side == GLASS) & (from_tri >= 0))[0]
+        if not len(rows):
+            return rows
+        pr_ = np.take(p, rows, axis=0)
+        box = self.others.box
+        inside = np.all((pr_ >= box[0]) & (pr_ <= box[1]), axis=1)
+        rows, pr_ = rows[inside], pr_[inside]
+        dr = np.take(d, rows, axis=0)
+        into = np.einsum("ij,ij->i", self.geo.ng[np.take(from_tri, rows)], dr) < 0.0
+        rows, pr_, dr = rows[into], pr_[into], dr[into]
+        if not len(rows):
+            return rows
+        of = np.take(off, rows, axis=0)
+        reach = np.sqrt(np.einsum("ij,ij->i", of, of))
+        ok = (reach > 0) & np.isfinite(reach)
+        rows, pr_, dr, of, reach = rows[ok], pr_[ok], dr[ok], of[ok], reach[ok]
+        if not len(rows):
+            return rows
+        cos = np.abs(np.einsum("ij,ij->i", of, dr)) / reach
+        tmax = REACH * reach / np.maximum(cos, MIN_COS)
+        _, hp, _, _ = self.others.accel.intersect(pr_ - of, dr, tmax)
+        return rows[hp >= 0]
+
     def leave_glass_first(self, o, d, t, tri, from_tri, rows=None):
         """Rays o, d (N,3) that left a glass triangle (from_tri (N,) int64, < 0: none)
         and whose closest hit (t (N,), tri (N,) int64, < 0: none) is a non-glass triangle
@@ -362,12 +404,17 @@ class CoincidentSurfaces:
         v[rows] = vp
         return len(done) + len(rows)
 
-    def meet_hits(self, o32, d, from_tri, off, geom, prim32, u32, v32, tfar, starts) -> int:
+    def meet_hits(self, o32, d, from_tri, off, geom, prim32, u32, v32, tfar, starts,
+                  slot=None, arrived=None) -> int:
         """meet on an Accel.intersect_hits answer (geom, prim32 (N,) int32, u32, v32, tfar
         (N,) float32, starts (G,) int64 over the full table's rows) of photon rays o32
         (N,3) float32, d (N,3) that left triangles from_tri (N,) int64 (< 0: a light) at
         o32 - off, off (N,3) the origins' offsets (photonkernels.scatter's nx_from,
-        nx_off). Returns how many rows changed."""
+        nx_off). slot (N,) the photons' slots in their chunk and arrived (S,) bool by
+        slot, the chunk's record of which photons' last hit was a touching glass face
+        met from inside (kept here from bounce to bounce): the photons reflected back
+        inside there go into the touching surface (reflected_inside) and end, as a miss;
+        None: not tracked. Returns how many rows changed."""
         # meet's two steps, the changed rows written back in Embree's layout.
         n = 0
         changed = []
@@ -381,9 +428,25 @@ class CoincidentSurfaces:
             if len(met):
                 done = rows[met]
                 changed.append((done, mtri, up, vp))
+        # Photons reflected off the inside of a glass face another surface touches go
+        # into that surface (reflected_inside): they end there, as a miss (not stored,
+        # not bounced; the surface's back face, which no one sees). (Those that arrived
+        # there from inside: a photon leaving the floor into the glass leaves the same
+        # face the same way.)
+        gone = np.zeros(0, np.int64)
+        if len(rows) and arrived is not None:
+            rest = rows if not len(done) else np.setdiff1d(rows, done)
+            rest = rest[np.take(arrived, np.take(slot, rest))]
+            if len(rest):
+                of = np.take(off, rest, axis=0)
+                gone = rest[self.reflected_inside(np.take(o32, rest, axis=0) - of, of,
+                                                  np.take(d, rest, axis=0),
+                                                  np.take(from_tri, rest))]
         inside = np.take(self.is_glass, ft) & (from_tri >= 0)
         if len(done):
             inside[done] = False  # met by the probe: already where they belong
+        if len(gone):
+            inside[gone] = False
         rows = np.nonzero(inside)[0]
         if len(rows):
             g = np.take(geom, rows)
@@ -400,6 +463,18 @@ class CoincidentSurfaces:
             u32[rows] = up
             v32[rows] = vp
             n += len(rows)
+        if len(gone):
+            geom[gone] = -1
+            n += len(gone)
+        if arrived is not None:
+            # This bounce's record: hits on a touching glass face crossing it outwards.
+            arrived[slot] = False
+            tri = np.where(geom >= 0, np.take(starts, np.maximum(geom, 0)) + prim32, -1)
+            at = np.nonzero((np.take(self.side, np.maximum(tri, 0)) == GLASS) & (tri >= 0))[0]
+            if len(at):
+                out_ = np.einsum("ij,ij->i", self.geo.ng[tri[at]],
+                                 np.take(d, at, axis=0)) > 0.0
+                arrived[np.take(slot, at[out_])] = True
         return n
 
 

@@ -346,6 +346,10 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     elif vol is not None:
         vol.hetero = het  # (the free flights' scatter weights)
     limits = settings.bounce_limits
+    # Which photons' last hit was a touching glass face met from inside, by slot
+    # (CoincidentSurfaces.meet_hits; None: no glass touches anything).
+    arrived = (np.zeros(int(slot.max()) + 1 if len(slot) else 0, bool)
+               if coincident is not None else None)
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -371,7 +375,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # through a bottle's cap onto the floor), or that surface into the glass,
             # meet the other one there; photons inside the glass reaching the floor
             # under it leave the glass first (engine/coincident.py).
-            coincident.meet_hits(o, d, frm, off, geom, prim32, u, v, tfar[:m], starts)
+            coincident.meet_hits(o, d, frm, off, geom, prim32, u, v, tfar[:m], starts,
+                                 slot, arrived)
         if bounce == 0 and link_row is not None:
             # Light Linking: a photon whose first hit is on an object its light does not
             # light ends there, as a miss (not stored, not bounced; engine/lightlinking.py).
