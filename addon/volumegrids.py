@@ -97,7 +97,11 @@ def lattice(bounds_lo, bounds_hi, index_to_object, max_voxels: int = MAX_VOXELS)
     return first, counts, stride
 
 
-START_WAIT = 5.0  # s a render thread waits for the main thread to take the sampling
+START_WAIT = 30.0  # s a render thread waits for the main thread to take the sampling
+
+
+class MainThreadBusy(RuntimeError):
+    """The main thread did not take a job handed to it within START_WAIT seconds."""
 
 
 def on_main_thread(bpy, fn):
@@ -105,8 +109,10 @@ def on_main_thread(bpy, fn):
     and datablocks made or removed there race the interface (Cycles never writes to
     bpy.data while it renders). From another thread fn goes to a bpy.app.timers call
     and this waits for it; when the main thread does not take it within START_WAIT
-    seconds (its event loop busy), fn runs here after all. On the main thread (background
-    renders, scripts, the viewport's update): fn() directly."""
+    seconds (its event loop busy), MainThreadBusy is raised (the caller warns and leaves
+    the volume out: datablocks written from a render thread may crash Blender, a missing
+    volume does not). On the main thread (background renders, scripts, the viewport's
+    update): fn() directly."""
     import threading
     if threading.current_thread() is threading.main_thread():
         return fn()
@@ -132,9 +138,10 @@ def on_main_thread(bpy, fn):
     if not started.wait(START_WAIT):
         with lock:
             if state["who"] is None:
-                state["who"] = "here"
-        if state["who"] == "here":
-            return fn()
+                state["who"] = "nobody"
+        if state["who"] == "nobody":
+            raise MainThreadBusy(f"Blender's main thread did not take the grid sampling "
+                                 f"within {START_WAIT:g} s")
     done.wait()
     if "error" in state:
         raise state["error"]

@@ -451,8 +451,9 @@ def test_the_viewport_samples_a_volume_once(bpy_addon):
 def test_sampling_from_a_render_thread_goes_to_the_main_thread(bpy_addon, monkeypatch):
     """on_main_thread: called on the main thread, fn runs there; from another thread it
     is handed to bpy.app.timers (here a stand-in that runs it on the main thread), and
-    when no timer takes it within START_WAIT the calling thread runs it itself; an
-    error reaches the caller."""
+    when no timer takes it within START_WAIT the caller gets MainThreadBusy (never runs
+    it on the render thread, where writing bpy.data may crash Blender); an error reaches
+    the caller."""
     import threading
     from addon import volumegrids
     bpy = bpy_addon
@@ -478,11 +479,14 @@ def test_sampling_from_a_render_thread_goes_to_the_main_thread(bpy_addon, monkey
     t.join()
     assert box["who"] is main
     monkeypatch.setattr(volumegrids, "START_WAIT", 0.01)
-    t = threading.Thread(target=lambda: box.update(
-        who=volumegrids.on_main_thread(FakeBpy, lambda: threading.current_thread())))
+    ran = []
+    t = threading.Thread(target=lambda: box.update(busy=pytest.raises(
+        volumegrids.MainThreadBusy, volumegrids.on_main_thread, FakeBpy,
+        lambda: ran.append(threading.current_thread()))))
     t.start()
     t.join()
-    assert box["who"] is t and queue and queue.pop()() is None  # (the late timer: nothing)
+    assert box["busy"] is not None and not ran
+    assert queue and queue.pop()() is None and not ran  # (the late timer: nothing)
 
     def fail():
         raise ValueError("no grid")
