@@ -50,7 +50,8 @@ def _pebble_matrices(n=N_PEBBLES, seed=3):
 
 def _scene(instanced_cloud=False):
     """A floor, a 1 m cube of fog whose density ramps along x (or, with
-    instanced_cloud, three placements of one cube prototype with that fog), 200
+    instanced_cloud, three placements of one cube prototype with that fog, one
+    mirrored), 200
     instanced pebbles, a point light, looking down at an angle."""
     s = PaperScene(40, 30)
     s.add_material(Material("fog", volume_only=True, absorption=SIGMA_A,
@@ -62,7 +63,8 @@ def _scene(instanced_cloud=False):
         cube = Prototype("cube", _CUBE_V, _CUBE_F)
         for i, x in enumerate((-1.2, 0.0, 1.2)):
             M = np.eye(4)
-            M[:3, :3] = np.diag([0.9, 0.9, 0.9 + 0.2 * i])
+            # (the middle copy mirrored: its corners 0, 2, 1, e1 and e2 swapped)
+            M[:3, :3] = np.diag([-0.9 if i == 1 else 0.9, 0.9, 0.9 + 0.2 * i])
             M[:3, 3] = [x, 0.0, 0.6]
             s.add_mesh(Mesh.place(f"cloud.{i}", cube, M, materials=["fog"]))
     else:
@@ -119,11 +121,22 @@ def test_media_rows_read_through_shared_instances(monkeypatch, instanced_cloud):
     assert f_s.f_mean == pytest.approx(f_x.f_mean, rel=1e-9)
     assert f_s.f_max == pytest.approx(f_x.f_max, rel=1e-9)
     np.testing.assert_allclose(het_s.grid.sup, het_x.grid.sup, rtol=1e-9, atol=1e-12)
-    # a ray along x through each cloud: the same tracked correction
-    o = np.array([[-3.0, 0.0, 0.6], [-3.0, 0.1, 0.7]])
-    d = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-    np.testing.assert_allclose(het_s.correction(o, d, np.full(2, 6.0)),
-                               het_x.correction(o, d, np.full(2, 6.0)), rtol=1e-9)
+    if instanced_cloud:
+        assert geo_s.shared.flip[:3].tolist() == [False, True, False]  # (the clouds)
+    # 500 rays from above the scene down through the clouds: the same tracked correction
+    # (the ratio-tracking streams are keyed by the ray: equal rays, equal draws)
+    rng = np.random.default_rng(7)
+    half = 1.6 if instanced_cloud else 0.5
+    o = np.column_stack([rng.uniform(-half, half, 500), rng.uniform(-0.4, 0.4, 500),
+                         np.full(500, 3.0)]) - np.asarray(geo_s.offset)  # (re-centred)
+    d = np.column_stack([rng.uniform(-0.3, 0.3, (500, 2)), -np.ones(500)])
+    c_s = het_s.correction(o, d, np.full(500, 3.0))
+    c_x = het_x.correction(o, d, np.full(500, 3.0))
+    assert (c_x != 1.0).any(axis=1).mean() > 0.5  # most rays cross a cloud
+    if instanced_cloud:
+        np.testing.assert_allclose(c_s, c_x, rtol=1e-9)
+    else:
+        np.testing.assert_array_equal(c_s, c_x)
 
 
 def _image(monkeypatch, on, **kw):
