@@ -57,8 +57,11 @@ An emitting medium's emission is integrated along the field, and textured emissi
 albedo (Principled Volume's Emission Strength / Color / Blackbody, its Color) are fields
 of their own: engine/volumefields.py (volemit40), which this module's fields carry (a
 material with only such textures is a field of constant density, whose tracking has
-nothing to do: `tracked`). The World Volume and objects with shared instances keep a
-constant density (warned).
+nothing to do: `tracked`). The World Volume keeps a constant density (warned). A
+scene with shared instances (two-level tracing, engine/sharedrows.py) reads the media's
+triangles through SharedRows (medium_rows): static media as without instances, and
+instanced copies of a medium (an instanced cloud) each as its own object (its own
+object id, world-space corners and coordinate map).
 """
 from __future__ import annotations
 
@@ -162,15 +165,16 @@ class HeterogeneousMedia:
         self.maps = {}
         # Volume objects' voxel grids (engine/voxelgrid.py): {object: {name: VoxelGrid}}
         self.volume_grids = getattr(geo, "volume_grids", None) or None
-        mats = np.asarray(geo.material)
-        rows = np.flatnonzero(np.isin(mats, list(fields)))
+        rows = medium_rows(geo, fields)
         self.rows = rows  # the triangles of heterogeneous materials
-        v0 = np.asarray(geo.v0, np.float64)[rows]
-        e1 = np.asarray(geo.e1, np.float64)[rows]
-        e2 = np.asarray(geo.e2, np.float64)[rows]
+        # (row gathers: a shared Geometry's RowColumn reads only these rows, instanced
+        # ones placed in world space, engine/sharedrows.py)
+        v0 = np.asarray(geo.v0[rows], np.float64)
+        e1 = np.asarray(geo.e1[rows], np.float64)
+        e2 = np.asarray(geo.e2[rows], np.float64)
         self.normal = np.cross(e1, e2)
-        self.material = mats[rows].astype(np.int64)
-        self.object = np.asarray(geo.object_id)[rows].astype(np.int64)
+        self.material = np.asarray(geo.material[rows]).astype(np.int64)
+        self.object = np.asarray(geo.object_id[rows]).astype(np.int64)
         corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (R,3,3)
         self._fit_maps(corners)
         # Textured emission and albedo (engine/volumefields.py): their means, and the
@@ -211,19 +215,9 @@ class HeterogeneousMedia:
             a = np.asarray(table.absorption[m], np.float64)
             s = np.asarray(table.scattering[m], np.float64)
             fields[m] = Field(node, a + s, s)
-        if getattr(geo, "shared", None) is not None:
-            # (a shared instance's triangles are not in the flat tables this reads)
-            for m in fields:
-                if m < len(table.density_textures):
-                    table.density_textures[m] = None
-                volumefields.drop(table, m)
-            return _Warned([f"material '{table.names[m]}': a texture on its volume "
-                            "(Density, Color or Emission) on objects with shared instances "
-                            "(instanced copies) is not supported; rendered as a homogeneous "
-                            "medium (density 1, the Color socket's own value, no textured "
-                            "emission)"
-                            for m in fields])
-        used = set(np.unique(np.asarray(geo.material)).tolist())
+        # The materials some triangle carries (a shared Geometry's static rows and its
+        # instances' rows through SharedRows.rows_of: never the whole expanded column).
+        used = set(np.unique(np.asarray(geo.material[medium_rows(geo, fields)])).tolist())
         fields = {m: f for m, f in fields.items() if m in used}
         if not fields:
             return None
@@ -265,7 +259,7 @@ class HeterogeneousMedia:
         for name, table in cc.items():
             if name not in ("generated", "object"):
                 continue
-            vals = np.asarray(table, np.float64)[self.rows]  # (R,3,3)
+            vals = np.asarray(table[self.rows], np.float64)  # (R,3,3)
             for k in np.unique(self.object):
                 sel = self.object == k
                 P = corners[sel].reshape(-1, 3)
@@ -627,6 +621,17 @@ class HeterogeneousMedia:
         """This render's warnings about its heterogeneous media (a deformed mesh's
         coordinates, a tree that cannot be evaluated, an albedo texture above 1)."""
         return list(self.warnings)
+
+
+def medium_rows(geo, materials) -> np.ndarray:
+    """(R,) int64 the rows of geo whose material is in `materials`, ascending: the flat
+    material column's, or for a Geometry with shared instances (engine/sharedrows.py)
+    SharedRows.rows_of (its static rows and the instanced copies' rows, each copy with
+    its own object id and world-space corners), without building the expanded column."""
+    shared = getattr(geo, "shared", None)
+    if shared is not None:
+        return shared.rows_of(materials)
+    return np.flatnonzero(np.isin(np.asarray(geo.material), list(materials)))
 
 
 def _field_values(node, pg, n) -> np.ndarray:

@@ -150,6 +150,36 @@ class SharedRows:
                 out[a:b] = self.column(name, np.arange(a, b))
         return out
 
+    def rows_of(self, materials) -> np.ndarray:
+        """(R,) int64 the rows, ascending, whose material is in `materials` (material
+        indices): static rows by the static table, an instance's rows where its
+        material slot at the prototype row's slot is one of them (only the segments
+        that hold one are visited; the whole material column is never built)."""
+        mats = np.asarray(sorted(int(m) for m in materials), np.int64)
+        if not len(mats) or not len(self.seg_start):
+            return np.zeros(0, np.int64)
+        ends = np.append(self.seg_start[1:], self.count)
+        static = np.isin(self.static["material"], mats)
+        slot_hit = np.isin(self.slots, mats)            # (I, K): which slots are media
+        kind = self.seg_kind
+        inst_hit = slot_hit.any(axis=1) if len(slot_hit) else np.zeros(0, bool)
+        out = []
+        for s in np.flatnonzero(kind < 0):
+            a, b, first = self.seg_start[s], ends[s], self.seg_static[s]
+            m = static[first:first + (b - a)]
+            if m.any():
+                out.append(a + np.flatnonzero(m))
+        for s in np.flatnonzero(kind >= 0):
+            k = kind[s]
+            if not inst_hit[k]:
+                continue
+            a, b = self.seg_start[s], ends[s]
+            t0 = self.table_start[self.table[k]]
+            out.append(a + np.flatnonzero(slot_hit[k][self.tables["slot"][t0:t0 + (b - a)]]))
+        if not out:
+            return np.zeros(0, np.int64)
+        return np.sort(np.concatenate(out).astype(np.int64))
+
     def area_sum(self, mask) -> float:
         """Total world-space area (m^2) of the rows where mask (T,) bool is True:
         |A^-T c| |det A| / 2 per instanced row (c the object-space e1 x e2)."""

@@ -98,7 +98,7 @@ def textured_materials(table) -> set:
 
 def drop(table, m) -> None:
     """Forget material m's emission and albedo textures (a medium rendered homogeneous:
-    shared instances, a tree that cannot be evaluated inside a volume)."""
+    a density tree that cannot be evaluated inside a volume)."""
     for name in ("volume_emission_textures", "albedo_textures"):
         lst = getattr(table, name, None)
         if lst is not None and m < len(lst):
