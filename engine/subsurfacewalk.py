@@ -254,14 +254,15 @@ class ObjectMeshes:
             return got
 
 
-def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng):
+def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=None):
     """Random walks from M entry points. obj (M,) the entry triangles' objects; p, n, ng,
     wi (M,3) the entry point, BSSRDF normal, geometric normal (both on the viewer's side)
     and the direction to the viewer; offset (M,) the entry's ray-origin offset; sp (M,)
     SubsurfaceParams; rng a numpy Generator. Returns (ok (M,) bool: the walk left through
     the surface, prim (M,) int64 global exit triangle, u, v (M,), d (M,3) the exit
     direction (outwards), throughput (M,3): the walk's weight per unit closure weight
-    over the albedo (Cycles' throughput / (w L)))."""
+    over the albedo (Cycles' throughput / (w L))). stats: None, or a dict whose "rays"
+    entry is increased by the rays the walks cast."""
     m = len(p)
     albedo = np.array([s.color for s in sp], np.float64).reshape(m, 3)
     radius = np.array([s.radius for s in sp], np.float64).reshape(m, 3) * (0.25 / math.pi)
@@ -304,6 +305,8 @@ def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng):
         if not len(live):
             break
         k = len(live)
+        if stats is not None:
+            stats["rays"] = stats.get("rays", 0) + k
         late = bounce > SIMILARITY_LEVEL
         st = sigma_t_star[live] if late else sigma_t[live]
         ss = sigma_s_star[live] if late else sigma_s[live]
@@ -420,6 +423,9 @@ class SubsurfaceWalks:
         self.params = params  # per material row: SubsurfaceParams or None
         self.walking = np.array([p is not None for p in params], np.bool_)
         self.meshes = ObjectMeshes(ctx.geo)
+        # Counts for bench/ (walks started, walks that left the surface, rays cast).
+        self.stats = {"walks": 0, "exits": 0, "rays": 0}
+        self._stats_lock = threading.Lock()
 
     @classmethod
     def for_context(cls, ctx):
@@ -471,10 +477,15 @@ class SubsurfaceWalks:
         sp = [self.params[i] for i in np.take(hit.mat, r)]
         offset = (np.take(hit.offset, r) if hit.offset is not None
                   else np.full(len(r), 1e-6 * max(ctx.geo.extent, 1e-3)))
+        counts = {}
         ok, xprim, xu, xv, xd, tp = walk(
             self.meshes, obj, np.take(hit.p, r, axis=0), np.take(hit.ns, r, axis=0),
-            np.take(hit.ng, r, axis=0), np.take(hit.wo, r, axis=0), offset, sp, rng)
+            np.take(hit.ng, r, axis=0), np.take(hit.wo, r, axis=0), offset, sp, rng, counts)
         i = np.flatnonzero(ok & (tp.max(axis=1) > 0))
+        with self._stats_lock:
+            self.stats["walks"] += len(r)
+            self.stats["exits"] += len(i)
+            self.stats["rays"] += counts.get("rays", 0)
         if not len(i):
             return None
         # Seen from outside (Cycles turns the exit ray round: front-facing normals).

@@ -64,28 +64,30 @@ def test_thin_slab_glows_when_lit_from_behind(fresh_scene, bpy_addon, tmp_path):
 
 
 def test_terminator_profile_of_a_side_lit_sphere(fresh_scene, bpy_addon, tmp_path):
-    """A ball 1 m across (radius x Scale = 0.2 x (1, 0.2, 0.1) m: light spreads some cm),
-    the sun grazing from +X: the luminance profile across the terminator (columns of the
-    image's middle rows) as Cycles'."""
+    """A ball 1 m across (Radius x Scale = (1, 0.2, 0.1) m: red light spreads ~8 cm), the
+    sun grazing from -X, seen from above: the luminance profile across the terminator
+    (the image's middle rows, column by column) as Cycles', and the light spread past
+    the terminator into the shadow side (the diffuse stand-in leaves it black)."""
     bpy, scene = bpy_addon, fresh_scene
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
     bpy.ops.object.shade_smooth()
-    _add(bpy, scene, bpy.context.object, _material(bpy, (0.8, 0.5, 0.4), 0.2))
+    _add(bpy, scene, bpy.context.object, _material(bpy, (0.8, 0.5, 0.4), 1.0))
     black_world(bpy, scene)
-    sun_light(bpy, scene, (0.0, -math.pi / 2, 0.0), energy=3.0)  # travelling along -X
+    sun_light(bpy, scene, (0.0, -math.pi / 2, 0.0), energy=3.0)  # travelling along +X
     looking_down_camera(bpy, scene, 2.0, ortho_scale=1.1)
-    ours, ref = _renders(bpy, scene, tmp_path)
+    ours, ref = _renders(bpy, scene, tmp_path, ours_spp=64)
     rows = slice(8, 16)
     po, pr = ours[rows].mean(axis=(0, 2)), ref[rows].mean(axis=(0, 2))
     with np.printoptions(linewidth=200):
-        print("profile ours  ", np.round(po, 3))
-        print("profile Cycles", np.round(pr, 3))
-    # Pairs of columns, within 10 % of the lit side's level or 10 % of their own value.
+        print("profile ours  ", np.round(po, 4))
+        print("profile Cycles", np.round(pr, 4))
+    # Pairs of columns within 10 % of their own value or 2 % of the lit side's level.
     po2, pr2 = po.reshape(-1, 2).mean(axis=1), pr.reshape(-1, 2).mean(axis=1)
     assert np.all(np.abs(po2 - pr2) <= np.maximum(0.1 * pr2, 0.02 * pr2.max())), (po2, pr2)
-    # The shadow side (the ball's -X half) gets light through the ball in both.
-    dark = slice(4, 10)
-    assert pr[dark].mean() > 0.0 and po[dark].mean() > 0.5 * pr[dark].mean()
+    # Past the terminator (the ball's +X half, columns 13-17): light that walked there.
+    past = slice(13, 18)
+    assert pr[past].sum() > 0.005 * pr.max()
+    assert abs(po[past].sum() / pr[past].sum() - 1.0) < 0.25, (po[past], pr[past])
 
 
 def test_cube_at_scale_three_tenths(fresh_scene, bpy_addon, tmp_path):
@@ -111,3 +113,38 @@ def test_cube_at_scale_three_tenths(fresh_scene, bpy_addon, tmp_path):
     br = lum_r.reshape(6, 4, 6, 4).mean(axis=(1, 3))
     full = covered.reshape(6, 4, 6, 4).all(axis=(1, 3))
     assert np.all(np.abs(bo[full] - br[full]) <= 0.08 * br[full] + 0.01 * br.max()), (bo, br)
+
+
+@pytest.mark.parametrize("scale", [0.1, 0.3])
+def test_suzanne_at_large_scales(fresh_scene, bpy_addon, tmp_path, scale):
+    """Suzanne 0.7 m across (its eyes are shells of their own, as Cycles walks them: each
+    walk stays in its object, here one mesh) of a skin colour at Subsurface Scale 0.1 and
+    0.3, an area light in front and above: the diffuse stand-in read +3.3 % and +7.9 %
+    with another light (docs/compatibility.md, mixpale); the walk's mean within 4 % of
+    Cycles'."""
+    bpy, scene = bpy_addon, fresh_scene
+    bpy.ops.mesh.primitive_monkey_add(size=0.7)
+    bpy.ops.object.shade_smooth()
+    monkey = bpy.context.object
+    monkey.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    _add(bpy, scene, monkey, _material(bpy, (0.8, 0.5, 0.4), scale))
+    black_world(bpy, scene)
+    light = bpy.data.objects.new("Area", bpy.data.lights.new("Area", "AREA"))
+    light.data.energy, light.data.size = 150.0, 1.0
+    light.location = (0.8, -1.5, 1.2)
+    from mathutils import Vector
+    light.rotation_euler = Vector((-0.8, 1.5, -1.2)).to_track_quat("-Z", "Y").to_euler()
+    scene.collection.objects.link(light)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 0.9
+    cam.location = (0.0, -3.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    # (64 samples: the red walk, its radius ten times blue's, is the noisy channel of the
+    # three-channel MIS; at 32 its mean over ~300 pixels moves +-3 % between seeds.)
+    ours, ref = _renders(bpy, scene, tmp_path, ours_spp=64)
+    covered = ref.sum(axis=2) > 1e-4
+    got, want = ours[covered].mean(axis=0), ref[covered].mean(axis=0)
+    print(f"Suzanne Scale {scale}: ours / Cycles {np.round(got / want, 4)}")
+    np.testing.assert_allclose(got, want, rtol=0.04)
