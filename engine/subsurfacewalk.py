@@ -436,7 +436,11 @@ class SubsurfaceWalks:
             return cached
         params = getattr(ctx.table, "subsurface", None) or []
         hook = None
-        if getattr(ctx.settings, "subsurface_walk", True) and any(p is not None for p in params):
+        # (Instanced rows stored once per prototype, engine/sharedrows.py: the objects'
+        # own BVHs are not built from them yet; such scenes keep the stand-in.)
+        if (getattr(ctx.settings, "subsurface_walk", True)
+                and any(p is not None for p in params)
+                and getattr(ctx.geo, "shared", None) is None):
             hook = cls(ctx, list(params))
         ctx._subsurface_walks = hook
         return hook
