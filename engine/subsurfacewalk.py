@@ -31,7 +31,14 @@ clamped to [0, 1] and L the layering of the coat / sheen / specular lobes above)
                 the usual next-event estimate and the photon / final-gather estimates,
                 times the walk's throughput.
 Cycles mixes classic free-flight sampling with Dwivedi-guided sampling by MIS (variance
-reduction only, the same expectation); this walk is the classic one.
+reduction only, the same expectation); both are here with Cycles' MIS weights.
+
+Two implementations of the same estimator: walk_rows, a compiled kernel that steps each
+walk to its end calling Embree itself (accel._intersect_rows; the default), and the numpy
+steps in walk() (one Embree call per step for the whole batch: a Python iteration per
+step, up to 256 of them because a few walks go long; used where the kernel's Embree entry
+is missing, or with USE_COMPILED False). tests/test_subsurface_walk.py checks that both
+reflect and transmit alike.
 
 Photons and final-gather rays keep the diffuse stand-in (engine/subsurface.py): light
 that reaches a subsurface surface after a diffuse bounce sees the albedo Cycles'
@@ -51,12 +58,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .accel import _intersect_rows
+from .jit import kernel, register_warm_up
+
 # Cycles' constants (kernel/types.h, kernel/integrator/subsurface_random_walk.h).
 BSSRDF_MAX_BOUNCES = 256
 BSSRDF_MIN_RADIUS = 1e-8
 VOLUME_THROUGHPUT_EPSILON = 1e-6
 SIMILARITY_LEVEL = 9
 MIN_ALPHA = 0.2
+# Walks stepped by the compiled kernel walk_rows (Embree called from it); False: the numpy
+# steps (one Embree call per step for the batch), also taken where the kernel's Embree
+# entry is not available.
+USE_COMPILED = True
 # The share of walks that enter by a cosine-distributed direction instead of the GGX
 # refraction. Cycles' newer source (subsurface_entry_bounce) gives Random Walk 0.5; the
 # Cycles in the bpy 5.0 wheel refracts every walk: a 2 cm white slab (radius 5 cm x
@@ -301,6 +315,21 @@ def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=N
     p0 = p
     pos = p - ng * offset[:, None]
     live = np.flatnonzero(ok)
+    compiled = _compiled_walk(meshes, obj, live) if USE_COMPILED else None
+    if compiled is not None:
+        # Each walk stepped through Embree inside one kernel (walk_rows), by object.
+        seeds = rng.integers(0, np.iinfo(np.int64).max, m, dtype=np.int64).astype(np.uint64)
+        rays = np.zeros(1, np.int64)
+        c = np.ascontiguousarray  # (the kernel's one signature: C-ordered float64 rows)
+        pos, d, tp = c(pos, np.float64), c(d, np.float64), c(tp, np.float64)
+        args = (c(n, np.float64), c(p0, np.float64), c(sigma_t), c(sigma_s), c(sigma_t_star),
+                c(sigma_s_star), c(alpha), c(g, np.float64), c(guided_org), c(v_len),
+                c(phase_log), tp, seeds, out_prim, out_u, out_v, out_d, done, rays)
+        for fn, scene, starts, rows, sel in compiled:
+            walk_rows(fn, scene, c(starts, np.int64), c(rows, np.int64), sel, pos, d, *args)
+        if stats is not None:
+            stats["rays"] = stats.get("rays", 0) + int(rays[0])
+        live = live[:0]
     for bounce in range(BSSRDF_MAX_BOUNCES):
         if not len(live):
             break
@@ -380,6 +409,207 @@ def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=N
         live = live[keep]
     tp[~done] = 0.0
     return done, out_prim, out_u, out_v, out_d, tp
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_TO_UNIT = 1.0 / 9007199254740992.0
+
+
+@kernel
+def _uniform(state):
+    """(the next uniform number in [0, 1), the new state): splitmix64 on a uint64 counter."""
+    s = state + _GOLDEN
+    z = s
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    z = z ^ (z >> np.uint64(31))
+    return np.float64(z >> np.uint64(11)) * _TO_UNIT, s
+
+
+@kernel
+def _around1(ax, ay, az, cos_t, phi):
+    """The unit direction at angle acos(cos_t), azimuth phi about the unit axis a."""
+    sign = 1.0 if az >= 0.0 else -1.0
+    a = -1.0 / (sign + az)
+    b = ax * ay * a
+    tx, ty, tz = 1.0 + sign * ax * ax * a, sign * b, -sign * ax
+    bx, by, bz = b, sign + ay * ay * a, -ay
+    sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
+    c, s = sin_t * math.cos(phi), sin_t * math.sin(phi)
+    return (c * tx + s * bx + cos_t * ax, c * ty + s * by + cos_t * ay,
+            c * tz + s * bz + cos_t * az)
+
+
+@kernel
+def _walk_pdf1(st, t, hit):
+    T = math.exp(-st * t)
+    return T if hit else st * T
+
+
+@kernel
+def walk_rows(fn, scene, starts, local_rows, idx, pos, d, n, p0, sigma_t, sigma_s,
+              sigma_t_star, sigma_s_star, alpha, g, guided_org, v_len, phase_log, tp,
+              seeds, out_prim, out_u, out_v, out_d, done, rays):
+    """The walks idx (K,) int64 of walk()'s arrays stepped to their end, each through
+    Embree from the kernel (accel._intersect_rows: rtcIntersect8 at address fn on the
+    object's RTCScene at address scene, geometry starts, local triangle -> global row
+    local_rows): walk()'s numpy steps one walk at a time, the same estimator (its random
+    numbers from splitmix64 on the walk's seed, seeds (M,) uint64). Writes pos, d, tp and
+    the out_* / done rows of the walks; rays (1,) int64 += the rays cast."""
+    o1 = np.empty((1, 3))
+    d1 = np.empty((1, 3))
+    tm1 = np.empty(1)
+    t1 = np.empty(1)
+    p1 = np.empty(1, np.int64)
+    u1 = np.empty(1)
+    v1 = np.empty(1)
+    st = np.empty(3)
+    ss = np.empty(3)
+    cp = np.empty(3)
+    nray = 0
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        state = seeds[i]
+        opp = False
+        odist = 0.0
+        nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
+        v = v_len[i]
+        plog = phase_log[i]
+        for bounce in range(BSSRDF_MAX_BOUNCES):
+            late = bounce > SIMILARITY_LEVEL
+            for c in range(3):
+                st[c] = sigma_t_star[i, c] if late else sigma_t[i, c]
+                ss[c] = sigma_s_star[i, c] if late else sigma_s[i, c]
+            tot = 0.0
+            for c in range(3):
+                cp[c] = tp[i, c] * alpha[i, c]
+                tot += cp[c]
+            for c in range(3):
+                cp[c] = cp[c] / tot if tot > 0.0 else 1.0 / 3.0
+            r0, state = _uniform(state)
+            ch = 0 if r0 < cp[0] else (1 if r0 < cp[0] + cp[1] else 2)
+            sample_st = st[ch]
+            gf = 0.0
+            back_frac = 0.0
+            fwd_factor = bwd_factor = 0.0
+            fwd_stretch = bwd_stretch = 1.0
+            if bounce > 0:
+                gl = 0.0 if late else g[i]
+                gf = 0.75 if late else guided_org[i]
+                r2, state = _uniform(state)
+                guided = r2 < gf
+                backward = False
+                if opp:
+                    x = -((pos[i, 0] - p0[i, 0]) * nx + (pos[i, 1] - p0[i, 1]) * ny
+                          + (pos[i, 2] - p0[i, 2]) * nz)
+                    x = min(max(x, 0.0), odist)
+                    back_frac = 1.0 / (1.0 + math.exp((odist - 2.0 * x) / v))
+                    r3, state = _uniform(state)
+                    backward = r3 < back_frac
+                r4, state = _uniform(state)
+                r5, state = _uniform(state)
+                ox, oy, oz = d[i, 0], d[i, 1], d[i, 2]
+                if guided:
+                    cos_t = v - (v + 1.0) * math.exp(-r4 * plog)
+                    if backward:
+                        cos_t = -cos_t
+                    cos_t = min(max(cos_t, -1.0), 1.0)
+                    dx, dy, dz = _around1(nx, ny, nz, cos_t, 2.0 * math.pi * r5)
+                else:
+                    if abs(gl) < 1e-3:
+                        ch_t = 1.0 - 2.0 * r4
+                    else:
+                        kk = (1.0 - gl * gl) / (1.0 - gl + 2.0 * gl * r4)
+                        ch_t = (1.0 + gl * gl - kk * kk) / (2.0 * gl)
+                    ch_t = min(max(ch_t, -1.0), 1.0)
+                    dx, dy, dz = _around1(ox, oy, oz, ch_t, 2.0 * math.pi * r5)
+                    cos_t = dx * nx + dy * ny + dz * nz
+                cd = ox * dx + oy * dy + oz * dz
+                hg = (1.0 - gl * gl) / max(1.0 + gl * gl - 2.0 * gl * cd, 1e-300) ** 1.5 / (
+                    4.0 * math.pi)
+                fwd_factor = (0.5 / math.pi) / ((v - cos_t) * plog) / hg
+                bwd_factor = (0.5 / math.pi) / ((v + cos_t) * plog) / hg
+                fwd_stretch = 1.0 - cos_t / v
+                bwd_stretch = 1.0 + cos_t / v
+                if guided:
+                    sample_st *= bwd_stretch if backward else fwd_stretch
+                d[i, 0], d[i, 1], d[i, 2] = dx, dy, dz
+            r1, state = _uniform(state)
+            t = -math.log1p(-r1) / sample_st
+            if bounce == 0:
+                reach = max(t, 10.0 / min(st[0], min(st[1], st[2])))
+            else:
+                reach = t
+            for c in range(3):
+                o1[0, c] = pos[i, c]
+                d1[0, c] = d[i, c]
+            tm1[0] = reach
+            _intersect_rows(fn, scene, o1, d1, tm1, starts, t1, p1, u1, v1)
+            nray += 1
+            found = p1[0] >= 0 and t1[0] <= reach
+            if bounce == 0:
+                opp = found
+                if found:
+                    odist = -((pos[i, 0] + t1[0] * d[i, 0] - p0[i, 0]) * nx
+                              + (pos[i, 1] + t1[0] * d[i, 1] - p0[i, 1]) * ny
+                              + (pos[i, 2] + t1[0] * d[i, 2] - p0[i, 2]) * nz)
+                hit = found and t1[0] < t
+            else:
+                hit = found
+            if hit:
+                t = t1[0]
+            for c in range(3):
+                pos[i, c] += t * d[i, c]
+            denom = 0.0
+            for c in range(3):
+                pdf = _walk_pdf1(st[c], t, hit)
+                if bounce > 0:
+                    gp = _walk_pdf1(fwd_stretch * st[c], t, hit) * fwd_factor
+                    if opp:
+                        bp = _walk_pdf1(bwd_stretch * st[c], t, hit) * bwd_factor
+                        gp = gp * (1.0 - back_frac) + bp * back_frac
+                    pdf = pdf * (1.0 - gf) + gp * gf
+                denom += cp[c] * pdf
+            mx = 0.0
+            for c in range(3):
+                T = math.exp(-st[c] * t)
+                tp[i, c] *= (T if hit else ss[c] * T) / denom
+                mx = max(mx, tp[i, c])
+            if hit:
+                out_prim[i] = local_rows[p1[0]]
+                out_u[i], out_v[i] = u1[0], v1[0]
+                for c in range(3):
+                    out_d[i, c] = d[i, c]
+                done[i] = True
+                break
+            if mx < VOLUME_THROUGHPUT_EPSILON:
+                break
+    rays[0] += nray
+
+
+def _compiled_walk(meshes, obj, live):
+    """Per object of the walks live: (rtcIntersect8's address, the object's RTCScene
+    address, its geometry starts, its global rows, the walks' rows (K,) int64), or None
+    where the trace kernel cannot be used (accel._kernel_hits_address 0, a BVH in
+    blocks): the numpy steps then."""
+    from . import accel as _accel
+    if not len(live) or _accel._LIBRARY is None:
+        return None
+    fn = _accel._kernel_hits_address()
+    if not fn:
+        return None
+    out = []
+    o = np.take(obj, live)
+    for ob in np.unique(o):
+        acc, rows = meshes.get(int(ob))
+        if len(acc._blocks) != 1:
+            return None
+        block = acc._blocks[0]
+        out.append((fn, _accel._scene_address(block.scene), block.starts, rows,
+                    np.ascontiguousarray(live[o == ob], np.int64)))
+    return out
 
 
 def _walk_pdf(sigma_t, t, hit):
@@ -500,3 +730,13 @@ class SubsurfaceWalks:
 def material_params(materials) -> list:
     """Per material row: its SubsurfaceParams (Material.subsurface) or None."""
     return [getattr(m, "subsurface", None) for m in materials]
+
+
+@register_warm_up
+def _warm_up():
+    """Compile (or load) walk_rows (no walk: nothing is traced)."""
+    e3, e1 = np.zeros((0, 3)), np.zeros(0)
+    none = np.zeros(0, np.int64)
+    walk_rows(0, 0, np.zeros(1, np.int64), none, none, e3, e3, e3, e3, e3, e3, e3, e3, e3,
+              e1, e1, e1, e1, e3, np.zeros(0, np.uint64), none.copy(), e1, e1, e3,
+              np.zeros(0, np.bool_), np.zeros(1, np.int64))
