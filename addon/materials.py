@@ -146,7 +146,7 @@ class Closure:
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
                  "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint",
                  "scalars", "emission_texture", "weight", "anisotropic",
-                 "anisotropic_rotation", "translucent", "translucent_color")
+                 "anisotropic_rotation", "translucent", "translucent_color", "subsurface")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
@@ -210,6 +210,11 @@ class Closure:
         self.translucent = float(translucent)
         self.translucent_color = (None if translucent_color is None
                                   else np.asarray(translucent_color, np.float64)[:3])
+        # The random-walk BSSRDF (engine.subsurfacewalk.SubsurfaceParams) of a surface
+        # that is a Principled with Subsurface Weight or a Subsurface Scattering node as
+        # it came; base_color is then its diffuse stand-in. A mix with another surface
+        # makes a new closure without it (the stand-in renders).
+        self.subsurface = None
 
     @property
     def is_clear(self) -> bool:
@@ -594,6 +599,8 @@ class MaterialConverter:
             translucent=min(max(closure.translucent, 0.0), 1.0),
             translucent_color=(None if closure.translucent_color is None
                                else np.clip(closure.translucent_color, 0.0, None)),
+            # the random-walk BSSRDF camera paths take (engine/subsurfacewalk.py)
+            subsurface=getattr(closure, "subsurface", None),
             # Material > Settings > Pass Index: the Material Index data pass
             pass_index=int(getattr(mat, "pass_index", 0) or 0),
             # Material > Settings > Emission Sampling: the sides shadow rays sample
@@ -1173,17 +1180,22 @@ class MaterialConverter:
             # the Principled subsurface stand-in at weight 1 (engine/subsurface.py).
             base, tex = self._color(node, "Color")
             ss = self.pm.subsurface
+            walk = None
             if tex is None:
+                walk = self._walk_params(node, 1.0, base, "Radius", "Scale", "IOR", 1.4,
+                                         "Anisotropy", self._float(node, "Roughness", 1.0))
                 base = ss.diffuse_color(base, 1.0)
             else:
                 tex, base = ss.SubsurfaceColor(tex, 1.0), np.ones(3)
-            self._warn(f"material '{self._mat.name}': Subsurface Scattering '{node.name}' "
-                       "is approximated: rendered as a diffuse surface of the albedo "
-                       "Cycles' random-walk subsurface scattering gives a thick object of "
-                       "its Color (no light spreads beneath the surface or through thin "
-                       "parts; Scale and Radius are not used)")
-            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
-                           normal_map=self._normal(node))
+                self._warn(f"material '{self._mat.name}': Subsurface Scattering "
+                           f"'{node.name}' with a textured Color is approximated: rendered "
+                           "as a diffuse surface of the albedo Cycles' random-walk "
+                           "subsurface scattering gives a thick object of its Color (no "
+                           "light spreads beneath the surface or through thin parts)")
+            out = Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
+                          normal_map=self._normal(node))
+            out.subsurface = walk
+            return out
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
             sc = {}
@@ -1285,6 +1297,7 @@ class MaterialConverter:
                           **{k: getattr(out, k) for k in Closure.EXTRA})
             res.emission, res.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
                                                                1.0, b)
+            res.subsurface = out.subsurface  # (emission leaves the BSDF as it is)
             return res
         if t == "BSDF_TRANSLUCENT":
             # Cycles' diffuse transmission (bsdf_translucent): Lambert on the far side.
@@ -1466,17 +1479,39 @@ class MaterialConverter:
         w, wnode = self._factor_input(node, "Subsurface Weight", 0.0)
         ss = self.pm.subsurface
         if wnode is None and c.texture is None:
+            # Walked on camera paths (engine/subsurfacewalk.py): Cycles' Principled takes
+            # the material's IOR for the entry (Subsurface IOR only for Random Walk (Skin)).
+            skin = getattr(node, "subsurface_method", "RANDOM_WALK") == "RANDOM_WALK_SKIN"
+            if skin or getattr(node, "subsurface_method", "RANDOM_WALK") == "BURLEY":
+                self._warn(f"material '{self._mat.name}': Subsurface Method "
+                           f"'{node.subsurface_method}' of node '{node.name}' is rendered "
+                           "as Random Walk")
+            c.subsurface = self._walk_params(
+                node, w, c.base_color, "Subsurface Radius", "Subsurface Scale",
+                "Subsurface IOR" if skin else None, c.ior, "Subsurface Anisotropy",
+                c.roughness)
             c.base_color = ss.diffuse_color(c.base_color, w)
+            return
         else:
             colour = (c.base_color if c.texture is None else
                       self.pm.shadernodes.MixColor(1.0, c.texture, c.base_color, "MULTIPLY"))
             c.texture = ss.SubsurfaceColor(colour, w if wnode is None else wnode)
             c.base_color = np.ones(3)
         self._warn(f"material '{self._mat.name}': 'Subsurface Weight' of node '{node.name}' "
-                   "is approximated: rendered as a diffuse surface of the albedo Cycles' "
-                   "random-walk subsurface scattering gives a thick object of its Base "
-                   "Color (no light spreads beneath the surface or through thin parts; "
-                   "Subsurface Radius and Scale are not used)")
+                   "with a texture on Base Color or Subsurface Weight is approximated: "
+                   "rendered as a diffuse surface of the albedo Cycles' random-walk "
+                   "subsurface scattering gives a thick object of its Base Color (no light "
+                   "spreads beneath the surface or through thin parts)")
+
+    def _walk_params(self, node, weight, color, radius, scale, ior, ior_default, anisotropy,
+                     roughness):
+        """engine.subsurfacewalk.SubsurfaceParams of a node's constant inputs (the named
+        sockets; ior None: ior_default)."""
+        return self.pm.subsurfacewalk.SubsurfaceParams.make(
+            weight, color, np.asarray(self._const_color(node, radius, (1.0, 0.2, 0.1)))
+            * self._float(node, scale, 0.05),
+            ior_default if ior is None else self._float(node, ior, ior_default),
+            self._float(node, anisotropy, 0.0), roughness)
 
     def _weighted_sum(self, node, a: Closure, b: Closure, wa, wb, ea, eb) -> Closure:
         """wa a + wb b of two surfaces (wa = mix or add weight x closure weight): their

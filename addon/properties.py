@@ -257,6 +257,11 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     soft_shadows: EnumProperty(
         name="Soft Shadows", items=EFFECT_ITEMS, default="auto",
         description="Several shadow rays for lights with a size")
+    subsurface_walk: BoolProperty(
+        name="Subsurface Random Walk", default=True,
+        description="Camera rays walk beneath subsurface surfaces as Cycles' Random Walk "
+                    "(light through thin parts, soft terminators); off: a diffuse surface "
+                    "of the albedo the walk gives a thick object")
     aim_caustics: BoolProperty(
         name="Aim Caustic Photons", default=True,
         description="Shoot caustic photons only towards mirrors and glass")
@@ -353,6 +358,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             photon_mapping=self.photon_mapping, method=self.method, caustics=self.caustics,
             indirect=self.indirect, specular=self.specular, soft_shadows=self.soft_shadows,
             aim_caustics=self.aim_caustics, photon_importance=self.photon_importance,
+            subsurface_walk=self.subsurface_walk,
             show_photons=self.show_photons, seed=self.seed, workers=self.threads,
             film_transparent=bool(film_transparent))
         kwargs.update(pixel_filter_settings(self.id_data))

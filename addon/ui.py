@@ -165,6 +165,8 @@ class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):
         sub.prop(pm, "caustic_photons")
         sub.prop(pm, "aim_caustics")
         col.separator()
+        col.prop(pm, "subsurface_walk")
+        col.separator()
         col.prop(pm, "indirect")
         col.prop(pm, "specular")
         col.prop(pm, "soft_shadows")

@@ -26,7 +26,7 @@ if (_sys.argv and _os.path.splitext(_os.path.basename(_sys.argv[0]))[0] == "phot
 
 from . import (ambientocclusion, bevel, displacement, hair, hairbsdf, ies, imageio,  # noqa: E402
                motionblur, panorama, pointcloud, pointiness, presets, resources, shadernodes,
-               stagespans, subsurface, teaching, worldgraph)
+               stagespans, subsurface, subsurfacewalk, teaching, worldgraph)
 from .film import Film  # noqa: E402
 from .lights import DECLARED_KINDS  # noqa: E402
 from .lights.environment import Environment  # noqa: E402

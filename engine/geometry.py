@@ -79,6 +79,8 @@ class MaterialTable:
     volume_emission_textures: list = None  # per material: its medium's emission field
     albedo_textures: list = None       # and albedo field (Material.volume_emission_texture,
                                        # .albedo_texture; engine/volumefields.py)
+    subsurface: list = None            # per material: its random-walk BSSRDF
+                                       # (Material.subsurface, engine/subsurfacewalk.py) or None
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -123,6 +125,7 @@ class MaterialTable:
                    volume_emission_textures=[getattr(m, "volume_emission_texture", None)
                                              for m in materials],
                    albedo_textures=[getattr(m, "albedo_texture", None) for m in materials],
+                   subsurface=[getattr(m, "subsurface", None) for m in materials],
                    ray_remap=ray_remap, **cols)
 
     @property

@@ -29,7 +29,8 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
 from . import (adaptive, aopass, chaincounts, datapasses, heterogeneous, lightpasses, media,
-               photonvisibility, raymaterials, sampleclamp, shadelight, volumeemission,
+               photonvisibility, raymaterials, sampleclamp, shadelight, subsurfacewalk,
+               volumeemission,
                vectorpass, volumescatter, volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
@@ -1873,6 +1874,50 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     return direct, caustic, indirect
 
 
+def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, sample_id,
+                      footprint, bounce, rng, counters, should_cancel, clamping, lpass):
+    """The BSSRDF part of a camera bounce's subsurface hits: walks (j, W) from
+    SubsurfaceWalks.entries at the shaded rows dsel, walked (SubsurfaceWalks.exits) and
+    each exit shaded as a Lambertian surface of weight W x the walk's throughput (direct
+    light, caustic and indirect estimates), added where the entry's own diffuse share
+    goes (the same passes and bounce limits)."""
+    s = ctx.settings
+    j, W = walks
+    every = len(dsel) == len(hit.p)
+    got = sss.exits(hit, None if every else dsel, j, W, rng)
+    if got is None:
+        return
+    i, xhit, xw = got
+    rows = np.asarray(dsel)[j[i]]
+    if medium is not None:
+        xhit.medium = np.take(medium, rows)
+    direct, caustic, indirect = shade_diffuse(
+        ctx, xhit, xw, rng, counters, None,
+        None if sample_id is None else np.take(sample_id, rows),
+        None if footprint is None else np.take(footprint, rows), should_cancel,
+        bounce=bounce, extra=None if bounce == 0 else _chain_counts(chain[rows]),
+        clamp_tp=np.take(tp, rows, axis=0) if clamping else None)
+    if clamping:
+        direct = sampleclamp.clamp(direct, tp, rows, sampleclamp.bounce_limits(
+            s, np.take(chain[:, 0], rows)))
+    if lpass is not None:
+        lpass.shaded(pix, direct, tp, rows, lightpasses.DIFFUSE_DIRECT)
+        if caustic is not None:
+            lpass.shaded(pix, caustic + indirect, tp, rows, lightpasses.DIFFUSE_INDIRECT)
+    if bounce == 0:
+        acc.add("direct", pix, direct, tp, rows)
+        if caustic is not None:
+            acc.add("caustic", pix, caustic, tp, rows)
+            acc.add("indirect", pix, indirect, tp, rows)
+    else:
+        if caustic is not None:
+            past = chain[rows, 0] + 1 > s.bounce_limits[0]
+            if past.any():
+                indirect[past] = 0.0
+        acc.add("specular", pix, direct if caustic is None else direct + caustic + indirect,
+                tp, rows)
+
+
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
                   scattered=None, extra=None, clamp_tp=None):
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
@@ -2517,6 +2562,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # reads; a diffuse-only hit's are left unwritten by shade_lobes).
     glass_mat = _transmitting(np.asarray(ctx.table.closure_params))
     glass_rng = None  # glasslight's numbers, made when first needed
+    # Random-walk subsurface scattering (engine/subsurfacewalk.py; None: nothing walks).
+    sss = subsurfacewalk.SubsurfaceWalks.for_context(ctx)
+    sss_rng = None
     # Surfaces touching a glass face (engine/coincident.py; None: no glass touches
     # anything), and the triangle each path left (-1: the camera) while there are.
     # (org_p is not that point after a flat passage: CameraPassages gives it the point
@@ -2965,6 +3013,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                   and g.any() else None)
             # The glossy lobes' part of direct, for the light passes.
             g_part = np.zeros((nd, 3)) if lpass is not None and g.any() else None
+            # Subsurface closures (engine/subsurfacewalk.py): wd keeps the diffuse share,
+            # the BSSRDF's walks are shaded at their exits below (None: none here).
+            walks = sss.entries(hit, None if every else dsel, wd) if sss is not None else None
             direct, caustic, indirect = shade_diffuse(
                 ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
@@ -3010,6 +3061,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         else direct + caustic + indirect, tp, dsel)
             if lpass is not None and caustic is not None:
                 lpass.shaded(pix, caustic + indirect, tp, dsel, lightpasses.DIFFUSE_INDIRECT)
+            if walks is not None and len(walks[0]):
+                if sss_rng is None:
+                    # Their own stream (a child of rng's): paths without subsurface
+                    # hits keep their numbers.
+                    sss_rng = np.random.default_rng(rng.integers(1 << 62))
+                _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium,
+                                  sample_id, footprint, bounce, sss_rng, counters,
+                                  should_cancel, clamping, lpass)
         if GLASS_LIGHT_SAMPLING:
             # Rough glass hits sample the lights behind their surface too (Cycles' light
             # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:

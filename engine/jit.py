@@ -255,5 +255,5 @@ def _import_kernel_modules():
                    hashgrid, normalmap,
                    kdtree, majorant, media, panekernels, photonkernels, photonmap,  # (warm-ups)
                    photonvisibility,
-                   procedural, rayoffset, shadowtransmittance, toplevel, volumeemission,
-                   volumescatter)
+                   procedural, rayoffset, shadowtransmittance, subsurfacewalk, toplevel,
+                   volumeemission, volumescatter)

@@ -273,6 +273,10 @@ class Material:
     aovs: dict = field(default_factory=dict)
     ray_variants: dict | None = None
     holdout: bool = False
+    # Cycles' random-walk BSSRDF (engine/subsurfacewalk.SubsurfaceParams): camera paths
+    # walk beneath the surface; base_color then holds the diffuse stand-in the photons
+    # and gather rays see (engine/subsurface.py). None: no subsurface closure.
+    subsurface: object | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):

@@ -190,6 +190,9 @@ class RenderSettings:
     volume_bounces: int = 0
     # Modes
     photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
+    # Random-walk subsurface scattering on camera paths (engine/subsurfacewalk.py); False:
+    # every subsurface closure renders as its diffuse stand-in (engine/subsurface.py).
+    subsurface_walk: bool = True
     method: str = "photon"          # local | raytrace | photon (METHODS)
     # Effects: "auto" lets engine.effects decide from the scene (and say why); "on" / "off"
     # force them. True / False are accepted for "on" / "off".
@@ -262,7 +265,7 @@ class RenderSettings:
                          ("adaptive_min_samples", 0)):
             positive_int(name, lo)
         for name in ("final_gather", "gather_by_share", "gather_guiding", "photon_mapping",
-                     "aim_caustics",
+                     "aim_caustics", "subsurface_walk",
                      "photon_importance",
                      "show_photons", "film_transparent", "paper_mode"):
             v = getattr(self, name)

@@ -26,7 +26,8 @@ def signatures() -> dict:
 def scenes():
     """(name, scene, settings) small scenes covering the light kinds, a world HDRI,
     textures, a normal map, instances, data passes, adaptive sampling, transparent film,
-    a glass pane's shadow rays, absorbing media, fog, a textured density."""
+    a glass pane's shadow rays, absorbing media, fog, a textured density, subsurface
+    scattering."""
     from engine.api import PaperScene, cornell_box
     from engine.normalmap import NormalMap
     from engine.scene import Material
@@ -128,6 +129,16 @@ def scenes():
     h.add_spot_light((0.0, 0.0, 2.5), (0, 0, 0), power=300.0, spot_size_degrees=40.0)
     h.set_camera((0.0, -4.0, 1.5), (0.0, 0.0, 0.8), view_angle=50.0)
     yield ("textured density", h, RenderSettings(volume_bounces=2, **base))
+    # Random-walk subsurface scattering (engine/subsurfacewalk.py: the walk kernel).
+    from engine.subsurfacewalk import SubsurfaceParams
+    w = PaperScene(24, 18)
+    sp = SubsurfaceParams.make(1.0, (0.8, 0.5, 0.4), (0.05, 0.01, 0.005), 1.5, 0.2, 0.5)
+    w.add_material(Material("skin", tuple(sp.stand_in()), roughness=0.5, subsurface=sp))
+    w.add_sphere((0.0, 0.0, 0.5), 0.5, material="skin", segments=12)
+    w.add_plane((0, 0, 0), (0, 0, 1), 6.0, "white_diffuse", name="floor")
+    w.add_sun((0.3, 0.2, -1.0), 3.0)
+    w.set_camera((0.0, -3.0, 1.0), (0.0, 0.0, 0.5), view_angle=40.0)
+    yield ("subsurface walk", w, RenderSettings(**base))
 
 
 def main():

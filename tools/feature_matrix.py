@@ -796,7 +796,7 @@ def closure_metallic_conductor():
 @case("closures")
 def closure_subsurface_node():
     """The Subsurface Scattering node (Random Walk, Scale 0.05) on a thick ball: the
-    BSSRDF alone, rendered as the diffuse albedo Cycles' random walk gives (warned)."""
+    BSSRDF alone, walked on camera paths (engine/subsurfacewalk.py)."""
     _point_ball_scene(lambda: _shader("sss", "ShaderNodeSubsurfaceScattering",
                                       Color=(0.8, 0.3, 0.2), Scale=0.05))
 

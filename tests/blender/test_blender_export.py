@@ -413,27 +413,51 @@ def _export_before_a_camera(bpy, scene):
     return out
 
 
-def test_subsurface_warning_says_what_renders_and_names_the_object(fresh_scene, bpy_addon):
-    """A Principled with Subsurface Weight (a skin, a candle): the warning says what is
-    rendered instead and names the object that uses the material (s24 new user); the
-    diffuse base takes Cycles' random-walk albedo of its Base Color (s25 mixpale)."""
+def test_subsurface_exports_the_walk_and_warns_a_textured_colour(fresh_scene, bpy_addon):
+    """A Principled with Subsurface Weight (a skin, a candle) exports Cycles' random-walk
+    BSSRDF (engine/subsurfacewalk.py: weight, colour, Radius x Scale, the IOR, anisotropy,
+    roughness) without a warning; its diffuse base is the stand-in the photons see,
+    Cycles' thick-slab albedo of its Base Color (s25 mixpale). With a texture on Base
+    Color the stand-in renders on camera paths too: the warning says so and names the
+    object that uses the material (s24 new user)."""
     bpy = bpy_addon
     obj = _cube(bpy, "Candle", (0, 0, 0))
     mat = bpy.data.materials.new("Wax")
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
-    mat.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    p = mat.node_tree.nodes["Principled BSDF"]
+    p.inputs["Subsurface Weight"].default_value = 1.0
+    p.inputs["Subsurface Anisotropy"].default_value = 0.3
     obj.data.materials.append(mat)
+    other = _cube(bpy, "Soap", (3, 0, 0))
+    tex_mat = bpy.data.materials.new("Soap")
+    if bpy.app.version < (5, 0, 0):
+        tex_mat.use_nodes = True
+    nt = tex_mat.node_tree
+    q = nt.nodes["Principled BSDF"]
+    q.inputs["Subsurface Weight"].default_value = 1.0
+    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Color"], q.inputs["Base Color"])
+    other.data.materials.append(tex_mat)
     out = _export_before_a_camera(bpy, fresh_scene)
     hits = [w for w in out.all_warnings() if "Subsurface Weight" in w]
     assert len(hits) == 1, out.all_warnings()
-    assert hits[0].startswith("material 'Wax': 'Subsurface Weight'")
+    assert hits[0].startswith("material 'Soap': 'Subsurface Weight'")
     assert "rendered as a diffuse surface of the albedo Cycles' random-walk" in hits[0]
     assert "no light spreads beneath the surface" in hits[0]
-    assert hits[0].endswith("(used by 'Candle')")
+    assert hits[0].endswith("(used by 'Soap')")
     # Base Color 0.8 (the default): Cycles' random walk reflects 0.7896 of the light on a
     # thick slab (engine/subsurface.py, measured by bench/bench_subsurface_albedo.py).
-    np.testing.assert_allclose(out.materials["Wax"].base_color, [0.7896] * 3, atol=1e-4)
+    wax = out.materials["Wax"]
+    np.testing.assert_allclose(wax.base_color, [0.7896] * 3, atol=1e-4)
+    sp = wax.subsurface
+    assert sp is not None and out.materials["Soap"].subsurface is None
+    assert sp.weight == 1.0 and sp.anisotropy == pytest.approx(0.3)
+    np.testing.assert_allclose(sp.color, [0.8] * 3, atol=1e-6)
+    radius = np.array(p.inputs["Subsurface Radius"].default_value[:3])
+    np.testing.assert_allclose(sp.radius, radius * p.inputs["Subsurface Scale"].default_value,
+                               rtol=1e-6)
+    assert sp.ior == pytest.approx(p.inputs["IOR"].default_value, rel=1e-6)
+    assert sp.roughness == pytest.approx(p.inputs["Roughness"].default_value, rel=1e-6)
 
 
 def _diffuse_translucent_mix(bpy, name, fac, diffuse_rgb, translucent_rgb):
