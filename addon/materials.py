@@ -1915,7 +1915,10 @@ class MaterialConverter:
             # Hue/Saturation read as "not supported", the ball red instead of blue).
             via = next((link.from_socket for link in getattr(n, "internal_links", ())
                         if link.to_socket.identifier == out.identifier), None)
-            if via is None:
+            if via is None or self._source(via) is None:
+                # (Cycles' remove_proxy_nodes: a proxy whose input is unlinked is dropped
+                # with its links, so a value typed into the muted node is not passed on:
+                # newuser41b, a muted Mix's typed yellow read grey in Cycles)
                 return self._default(socket)
             val = self._input(n, via, depth + 1)
             if getattr(via, "type", "") == "VECTOR" and getattr(socket, "type", "") == "VALUE":

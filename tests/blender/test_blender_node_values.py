@@ -223,7 +223,9 @@ def test_a_muted_node_passes_its_input_through_as_blender(fresh_scene, bpy_addon
     output (Cycles' proxies for a muted node's internal links), silently: newuser41's
     muted Hue/Saturation on an RGB blue read as "not supported" and the Base Color's own
     red; a muted Math on Roughness read 0.5 instead of its input 0.05. Inside a node group
-    too; an output with no internal link leaves the socket its own value."""
+    too; an output with no internal link, or whose passed input is unlinked (a value typed
+    into the muted node), leaves the socket its own value (Cycles' remove_proxy_nodes;
+    newuser41b)."""
     bpy = bpy_addon
     m, nt, out = _material(bpy, "Muted")
     p = _principled(nt, out)
@@ -236,7 +238,10 @@ def test_a_muted_node_passes_its_input_through_as_blender(fresh_scene, bpy_addon
     nt.links.new(hs.outputs[0], p.inputs["Base Color"])
     math = nt.nodes.new("ShaderNodeMath")
     math.operation = "MULTIPLY"
-    math.inputs[0].default_value, math.inputs[1].default_value = 0.05, 10.0
+    value = nt.nodes.new("ShaderNodeValue")
+    value.outputs[0].default_value = 0.05
+    nt.links.new(value.outputs[0], math.inputs[0])
+    math.inputs[1].default_value = 10.0
     nt.links.new(math.outputs[0], p.inputs["Roughness"])
     unmuted = _convert(m)
     assert unmuted.roughness == pytest.approx(0.5)
@@ -262,6 +267,15 @@ def test_a_muted_node_passes_its_input_through_as_blender(fresh_scene, bpy_addon
     mat = _convert(m)
     assert not mat.warnings, mat.warnings
     np.testing.assert_allclose(mat.base_color, (0.1, 0.2, 0.9), rtol=1e-6)
+    # A value typed into the muted node's passed input is not passed on (Cycles drops a
+    # proxy with an unlinked input): the consumer's own value.
+    hs2 = nt.nodes.new("ShaderNodeHueSaturation")
+    hs2.inputs["Color"].default_value = (1.0, 0.0, 0.0, 1.0)
+    hs2.mute = True
+    nt.links.new(hs2.outputs[0], p.inputs["Base Color"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    np.testing.assert_allclose(mat.base_color, (0.8, 0.2, 0.2), rtol=1e-6)
     # A muted node whose output has no internal link: the socket's own value, no warning.
     tex = nt.nodes.new("ShaderNodeTexNoise")
     nt.links.new(tex.outputs["Fac"], p.inputs["Metallic"])
