@@ -19,7 +19,8 @@ and light groups off (group_settings). Each group costs a render of its own (the
 Combined image and every other pass are the main render's, bit for bit as without light
 groups); the groups' passes sum to Combined in expectation, each with its own noise
 (not sample by sample, as Cycles' split of one path's light does). A scene's shadow
-catchers render as ordinary surfaces in the groups' renders.
+catchers are holdouts in the groups' renders: black, as Cycles leaves them in its group
+passes (there neither engine's groups sum to Combined).
 
 Film.data[KEY_PREFIX + name] holds a group's (H,W,3) per-sample average radiance, as
 the data passes (averaged over progressive passes and motion-blur steps alike).
@@ -67,8 +68,8 @@ def members(scene, name: str) -> int:
 def group_scene(scene, name: str):
     """scene with only light group `name`'s emitters (module docstring): its lamps; the
     emissive materials of meshes outside it swapped for dark copies; the world black
-    (and its volume's emission off) unless it is the group's; no shadow catchers, no
-    motion vectors, no warnings (the whole scene's are told once)."""
+    (and its volume's emission off) unless it is the group's; shadow catchers as
+    holdouts, no motion vectors, no warnings (the whole scene's are told once)."""
     materials = dict(scene.materials)
     meshes = []
     for m in scene.meshes:
@@ -78,6 +79,9 @@ def group_scene(scene, name: str):
             meshes.append(m)
             continue
         c = copy.copy(m)  # (shallow: a placement keeps its prototype; arrays shared)
+        # A shadow catcher is black in Cycles' group passes (newuser41b: ours drew it as a
+        # lit ground, the sun group 7.9x Cycles'): a holdout here, which still occludes.
+        c.holdout = c.holdout or c.shadow_catcher
         c.shadow_catcher, c.warnings = False, []
         if dark_needed:
             names = []

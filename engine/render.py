@@ -309,6 +309,9 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
         shots = ()
         if ctx.catcher_alone is not None and on_plan is not None:
             on_plan({"catcher_pass": True})  # (its span on the bar: stagespans)
+        if settings.light_groups and on_plan is not None:
+            on_plan({"light_groups": sum(lightgroups.members(ctx.scene, name) > 0
+                                         for name in settings.light_groups)})
         if shoot:
             shots = shoot_photons(ctx, stats, progress, should_cancel, on_warning, on_plan)
         # The photon-hit pass, always: with several workers on its own thread, started
@@ -398,10 +401,11 @@ def _render_light_groups(ctx: Context, region, film: Film, progress, should_canc
     x0, y0, x1, y1 = region
     settings = lightgroups.group_settings(ctx.settings)
     names = ctx.settings.light_groups
-    for i, name in enumerate(names):
-        if lightgroups.members(ctx.scene, name) == 0:
+    live = [name for name in names if lightgroups.members(ctx.scene, name) > 0]
+    for name in names:
+        if name not in live:
             film.data[lightgroups.key(name)] = np.zeros((y1 - y0, x1 - x0, 3), np.float32)
-            continue
+    for i, name in enumerate(live):
         inner = StageSpans(settings.uses_photon_maps,
                            settings.photons + settings.caustic_photons,
                            max((x1 - x0) * (y1 - y0), 1) * settings.spp)
@@ -410,7 +414,7 @@ def _render_light_groups(ctx: Context, region, film: Film, progress, should_canc
             if progress is not None:
                 whole = _inner.whole(stage, fraction)
                 progress("light groups", (_i + (fraction if whole is None else whole))
-                         / len(names), f"Light group '{_name}': {text}")
+                         / len(live), f"Light group '{_name}': {text}")
 
         kept = ctx.light_group_contexts
         group = None if kept is None else kept.get(name)

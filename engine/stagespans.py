@@ -35,17 +35,24 @@ CATCHER_SHARE = 0.2
 
 
 def stage_spans(photon_mapping: bool, photons: int = 0, samples: int = 1,
-                start: float = 0.0, catcher: bool = False) -> dict:
+                start: float = 0.0, catcher: bool = False, groups: int = 0) -> dict:
     """{stage: (start, width)} covering [start, 1] of the bar: "photons", "photon_map"
     and "render" in proportion to their work, or "render" alone without photon mapping
     (or no photons); with catcher, "shadow catcher" (the catcher-only pass) takes the
-    last CATCHER_SHARE of it. photons: emitted over every shot; samples: the camera
-    samples of the render (pixels x spp); start: the share taken before the render (the
-    add-on's export)."""
+    last CATCHER_SHARE of it; with groups > 0 light groups to render after it
+    (engine/lightgroups.py: each a render of its own emitters, about the main one's
+    work), "light groups" takes the last groups / (groups + 1) of the bar (newuser41b:
+    it sat at 100 % through four groups' renders). photons: emitted over every shot;
+    samples: the camera samples of the render (pixels x spp); start: the share taken
+    before the render (the add-on's export)."""
     rest = 1.0 - start
     out = {}
+    if groups > 0:
+        share = rest * groups / (groups + 1.0)
+        out["light groups"] = (1.0 - share, share)
+        rest -= share
     if catcher:
-        out["shadow catcher"] = (1.0 - CATCHER_SHARE * rest, CATCHER_SHARE * rest)
+        out["shadow catcher"] = (start + (1.0 - CATCHER_SHARE) * rest, CATCHER_SHARE * rest)
         rest -= CATCHER_SHARE * rest
     if not photon_mapping or photons <= 0:
         out["render"] = (start, rest)
@@ -68,16 +75,18 @@ class StageSpans:
     def __init__(self, photon_mapping: bool, photons: int = 0, samples: int = 1,
                  start: float = 0.0):
         self.photon_mapping, self.samples, self.start = photon_mapping, samples, start
-        self.photons, self.catcher = photons, False
+        self.photons, self.catcher, self.groups = photons, False, 0
         self.spans = stage_spans(photon_mapping, photons, samples, start)
 
     def plan(self, work: dict) -> None:
         """engine.render's on_plan: {"photons": n} emitted over every shot, {"catcher_pass":
-        True} when a catcher-only pass follows the main one (each key as it is known)."""
+        True} when a catcher-only pass follows the main one, {"light_groups": n} the light
+        groups rendered after it (each key as it is known)."""
         self.photons = int(work.get("photons", self.photons))
         self.catcher = bool(work.get("catcher_pass", self.catcher))
+        self.groups = int(work.get("light_groups", self.groups))
         self.spans = stage_spans(self.photon_mapping, self.photons, self.samples,
-                                 self.start, self.catcher)
+                                 self.start, self.catcher, self.groups)
 
     def whole(self, stage: str, fraction: float) -> float | None:
         if stage not in self.spans:

@@ -187,3 +187,46 @@ def test_world_volume_glow_is_the_worlds():
     s.world_medium = WorldMedium(absorption=(0.01, 0.01, 0.01), emission=(0.02, 0.02, 0.02))
     assert np.all(np.asarray(group_scene(s, "a").world_medium.emission) == 0.0)
     assert np.all(np.asarray(group_scene(s, "w").world_medium.emission) == 0.02)
+
+
+def test_light_groups_are_reported_and_get_their_span_of_the_bar():
+    """The effect report says what the groups cost (newuser41b: four groups took 5.5x
+    the time, unexplained) and names an empty group; the render tells its plan, and the
+    bar's last groups / (groups + 1) is theirs (it sat at 100 % through them)."""
+    from engine.stagespans import StageSpans, stage_spans
+    s = _scene()
+    spans = StageSpans(True, 22_000, W * H * 8)
+    plans, marks = [], []
+
+    def on_plan(work):
+        plans.append(dict(work))
+        spans.plan(work)
+
+    film = render(s, _settings(light_groups=("a", "b", "empty")), on_plan=on_plan,
+                  progress=lambda stage, fraction, text: marks.append(
+                      (stage, spans.whole(stage, fraction))))
+    line = next(x for x in film.stats["effects"] if x.startswith("light groups"))
+    assert "2 Light Group passes ('a', 'b')" in line and "3 times as long" in line, line
+    assert "'empty': no lamp, emissive object or world in it, black" in line, line
+    assert {"light_groups": 2} in plans
+    assert spans.spans["light groups"] == pytest.approx((1 / 3, 2 / 3))
+    seen = [w for stage, w in marks if stage == "light groups" and w is not None]
+    assert seen and min(seen) >= 1 / 3 - 1e-9 and seen[-1] == pytest.approx(1.0)
+    render_end = [w for stage, w in marks if stage == "render" and w is not None]
+    assert max(render_end) <= 1 / 3 + 1e-9
+    # With a catcher pass too: main render, catcher pass, then the groups.
+    both = stage_spans(True, 1000, 1000, 0.0, catcher=True, groups=1)
+    assert both["light groups"] == pytest.approx((0.5, 0.5))
+    assert sum(both["shadow catcher"]) == pytest.approx(0.5)
+
+
+def test_a_shadow_catcher_is_black_in_the_group_renders():
+    """Cycles leaves a shadow catcher black in its group passes (newuser41b): a holdout
+    in the groups' scenes, the main render's catcher untouched."""
+    s = _scene()
+    floor = next(m for m in s.meshes if m.name == "floor")
+    floor.shadow_catcher = True
+    g = group_scene(s, "a")
+    caught = next(m for m in g.meshes if m.name == "floor")
+    assert caught.holdout and not caught.shadow_catcher
+    assert floor.shadow_catcher and not floor.holdout
