@@ -148,6 +148,40 @@ def on_main_thread(bpy, fn):
     return state["value"]
 
 
+# A Blackbody temperature above this (K) is a unit slip, not fire: a "temperature" grid
+# already in kelvin times the Principled Volume's default Temperature 1000 reads millions
+# of kelvin (newuser41b: 1.8 M K, a white-blue glare in both engines; Cycles took minutes).
+HOT_KELVIN = 50_000.0
+
+
+def hot_blackbody_warnings(material, values: dict, owner: str) -> list:
+    """A warning per Principled Volume of material whose Blackbody reads a temperature
+    grid in `values` ({grid name: lattice}) to above HOT_KELVIN (its Temperature times
+    the grid's largest value), naming both and the likely fix; [] otherwise."""
+    out = []
+    tree = getattr(material, "node_tree", None)
+    for node in getattr(tree, "nodes", ()) if tree is not None else ():
+        if node.type != "PRINCIPLED_VOLUME":
+            continue
+        b, t = node.inputs.get("Blackbody Intensity"), node.inputs.get("Temperature")
+        if b is None or t is None or b.is_linked or t.is_linked:
+            continue
+        attr = node.inputs.get("Temperature Attribute")
+        name = str(getattr(attr, "default_value", "") or "") if attr is not None else ""
+        grid = values.get(name)
+        if not b.default_value > 0 or grid is None or not grid.size:
+            continue
+        peak = float(np.max(grid))
+        kelvin = float(t.default_value) * max(peak, 0.0)
+        if kelvin > HOT_KELVIN:
+            out.append(f"object '{owner}': material '{material.name}': the Blackbody "
+                       f"temperature reaches {kelvin:,.0f} K (Temperature "
+                       f"{t.default_value:g} x the '{name}' grid's largest value {peak:.4g}); "
+                       "a grid already in kelvin wants Temperature 1 (both engines render "
+                       "what is set: a white-blue glare)")
+    return out
+
+
 def sample_grids(bpy, obj, names: dict, frame, max_voxels: int | None = None):
     """Sample grids `names` ({name: data_type}) of the evaluated Volume object obj at
     its lattice (`lattice`): ({name: values (nx,ny,nz) or (nx,ny,nz,3) float32},
@@ -361,6 +395,19 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
                         "as in Cycles")
         return None
     slot = obj.material_slots[0].material if len(obj.material_slots) else None
+    if slot is None:
+        # A Geometry Nodes volume carries no material unless a Set Material node gives it
+        # one: the object's own slots are not used (as in Cycles; newuser41b expected
+        # them to be).
+        source = inst.parent if inst.is_instance and inst.parent is not None else None
+        source = source if source is not None else getattr(obj, "original", None)
+        unused = [sl.material.name for sl in getattr(source, "material_slots", ())
+                  if getattr(sl, "material", None) is not None]
+        if unused:
+            warnings.append(f"object '{owner}': its Geometry Nodes volume has no material "
+                            "(a Set Material node in the node tree gives it one), so it "
+                            "renders with Cycles' default volume shader, as in Cycles; the "
+                            f"object's material '{unused[0]}' is not used")
     if len(obj.material_slots) > 1:
         warnings.append(f"object '{owner}': a volume renders with its first material "
                         "slot, as in Cycles; the others are not used")
@@ -396,6 +443,7 @@ def volume_object_mesh(pm, bpy, inst, obj, converter, materials: dict, warnings:
                         f"({round(max_voxels ** (1 / 3))}^3); sampled at every {stride}th "
                         "voxel (fine detail may alias)")
     clipping = float(getattr(getattr(obj.data, "render", None), "clipping", 0.001) or 0.0)
+    warnings.extend(hot_blackbody_warnings(slot, values, owner))
     active = active_voxels(values, active, clipping)
     if not active.any():
         warnings.append(f"object '{owner}': its grids {sorted(values)} are empty (no "

@@ -583,7 +583,8 @@ def _bake_colours(pm, world, val, leaves, warnings, camera_view=None):
 
     def make(strength):
         if strength not in made:
-            env = _bake_environment(pm, rgb, height, width, first, f"{world.name} colour",
+            env = _bake_environment(pm, rgb, height, width, first,
+                                    f"{world.name} (its colour nodes, baked)",
                                     warnings, f"world '{world.name}'")
             made[strength] = (env if strength == 1.0 else
                               pm.Environment(env.pixels, strength, env.rotation,

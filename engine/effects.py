@@ -250,7 +250,9 @@ def _cycles_caustics_note(plan: EffectPlan, s, geo: Geometry, table: MaterialTab
              + (", and its shadow rays stop at glass" if glass and off[-1][1] == "through"
                 else "") + ", so its image is darker there; ours renders that light, as Cycles with "
              + ("them" if len(off) > 1 else "it") + " on: turn "
-             + ("them" if len(off) > 1 else "it") + " on to compare")
+             + ("them" if len(off) > 1 else "it") + " on to compare (a sun seen through "
+             "smooth glass then comes to Cycles' paths in rare bright samples: it needs "
+             "many samples, and no clamp, to show the patch ours shows)")
 
 
 def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
@@ -755,8 +757,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             if isinstance(getattr(scene, "camera_environment", None), WorldGraph):
                 how += ("; the camera sees the world's nodes evaluated at each of its rays "
                         "(a backplate of the Texture Coordinate's Window or Camera "
-                        "output lands on the pixels as sharp as its image; the light is "
-                        "the image as Cycles projects it through the camera, baked)")
+                        "output lands on the pixels as sharp as its image; where such a "
+                        "plate lights the scene too, its light is the image as Cycles "
+                        "projects it through the camera, baked into the map)")
             elif worldmedium.has_camera_world(scene):
                 how += ("; the camera sees a world of its own behind the scene (a Light "
                         "Path Is Camera Ray mix, or Ray Visibility > Camera off), which "

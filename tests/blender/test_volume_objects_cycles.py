@@ -285,6 +285,13 @@ def test_fire_material_reads_its_grids(bpy_addon):
                                1500.0 - 700.0 * t, rtol=0.02)
     mat = out.materials[fire.materials[0]]
     assert mat.volume_emission_texture is not None and mat.density_texture is not None
+    assert not [w for w in out.all_warnings() if "Blackbody temperature" in w]
+    # A kelvin grid under the default Temperature 1000: 1.5 M K, warned with the fix
+    # (newuser41b).
+    next(n for n in bpy.data.materials["fire"].node_tree.nodes
+         if n.type == "PRINCIPLED_VOLUME").inputs["Temperature"].default_value = 1000.0
+    hot = [w for w in _export(bpy).all_warnings() if "Blackbody temperature" in w]
+    assert len(hot) == 1 and "1,500,000 K" in hot[0] and "Temperature 1" in hot[0], hot
 
 
 def test_a_volume_without_a_density_grid(bpy_addon):
@@ -593,3 +600,15 @@ def test_fire_grids_match_cycles(bpy_addon, tmp_path):
     ratio = ours.sum(axis=(0, 1)) / ref.sum(axis=(0, 1))
     print("image sum ratio", ratio.round(4))
     np.testing.assert_allclose(ratio, 1.0, rtol=0.03)
+
+
+def test_a_geometry_nodes_volume_without_set_material_says_its_slot_is_unused(bpy_addon):
+    """A Geometry Nodes volume carries no material unless a Set Material node gives it
+    one; the object's own slot is not used (as in Cycles): said, naming the material and
+    the fix (newuser41b expected the slot to apply)."""
+    bpy = bpy_addon
+    scene, mb, white = _base_scene(bpy)
+    vo = gn_volume(bpy, scene, {"density": (1.0, 1.0)}, name="Cloud")
+    vo.data.materials.append(fire_material(bpy, "SlotFire"))
+    hits = [w for w in _export(bpy).all_warnings() if "Set Material" in w]
+    assert len(hits) == 1 and "'Cloud'" in hits[0] and "'SlotFire'" in hits[0], hits
