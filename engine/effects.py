@@ -255,6 +255,15 @@ def _cycles_caustics_note(plan: EffectPlan, s, geo: Geometry, table: MaterialTab
              "many samples, and no clamp, to show the patch ours shows)")
 
 
+def _volume_only(geo: Geometry, table: MaterialTable, name: str) -> bool:
+    """Whether object `name`'s triangles are all of volume-only materials (Material.
+    volume_only: a medium's invisible boundary)."""
+    if table.volume_only is None or name not in geo.object_names:
+        return False
+    mats = np.unique(geo.material[geo.object_id == geo.object_names.index(name)])
+    return bool(len(mats)) and bool(np.all(table.volume_only[mats]))
+
+
 def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
     """Bounding spheres (centre, radius) and names of objects owning the masked triangles."""
     ids = np.unique(geo.object_id[tri_mask])
@@ -696,6 +705,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # s17); its highlights (light sampling) and blurred reflections (the same camera
         # paths) are named after.
         sharp_seen, rough_seen, kinds = _split_sharp(geo, table, visible)
+        # A volume's invisible boundary is no "transparent" surface to a user (newuser41b's
+        # smoke was listed as one); the chain still passes it.
+        sharp_seen = [n for n in sharp_seen if not _volume_only(geo, table, n)]
         through = (" through " + _labelled(geo, table, sharp_seen[:4])
                    + (" ..." if len(sharp_seen) > 4 else "") if sharp_seen
                    else ": no mirror, glass or sharp glossy surface in view")

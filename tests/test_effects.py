@@ -881,6 +881,9 @@ def test_a_volume_only_fog_box_is_not_reported_as_alpha():
     assert "alpha below 1" not in line and "shadow rays cross up to" in line
     vol = _line(_plan(s), "volume scattering")
     assert "scattered once towards the camera" in vol and "more times" not in vol, vol
+    # Not a "transparent" surface in the specular line (newuser41b's smoke was).
+    assert not any("FogBox" in r for r in _plan(s).report()
+                   if r.startswith("specular reflection")), _plan(s).report()
     vol = _line(_plan(s, volume_bounces=2), "volume scattering")
     assert "then up to 2 more times along camera paths" in vol, vol
     s.add_material(Material("card", (0.8, 0.8, 0.8), alpha=0.5))
