@@ -179,6 +179,68 @@ def render_film(pm_scene, kwargs, patches=None):
             setattr(mod, const, value)
 
 
+def build_two_windows(path, width=160, height=120):
+    """Save a third interior to `path` (the new user's rooms' recipe): a 6 x 5 x 3 m room,
+    Solidify walls 0.2 (outward), two open windows cut by Boolean (WindowCutter in the +y
+    wall, WindowCutter2 in the -x wall), Principled walls 0.8 grey (roughness 0.8), a 1 kW
+    point lamp under the ceiling (radius 0.1 m), Sun 3 W/m^2 (1 deg) and a Nishita Sky
+    Texture at 40 deg; camera in a corner, 20 mm."""
+    import math
+    from mathutils import Vector
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    sc.render.resolution_x, sc.render.resolution_y = width, height
+    sc.render.resolution_percentage = 100
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 1.5))
+    room = bpy.context.active_object
+    room.name = "Room"
+    room.scale = (6, 5, 3)
+    bpy.ops.object.transform_apply(scale=True)
+    sol = room.modifiers.new("Solidify", "SOLIDIFY")
+    sol.thickness, sol.offset = 0.2, 1.0
+    for name, loc, scale in (("WindowCutter", (0, 2.6, 1.6), (2.0, 1.0, 1.2)),
+                             ("WindowCutter2", (-3.1, -0.8, 1.5), (1.0, 1.4, 1.1))):
+        bpy.ops.mesh.primitive_cube_add(size=1, location=loc)
+        cut = bpy.context.active_object
+        cut.name, cut.scale = name, scale
+        cut.hide_render, cut.display_type = True, "WIRE"
+        boo = room.modifiers.new(name, "BOOLEAN")
+        boo.object, boo.operation = cut, "DIFFERENCE"
+    m = bpy.data.materials.new("Walls")
+    m.use_nodes = True
+    pr = m.node_tree.nodes["Principled BSDF"]
+    pr.inputs["Base Color"].default_value = (0.8, 0.8, 0.75, 1)
+    pr.inputs["Roughness"].default_value = 0.8
+    room.data.materials.append(m)
+    lamp = bpy.data.lights.new("CeilingLamp", "POINT")
+    lamp.energy, lamp.shadow_soft_size = 1000.0, 0.1
+    lo = bpy.data.objects.new("CeilingLamp", lamp)
+    lo.location = (0.5, 0.0, 2.7)
+    sc.collection.objects.link(lo)
+    sun = bpy.data.lights.new("Sun", "SUN")
+    sun.energy, sun.angle = 3.0, math.radians(1)
+    so = bpy.data.objects.new("Sun", sun)
+    so.rotation_euler = (math.radians(-50), 0, math.radians(10))
+    sc.collection.objects.link(so)
+    w = bpy.data.worlds.new("Sky")
+    sc.world = w
+    w.use_nodes = True
+    sky = w.node_tree.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = "NISHITA" if "NISHITA" in [
+        i.identifier for i in sky.bl_rna.properties["sky_type"].enum_items] else sky.sky_type
+    sky.sun_elevation = math.radians(40)
+    w.node_tree.links.new(sky.outputs[0], w.node_tree.nodes["Background"].inputs[0])
+    cam = bpy.data.cameras.new("Camera")
+    cam.lens = 20
+    co = bpy.data.objects.new("Camera", cam)
+    co.location = (2.5, -2.0, 1.5)
+    co.rotation_euler = (Vector((-1.0, 2.5, 1.3)) - co.location).to_track_quat(
+        "-Z", "Y").to_euler()
+    sc.collection.objects.link(co)
+    sc.camera = co
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("blend", nargs="+")
@@ -191,7 +253,11 @@ def main(argv=None):
     ap.add_argument("--window", default="WindowCutter", help="the window's object (its box)")
     ap.add_argument("--near", type=float, default=0.75)
     ap.add_argument("--variant", action="append", default=[])
+    ap.add_argument("--build-two-windows", action="store_true",
+                    help="first save build_two_windows() to the (one) blend path given")
     args = ap.parse_args(argv)
+    if args.build_two_windows:
+        build_two_windows(args.blend[0])
     import engine
     engine.jit.ensure_compiled()
     os.makedirs(args.ref_dir, exist_ok=True)
