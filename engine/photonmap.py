@@ -395,6 +395,24 @@ def _accepted(direction, normal, surface, pos, j, nx, ny, nz, qs, qx, qy, qz):
 
 
 @kernel
+def _back_face(normal, pos, j, nx, ny, nz, qx, qy, qz):
+    """Whether photon j is on the back face of a slab thinner than the disc: it faces the
+    opposite way (normal . n < -COPLANAR_COS) and lies behind the query's plane, off it
+    (samesurface.off_plane). Such photons are the other side of a wall or table top (a
+    room's Solidify walls 0.1 m thick, lit by the sky outside, inside a 0.13 m disc on
+    the dim wall within): they cut nothing off the disc's own side, so they do not mark
+    its estimate as a corner or contact (a boundary). Flagged, 61 % of a window-lit
+    room's final-gather lookups read such a point and gathered again (interior41,
+    docs/performance.md). A photon on the back of a zero-thickness sheet lies on the
+    plane, not behind it, and still counts; a ball smaller than the disc still has
+    photons of other directions that flag it."""
+    agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
+    h = ((np.float64(pos[j, 0]) - qx) * nx + (np.float64(pos[j, 1]) - qy) * ny
+         + (np.float64(pos[j, 2]) - qz) * nz)
+    return agree < -COPLANAR_COS and h < 0.0 and off_plane(pos, j, qx, qy, qz, nx, ny, nz)
+
+
+@kernel
 def _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs, qx, qy, qz):
     acc = 0
     for j in range(cnt):
@@ -939,7 +957,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
             inside = d <= rk
             if inside:
                 fetched += 1
-                if other:
+                if other and not _back_face(normal, pos, pj, nx, ny, nz, qx, qy, qz):
                     other_inside = True
             if not ok:
                 continue
@@ -1022,7 +1040,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
             for j in range(listed):
                 if math.sqrt(list_d2[j]) <= rk and \
                         _accepted(direction, normal, surface, pos, list_idx[j], nx, ny, nz, qs,
-                                  qx, qy, qz)[1]:
+                                  qx, qy, qz)[1] and \
+                        not _back_face(normal, pos, list_idx[j], nx, ny, nz, qx, qy, qz):
                     other_inside = True
                     break
         # Too few photons for an estimate (E = 0) counts as boundary too: gather again.

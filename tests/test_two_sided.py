@@ -87,3 +87,43 @@ def test_kept_estimates_of_thin_discs_are_not_selected_bright():
     _, boundary = pm.irradiance(q, np.tile([0.0, 0.0, 1.0], (500, 1)), radius, K, 1,
                                 "knn_simpson", return_boundary=True)
     assert boundary.mean() > 0.9, boundary.mean()
+
+
+def _slab_side(n, rng, power, thickness):
+    """_side(n, up=False) moved down by `thickness`: the lower face of a slab whose top
+    face is the plane z = 0 (a Solidify wall, lit on its outer side)."""
+    pos, normal, d, p = _side(n, rng, False, power)
+    pos[:, 2] -= np.float32(thickness)
+    return pos, normal, d, p
+
+
+def test_the_back_face_of_a_thin_slab_is_no_boundary():
+    """A dim face (the room side of a wall 5 cm thick, the disc's radius 0.1 m) with the
+    slab's bright back face (4x the photons, lit by the sky outside) inside its discs:
+    those photons face the other way behind the query's plane, so they cut nothing off
+    the disc (photonmap._back_face) and the estimates are not flagged (the false-alarm
+    rate only); flagged, a gather map sent 61 % of a window-lit room's lookups to gather
+    again (docs/performance.md interior41). The estimates read the dim side's irradiance.
+    The same photons on the plane itself (a zero-thickness sheet lit on both sides) and a
+    perpendicular wall's photons (a corner) are still flagged."""
+    rng = np.random.default_rng(5)
+    radius = 0.1
+    n = int(32 / (math.pi * radius ** 2) * SIZE ** 2)
+    q, nq = _queries(rng, 3000, True)
+    slab = _map(_side(n, rng, True, 1.0), _slab_side(4 * n, rng, 1.0, 0.05))
+    E, boundary = slab.irradiance(q, nq, radius, K, 1, "knn_simpson", return_boundary=True)
+    assert boundary.mean() < 0.08, boundary.mean()
+    assert abs(E[~boundary, 0].mean() / (n / SIZE ** 2) - 1.0) < 0.02
+    sheet = _map(_side(n, rng, True, 1.0), _side(4 * n, rng, False, 1.0))
+    _, boundary = sheet.irradiance(q, nq, radius, K, 1, "knn_simpson", return_boundary=True)
+    assert boundary.mean() > 0.9, boundary.mean()
+    # A wall standing on the plane along x = 2 (facing -x): queries within 5 cm of it.
+    m = 4 * n // int(SIZE)
+    wall = (np.c_[np.full(m, 2.0), rng.random(m) * SIZE, rng.random(m) * 0.5].astype(np.float32),
+            np.tile(np.float32([-1, 0, 0]), (m, 1)),
+            np.tile(np.float32([1, 0, 0]), (m, 1)), np.full((m, 3), 1.0, np.float32))
+    corner = _map(_side(n, rng, True, 1.0), wall)
+    qc = np.c_[2.0 - 0.05 * rng.random(500), 1.0 + 2.0 * rng.random(500), np.zeros(500)]
+    _, boundary = corner.irradiance(qc, np.tile([0.0, 0.0, 1.0], (500, 1)), radius, K, 1,
+                                    "knn_simpson", return_boundary=True)
+    assert boundary.mean() > 0.9, boundary.mean()
