@@ -413,13 +413,14 @@ def _export_before_a_camera(bpy, scene):
     return out
 
 
-def test_subsurface_exports_the_walk_and_warns_a_textured_colour(fresh_scene, bpy_addon):
+def test_subsurface_exports_the_walk_of_a_constant_and_a_textured_colour(fresh_scene,
+                                                                         bpy_addon):
     """A Principled with Subsurface Weight (a skin, a candle) exports Cycles' random-walk
     BSSRDF (engine/subsurfacewalk.py: weight, colour, Radius x Scale, the IOR, anisotropy,
     roughness) without a warning; its diffuse base is the stand-in the photons see,
     Cycles' thick-slab albedo of its Base Color (s25 mixpale). With a texture on Base
-    Color the stand-in renders on camera paths too: the warning says so and names the
-    object that uses the material (s24 new user)."""
+    Color it walks too (ssstex41: the colour node evaluated at each walk's entry), still
+    without a warning; a texture on Subsurface Radius is warned (its socket's value)."""
     bpy = bpy_addon
     obj = _cube(bpy, "Candle", (0, 0, 0))
     mat = bpy.data.materials.new("Wax")
@@ -438,19 +439,30 @@ def test_subsurface_exports_the_walk_and_warns_a_textured_colour(fresh_scene, bp
     q.inputs["Subsurface Weight"].default_value = 1.0
     nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Color"], q.inputs["Base Color"])
     other.data.materials.append(tex_mat)
+    third = _cube(bpy, "Marble", (-3, 0, 0))
+    radius_mat = bpy.data.materials.new("Marble")
+    if bpy.app.version < (5, 0, 0):
+        radius_mat.use_nodes = True
+    rt = radius_mat.node_tree
+    r = rt.nodes["Principled BSDF"]
+    r.inputs["Subsurface Weight"].default_value = 1.0
+    rt.links.new(rt.nodes.new("ShaderNodeTexNoise").outputs["Color"],
+                 r.inputs["Subsurface Radius"])
+    third.data.materials.append(radius_mat)
     out = _export_before_a_camera(bpy, fresh_scene)
-    hits = [w for w in out.all_warnings() if "Subsurface Weight" in w]
-    assert len(hits) == 1, out.all_warnings()
-    assert hits[0].startswith("material 'Soap': 'Subsurface Weight'")
-    assert "rendered as a diffuse surface of the albedo Cycles' random-walk" in hits[0]
-    assert "no light spreads beneath the surface" in hits[0]
-    assert hits[0].endswith("(used by 'Soap')")
+    warned = out.all_warnings()
+    assert not [w for w in warned if "Subsurface Weight" in w or "'Soap'" in w], warned
+    radius_warn = [w for w in warned if "Subsurface Radius" in w]
+    assert len(radius_warn) == 1 and radius_warn[0].startswith("material 'Marble'"), warned
+    soap = out.materials["Soap"].subsurface
+    assert soap is not None and soap.color_node is not None and soap.weight_node is None
+    assert out.materials["Marble"].subsurface.color_node is None
     # Base Color 0.8 (the default): Cycles' random walk reflects 0.7896 of the light on a
     # thick slab (engine/subsurface.py, measured by bench/bench_subsurface_albedo.py).
     wax = out.materials["Wax"]
     np.testing.assert_allclose(wax.base_color, [0.7896] * 3, atol=1e-4)
     sp = wax.subsurface
-    assert sp is not None and out.materials["Soap"].subsurface is None
+    assert sp is not None and not sp.textured
     assert sp.weight == 1.0 and sp.anisotropy == pytest.approx(0.3)
     np.testing.assert_allclose(sp.color, [0.8] * 3, atol=1e-6)
     radius = np.array(p.inputs["Subsurface Radius"].default_value[:3])

@@ -1,0 +1,83 @@
+"""engine.subsurfacewalk with a textured Base Color / Subsurface Weight (issue 14, ssstex41).
+
+A texture of two constant halves (one colour and weight left of x = 0, another right of
+it) on two balls, one in each half, renders as the two constant materials side by side
+(per-hit colour and weight at each walk's entry, each walk's medium fitted from its own
+albedo), within the noise of the two renders. Untextured materials take the materials'
+constants (their images are unchanged: tests/test_subsurface_walk.py)."""
+import numpy as np
+
+from engine import RenderSettings
+from engine import subsurfacewalk as sw
+from engine.api import PaperScene
+from engine.scene import Material
+from engine.subsurface import SubsurfaceColor
+
+LEFT, RIGHT = (0.9, 0.35, 0.2), (0.25, 0.6, 0.85)
+W_LEFT, W_RIGHT = 1.0, 0.6
+RADIUS, IOR, G, ROUGH = (0.6, 0.3, 0.15), 1.4, 0.0, 0.5
+
+
+class _Halves:
+    """A node (engine/shadernodes.py protocol): `left` where the hit triangle's first
+    corner has x < 0, else `right` ((N,3) for colours, (N,) for values)."""
+
+    def __init__(self, left, right):
+        self.left, self.right = np.asarray(left, float), np.asarray(right, float)
+
+    def evaluate(self, geo, prim, u, v):
+        x = np.asarray(geo.v0, float)[np.asarray(prim, np.int64), 0]
+        side = (x < 0.0).reshape((-1,) + (1,) * self.left.ndim)
+        return np.where(side, self.left, self.right).astype(float)
+
+
+def _scene(textured: bool, spp=8, seed=2):
+    s = PaperScene(width=48, height=24, background=(0.9, 0.9, 0.9))
+    s.add_sun((0.3, 0.6, -1.0), strength=3.0)
+    if textured:
+        colour, weight = _Halves(LEFT, RIGHT), _Halves(W_LEFT, W_RIGHT)
+        sp = sw.SubsurfaceParams.make(1.0, (1.0,) * 3, RADIUS, IOR, G, ROUGH,
+                                      color_node=colour, weight_node=weight)
+        s.add_material(Material("skin", (1.0, 1.0, 1.0), roughness=ROUGH, specular=0.0,
+                                texture=SubsurfaceColor(colour, weight), subsurface=sp))
+        names = ("skin", "skin")
+    else:
+        for name, c, w in (("left", LEFT, W_LEFT), ("right", RIGHT, W_RIGHT)):
+            sp = sw.SubsurfaceParams.make(w, c, RADIUS, IOR, G, ROUGH)
+            s.add_material(Material(name, tuple(sp.stand_in()), roughness=ROUGH,
+                                    specular=0.0, subsurface=sp))
+        names = ("left", "right")
+    s.add_sphere((-1.1, 0, 0), 1.0, names[0], segments=32)
+    s.add_sphere((1.1, 0, 0), 1.0, names[1], segments=32)
+    s.set_camera((0, -6, 0), (0, 0, 0), view_angle=45)
+    film = s.render(RenderSettings(photons=20_000, caustic_photons=0, spp=spp, seed=seed,
+                                   workers=1))
+    return np.asarray(film.combined, np.float64)[..., :3]
+
+
+def test_per_hit_colour_and_weight_of_the_nodes():
+    sp = sw.SubsurfaceParams.make(0.5, (0.2, 0.2, 0.2), RADIUS, IOR, G, ROUGH,
+                                  color_node=_Halves((1.4, 0.5, -0.1), (0.3, 0.3, 0.3)))
+    assert sp.textured and not sw.SubsurfaceParams.make(0.5, (0.2,) * 3, RADIUS, IOR, G,
+                                                        ROUGH).textured
+
+    class Geo:
+        v0 = np.array([[-1.0, 0, 0], [1.0, 0, 0]])
+
+    c, w = sp.per_hit(Geo(), np.array([0, 1, 0]), np.zeros(3), np.zeros(3))
+    # Clamped to [0, 1] as the constant colour is (SubsurfaceParams.make).
+    np.testing.assert_allclose(c, [[1.0, 0.5, 0.0], [0.3, 0.3, 0.3], [1.0, 0.5, 0.0]])
+    np.testing.assert_allclose(w, 0.5)
+
+
+def test_texture_of_two_halves_renders_as_two_materials():
+    tex = _scene(True)
+    const = _scene(False)
+    # Pixel blocks over each ball's middle (the balls span columns ~4-21 and ~26-43).
+    for cols in (slice(7, 18), slice(30, 41)):
+        a = tex[7:17, cols].mean(axis=(0, 1))
+        b = const[7:17, cols].mean(axis=(0, 1))
+        np.testing.assert_allclose(a, b, rtol=0.03, err_msg=f"columns {cols}")
+    # The two balls differ (the texture's halves really differ).
+    left, right = tex[7:17, 7:18].mean(axis=(0, 1)), tex[7:17, 30:41].mean(axis=(0, 1))
+    assert left[0] > 1.5 * right[0] and right[2] > 1.5 * left[2]
