@@ -3,7 +3,7 @@
 A texture of two constant halves (one colour and weight left of x = 0, another right of
 it) on two balls, one in each half, renders as the two constant materials side by side
 (per-hit colour and weight at each walk's entry, each walk's medium fitted from its own
-albedo), within the noise of the two renders. Untextured materials take the materials'
+albedo): with the same seed, to rounding. Untextured materials take the materials'
 constants (their images are unchanged: tests/test_subsurface_walk.py)."""
 import numpy as np
 
@@ -71,13 +71,12 @@ def test_per_hit_colour_and_weight_of_the_nodes():
 
 
 def test_texture_of_two_halves_renders_as_two_materials():
+    """Same seed: every walk draws the same numbers and sees the same colour, weight and
+    stand-in in both scenes, so the images agree to rounding (they are bitwise equal
+    now); the walk moves the balls' means 1-5 % from the stand-in's here."""
     tex = _scene(True)
     const = _scene(False)
-    # Pixel blocks over each ball's middle (the balls span columns ~4-21 and ~26-43).
-    for cols in (slice(7, 18), slice(30, 41)):
-        a = tex[7:17, cols].mean(axis=(0, 1))
-        b = const[7:17, cols].mean(axis=(0, 1))
-        np.testing.assert_allclose(a, b, rtol=0.03, err_msg=f"columns {cols}")
+    np.testing.assert_allclose(tex, const, rtol=1e-9, atol=1e-12)
     # The two balls differ (the texture's halves really differ).
     left, right = tex[7:17, 7:18].mean(axis=(0, 1)), tex[7:17, 30:41].mean(axis=(0, 1))
     assert left[0] > 1.5 * right[0] and right[2] > 1.5 * left[2]
