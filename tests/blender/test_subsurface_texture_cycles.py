@@ -42,6 +42,9 @@ def _material(bpy, on: str):
 
 @pytest.mark.parametrize("on", ["color", "weight"])
 def test_checker_ball_matches_cycles(fresh_scene, bpy_addon, tmp_path, on):
+    """Both at 256 samples a pixel (24 x 24; ~4 s a case): the walk's per-channel means
+    within 1.5 % of Cycles', its 4 x 4 block means within 3 % on average; the stand-in
+    (walk off) printed for comparison."""
     bpy, scene = bpy_addon, fresh_scene
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
     bpy.ops.object.shade_smooth()
@@ -56,17 +59,25 @@ def test_checker_ball_matches_cycles(fresh_scene, bpy_addon, tmp_path, on):
     cycles_plain(scene, 256, 8)
     ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
     scene.render.engine = "PHOTONMAP"
-    cheap(scene, spp=32, photons=20_000, caustic_photons=0)
+    cheap(scene, spp=256, photons=20_000, caustic_photons=0)
     ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))[..., :3]
+    scene.photonmap.subsurface_walk = False
+    stand = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "stand_in.exr"))[..., :3]
     ours, ref = ours.astype(np.float64), ref.astype(np.float64)
-    lum_o, lum_r = ours.mean(axis=2), ref.mean(axis=2)
-    covered = lum_r > 1e-4
-    got, want = ours[covered].mean(axis=0), ref[covered].mean(axis=0)
-    bo = ours.reshape(6, 4, 6, 4, 3).mean(axis=(1, 3))
-    br = ref.reshape(6, 4, 6, 4, 3).mean(axis=(1, 3))
+    covered = ref.mean(axis=2) > 1e-4
     full = covered.reshape(6, 4, 6, 4).all(axis=(1, 3))
-    err = np.abs(bo[full] - br[full]) / br[full]
-    print(f"checker on {on}: ours / Cycles {np.round(got / want, 4)}, blocks "
-          f"worst {err.max():.3f} mean {err.mean():.3f}")
-    np.testing.assert_allclose(got, want, rtol=0.03)
-    assert np.all(np.abs(bo[full] - br[full]) <= 0.08 * br[full] + 0.01 * br.max()), (bo, br)
+    br = ref.reshape(6, 4, 6, 4, 3).mean(axis=(1, 3))[full]
+    want = ref[covered].mean(axis=0)
+    errs = {}
+    for name, img in (("walk", ours), ("stand-in", stand.astype(np.float64))):
+        got = img[covered].mean(axis=0)
+        bo = img.reshape(6, 4, 6, 4, 3).mean(axis=(1, 3))[full]
+        errs[name] = np.abs(bo - br) / br
+        print(f"checker on {on}, {name}: ours / Cycles {np.round(got / want, 4)}, "
+              f"4x4 block channels |err| worst {errs[name].max():.3f} "
+              f"mean {errs[name].mean():.3f}")
+    # The walk's means within 1 % here (the stand-in's red 1.5-2.2 % low), its blocks'
+    # channels 1.3-1.8 % off on average (the stand-in's 1.8-2.6 %).
+    got = ours[covered].mean(axis=0)
+    np.testing.assert_allclose(got, want, rtol=0.015)
+    assert errs["walk"].mean() < 0.03, errs["walk"]
