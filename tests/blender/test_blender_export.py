@@ -472,6 +472,27 @@ def test_subsurface_exports_the_walk_of_a_constant_and_a_textured_colour(fresh_s
     assert sp.roughness == pytest.approx(p.inputs["Roughness"].default_value, rel=1e-6)
 
 
+def test_subsurface_node_with_a_textured_colour_walks(fresh_scene, bpy_addon):
+    """The Subsurface Scattering node with a texture on Color exports the walk (weight 1,
+    the colour node evaluated per hit at each walk's entry; ssstex41) without a warning;
+    its table colour is the per-hit stand-in (engine/subsurface.SubsurfaceColor)."""
+    bpy = bpy_addon
+    from blender_helpers import node_material
+    obj = _cube(bpy, "Marble", (0, 0, 0))
+    m, nt, out_node = node_material(bpy, "MarbleSSS")
+    sss = nt.nodes.new("ShaderNodeSubsurfaceScattering")
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Color"], sss.inputs["Color"])
+    nt.links.new(sss.outputs[0], out_node.inputs["Surface"])
+    obj.data.materials.append(m)
+    out = _export_before_a_camera(bpy, fresh_scene)
+    assert not [w for w in out.all_warnings() if "MarbleSSS" in w], out.all_warnings()
+    mat = out.materials["MarbleSSS"]
+    sp = mat.subsurface
+    assert sp is not None and sp.weight == 1.0 and sp.color_node is not None
+    assert sp.weight_node is None
+    assert type(mat.texture).__name__ == "SubsurfaceColor"
+
+
 def _diffuse_translucent_mix(bpy, name, fac, diffuse_rgb, translucent_rgb):
     """A material: Mix Shader (factor fac) of a Diffuse BSDF and a Translucent BSDF."""
     from blender_helpers import node_material
