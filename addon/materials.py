@@ -1504,13 +1504,17 @@ class MaterialConverter:
                      roughness, color_node=None, weight_node=None):
         """engine.subsurfacewalk.SubsurfaceParams of a node's inputs (the named sockets;
         ior None: ior_default); color_node / weight_node: the per-hit colour / weight
-        (None: the constants). A textured Radius or Scale is warned and its socket's
-        value used (_const_color, _float)."""
+        (None: the constants). A textured Radius is evaluated per hit (x the Scale); a
+        textured Scale is warned and its socket's value used (_float)."""
+        rgb, tex = self._color(node, radius)
+        s = self._float(node, scale, 0.05)
+        radius_node = (None if tex is None else
+                       self.pm.shadernodes.MixColor(1.0, tex, np.full(3, s), "MULTIPLY"))
         return self.pm.subsurfacewalk.SubsurfaceParams.make(
-            weight, color, np.asarray(self._const_color(node, radius, (1.0, 0.2, 0.1)))
-            * self._float(node, scale, 0.05),
+            weight, color, np.asarray(rgb if tex is None else (1.0, 0.2, 0.1), np.float64) * s,
             ior_default if ior is None else self._float(node, ior, ior_default),
-            self._float(node, anisotropy, 0.0), roughness, color_node, weight_node)
+            self._float(node, anisotropy, 0.0), roughness, color_node, weight_node,
+            radius_node)
 
     def _weighted_sum(self, node, a: Closure, b: Closure, wa, wb, ea, eb) -> Closure:
         """wa a + wb b of two surfaces (wa = mix or add weight x closure weight): their

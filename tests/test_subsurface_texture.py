@@ -1,8 +1,8 @@
 """engine.subsurfacewalk with a textured Base Color / Subsurface Weight (issue 14, ssstex41).
 
-A texture of two constant halves (one colour and weight left of x = 0, another right of
-it) on two balls, one in each half, renders as the two constant materials side by side
-(per-hit colour and weight at each walk's entry, each walk's medium fitted from its own
+A texture of two constant halves (one colour, weight and radius left of x = 0, another
+right of it) on two balls, one in each half, renders as the two constant materials side by side
+(per-hit colour, weight and radius at each walk's entry, each walk's medium fitted from its own
 albedo): with the same seed, to rounding. Untextured materials take the materials'
 constants (their images are unchanged: tests/test_subsurface_walk.py)."""
 import numpy as np
@@ -15,7 +15,8 @@ from engine.subsurface import SubsurfaceColor
 
 LEFT, RIGHT = (0.9, 0.35, 0.2), (0.25, 0.6, 0.85)
 W_LEFT, W_RIGHT = 1.0, 0.6
-RADIUS, IOR, G, ROUGH = (0.6, 0.3, 0.15), 1.4, 0.0, 0.5
+R_LEFT, R_RIGHT = (0.6, 0.3, 0.15), (0.2, 0.4, 0.8)
+RADIUS, IOR, G, ROUGH = R_LEFT, 1.4, 0.0, 0.5
 
 
 class _Halves:
@@ -36,14 +37,16 @@ def _scene(textured: bool, spp=8, seed=2):
     s.add_sun((0.3, 0.6, -1.0), strength=3.0)
     if textured:
         colour, weight = _Halves(LEFT, RIGHT), _Halves(W_LEFT, W_RIGHT)
-        sp = sw.SubsurfaceParams.make(1.0, (1.0,) * 3, RADIUS, IOR, G, ROUGH,
-                                      color_node=colour, weight_node=weight)
+        sp = sw.SubsurfaceParams.make(1.0, (1.0,) * 3, (1.0,) * 3, IOR, G, ROUGH,
+                                      color_node=colour, weight_node=weight,
+                                      radius_node=_Halves(R_LEFT, R_RIGHT))
         s.add_material(Material("skin", (1.0, 1.0, 1.0), roughness=ROUGH, specular=0.0,
                                 texture=SubsurfaceColor(colour, weight), subsurface=sp))
         names = ("skin", "skin")
     else:
-        for name, c, w in (("left", LEFT, W_LEFT), ("right", RIGHT, W_RIGHT)):
-            sp = sw.SubsurfaceParams.make(w, c, RADIUS, IOR, G, ROUGH)
+        for name, c, w, r in (("left", LEFT, W_LEFT, R_LEFT),
+                              ("right", RIGHT, W_RIGHT, R_RIGHT)):
+            sp = sw.SubsurfaceParams.make(w, c, r, IOR, G, ROUGH)
             s.add_material(Material(name, tuple(sp.stand_in()), roughness=ROUGH,
                                     specular=0.0, subsurface=sp))
         names = ("left", "right")
@@ -64,10 +67,16 @@ def test_per_hit_colour_and_weight_of_the_nodes():
     class Geo:
         v0 = np.array([[-1.0, 0, 0], [1.0, 0, 0]])
 
-    c, w = sp.per_hit(Geo(), np.array([0, 1, 0]), np.zeros(3), np.zeros(3))
+    c, w, r = sp.per_hit(Geo(), np.array([0, 1, 0]), np.zeros(3), np.zeros(3))
     # Clamped to [0, 1] as the constant colour is (SubsurfaceParams.make).
     np.testing.assert_allclose(c, [[1.0, 0.5, 0.0], [0.3, 0.3, 0.3], [1.0, 0.5, 0.0]])
     np.testing.assert_allclose(w, 0.5)
+    np.testing.assert_allclose(r, np.tile(RADIUS, (3, 1)))
+    sp = sw.SubsurfaceParams.make(0.5, (0.2,) * 3, RADIUS, IOR, G, ROUGH,
+                                  radius_node=_Halves((0.1, -0.2, 0.3), (0.0, 0.0, 0.0)))
+    assert sp.textured
+    _, _, r = sp.per_hit(Geo(), np.array([0, 1]), np.zeros(2), np.zeros(2))
+    np.testing.assert_allclose(r, [[0.1, 0.0, 0.3], [0.0, 0.0, 0.0]])
 
 
 def test_texture_of_two_halves_renders_as_two_materials():

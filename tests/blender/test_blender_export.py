@@ -420,7 +420,8 @@ def test_subsurface_exports_the_walk_of_a_constant_and_a_textured_colour(fresh_s
     roughness) without a warning; its diffuse base is the stand-in the photons see,
     Cycles' thick-slab albedo of its Base Color (s25 mixpale). With a texture on Base
     Color it walks too (ssstex41: the colour node evaluated at each walk's entry), still
-    without a warning; a texture on Subsurface Radius is warned (its socket's value)."""
+    without a warning, and so does a texture on Subsurface Radius; a texture on
+    Subsurface Scale is warned (its socket's value)."""
     bpy = bpy_addon
     obj = _cube(bpy, "Candle", (0, 0, 0))
     mat = bpy.data.materials.new("Wax")
@@ -446,17 +447,20 @@ def test_subsurface_exports_the_walk_of_a_constant_and_a_textured_colour(fresh_s
     rt = radius_mat.node_tree
     r = rt.nodes["Principled BSDF"]
     r.inputs["Subsurface Weight"].default_value = 1.0
-    rt.links.new(rt.nodes.new("ShaderNodeTexNoise").outputs["Color"],
-                 r.inputs["Subsurface Radius"])
+    noise = rt.nodes.new("ShaderNodeTexNoise")
+    rt.links.new(noise.outputs["Color"], r.inputs["Subsurface Radius"])
+    rt.links.new(noise.outputs["Fac"], r.inputs["Subsurface Scale"])
     third.data.materials.append(radius_mat)
     out = _export_before_a_camera(bpy, fresh_scene)
     warned = out.all_warnings()
-    assert not [w for w in warned if "Subsurface Weight" in w or "'Soap'" in w], warned
-    radius_warn = [w for w in warned if "Subsurface Radius" in w]
-    assert len(radius_warn) == 1 and radius_warn[0].startswith("material 'Marble'"), warned
+    assert not [w for w in warned if "Subsurface Weight" in w or "'Soap'" in w
+                or "Subsurface Radius" in w], warned
+    scale_warn = [w for w in warned if "Subsurface Scale" in w]
+    assert len(scale_warn) == 1 and scale_warn[0].startswith("material 'Marble'"), warned
     soap = out.materials["Soap"].subsurface
     assert soap is not None and soap.color_node is not None and soap.weight_node is None
-    assert out.materials["Marble"].subsurface.color_node is None
+    marble = out.materials["Marble"].subsurface
+    assert marble.color_node is None and marble.radius_node is not None
     # Base Color 0.8 (the default): Cycles' random walk reflects 0.7896 of the light on a
     # thick slab (engine/subsurface.py, measured by bench/bench_subsurface_albedo.py).
     wax = out.materials["Wax"]

@@ -1,9 +1,10 @@
-"""A textured Base Color and Subsurface Weight walking beneath the surface (ssstex41,
+"""A textured Base Color, Subsurface Weight or Radius walking beneath the surface (ssstex41,
 issue 14) against live Cycles: a ball with a Checker Texture on Base Color (skin and a
-pale blue) or on Subsurface Weight (1 and 0.2), Subsurface Scale 0.2, the sun from above
-at an angle, black world, an orthographic camera looking down; per-channel mean and 4 x 4
-block means of the ball's pixels. Before ssstex41 these rendered as the diffuse stand-in
-on camera paths (no light spread beneath the surface)."""
+pale blue), on Subsurface Weight (1 and 0.2) or on Subsurface Radius ((1, 0.2, 0.1) and
+(0.1, 0.3, 1)), Subsurface Scale 0.2, the sun from above at an angle, black world, an
+orthographic camera looking down; per-channel mean and 4 x 4 block means of the ball's
+pixels. Before ssstex41 a textured colour or weight rendered as the diffuse stand-in on
+camera paths, a textured radius walked with the socket's own value."""
 import math
 
 import numpy as np
@@ -32,6 +33,10 @@ def _material(bpy, on: str):
         checker.inputs["Color1"].default_value = (0.8, 0.5, 0.4, 1.0)
         checker.inputs["Color2"].default_value = (0.3, 0.5, 0.8, 1.0)
         nt.links.new(checker.outputs["Color"], p.inputs["Base Color"])
+    elif on == "radius":
+        checker.inputs["Color1"].default_value = (1.0, 0.2, 0.1, 1.0)
+        checker.inputs["Color2"].default_value = (0.1, 0.3, 1.0, 1.0)
+        nt.links.new(checker.outputs["Color"], p.inputs["Subsurface Radius"])
     else:
         checker.inputs["Color1"].default_value = (1.0, 1.0, 1.0, 1.0)
         checker.inputs["Color2"].default_value = (0.2, 0.2, 0.2, 1.0)
@@ -40,7 +45,7 @@ def _material(bpy, on: str):
     return m
 
 
-@pytest.mark.parametrize("on", ["color", "weight"])
+@pytest.mark.parametrize("on", ["color", "weight", "radius"])
 def test_checker_ball_matches_cycles(fresh_scene, bpy_addon, tmp_path, on):
     """Both at 256 samples a pixel (24 x 24; ~4 s a case): the walk's per-channel means
     within 1.5 % of Cycles', its 4 x 4 block means within 3 % on average; the stand-in
