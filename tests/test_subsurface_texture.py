@@ -32,7 +32,7 @@ class _Halves:
         return np.where(side, self.left, self.right).astype(float)
 
 
-def _scene(textured: bool, spp=8, seed=2):
+def _scene(textured: bool, spp=8, seed=2, workers=1):
     s = PaperScene(width=48, height=24, background=(0.9, 0.9, 0.9))
     s.add_sun((0.3, 0.6, -1.0), strength=3.0)
     if textured:
@@ -54,7 +54,7 @@ def _scene(textured: bool, spp=8, seed=2):
     s.add_sphere((1.1, 0, 0), 1.0, names[1], segments=32)
     s.set_camera((0, -6, 0), (0, 0, 0), view_angle=45)
     film = s.render(RenderSettings(photons=20_000, caustic_photons=0, spp=spp, seed=seed,
-                                   workers=1))
+                                   workers=workers))
     return np.asarray(film.combined, np.float64)[..., :3]
 
 
@@ -89,3 +89,7 @@ def test_texture_of_two_halves_renders_as_two_materials():
     # The two balls differ (the texture's halves really differ).
     left, right = tex[7:17, 7:18].mean(axis=(0, 1)), tex[7:17, 30:41].mean(axis=(0, 1))
     assert left[0] > 1.5 * right[0] and right[2] > 1.5 * left[2]
+
+
+def test_textured_walks_same_image_any_worker_count():
+    np.testing.assert_array_equal(_scene(True, spp=2), _scene(True, spp=2, workers=2))
