@@ -1180,18 +1180,15 @@ class MaterialConverter:
             # the Principled subsurface stand-in at weight 1 (engine/subsurface.py).
             base, tex = self._color(node, "Color")
             ss = self.pm.subsurface
-            walk = None
+            # A textured Color walks too, its colour evaluated at each walk's entry
+            # (engine/subsurfacewalk.py); photons and gather rays see the stand-in of it.
+            walk = self._walk_params(node, 1.0, base, "Radius", "Scale", "IOR", 1.4,
+                                     "Anisotropy", self._float(node, "Roughness", 1.0),
+                                     color_node=tex)
             if tex is None:
-                walk = self._walk_params(node, 1.0, base, "Radius", "Scale", "IOR", 1.4,
-                                         "Anisotropy", self._float(node, "Roughness", 1.0))
                 base = ss.diffuse_color(base, 1.0)
             else:
                 tex, base = ss.SubsurfaceColor(tex, 1.0), np.ones(3)
-                self._warn(f"material '{self._mat.name}': Subsurface Scattering "
-                           f"'{node.name}' with a textured Color is approximated: rendered "
-                           "as a diffuse surface of the albedo Cycles' random-walk "
-                           "subsurface scattering gives a thick object of its Color (no "
-                           "light spreads beneath the surface or through thin parts)")
             out = Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
                           normal_map=self._normal(node))
             out.subsurface = walk
@@ -1460,10 +1457,12 @@ class MaterialConverter:
         return c
 
     def _subsurface(self, node, c: Closure):
-        """Principled Subsurface Weight > 0: the diffuse base takes the albedo Cycles'
-        random walk gives a thick object of that Base Color (engine.subsurface; its
-        constant colour, or per hit for a texture or a texture-driven weight). Warned with
-        what renders: no light spreads beneath the surface."""
+        """Principled Subsurface Weight > 0: camera paths walk beneath the surface
+        (c.subsurface, engine/subsurfacewalk.py; a textured Base Color or Subsurface
+        Weight evaluated at each walk's entry); the diffuse base the photons and gather
+        rays see takes the albedo Cycles' random walk gives a thick object of that Base
+        Color (engine.subsurface; its constant colour, or per hit for a texture or a
+        texture-driven weight)."""
         s = node.inputs.get("Subsurface Weight")
         if s is None or not (s.is_linked or self._float(node, "Subsurface Weight", 0.0) > 0):
             return
@@ -1478,40 +1477,44 @@ class MaterialConverter:
             return
         w, wnode = self._factor_input(node, "Subsurface Weight", 0.0)
         ss = self.pm.subsurface
+        # Walked on camera paths (engine/subsurfacewalk.py): Cycles' Principled takes
+        # the material's IOR for the entry (Subsurface IOR only for Random Walk (Skin)).
+        skin = getattr(node, "subsurface_method", "RANDOM_WALK") == "RANDOM_WALK_SKIN"
+        if skin or getattr(node, "subsurface_method", "RANDOM_WALK") == "BURLEY":
+            self._warn(f"material '{self._mat.name}': Subsurface Method "
+                       f"'{node.subsurface_method}' of node '{node.name}' is rendered "
+                       "as Random Walk")
+        # A textured Base Color or Subsurface Weight: both evaluated at each walk's
+        # entry; the table's per-hit colour (photons, gather rays, the diffuse share)
+        # is the stand-in of them (engine/subsurface.SubsurfaceColor).
+        colour = (None if c.texture is None else
+                  self.pm.shadernodes.MixColor(1.0, c.texture, c.base_color, "MULTIPLY"))
+        c.subsurface = self._walk_params(
+            node, w, c.base_color, "Subsurface Radius", "Subsurface Scale",
+            "Subsurface IOR" if skin else None, c.ior, "Subsurface Anisotropy",
+            c.roughness, color_node=colour, weight_node=wnode)
         if wnode is None and c.texture is None:
-            # Walked on camera paths (engine/subsurfacewalk.py): Cycles' Principled takes
-            # the material's IOR for the entry (Subsurface IOR only for Random Walk (Skin)).
-            skin = getattr(node, "subsurface_method", "RANDOM_WALK") == "RANDOM_WALK_SKIN"
-            if skin or getattr(node, "subsurface_method", "RANDOM_WALK") == "BURLEY":
-                self._warn(f"material '{self._mat.name}': Subsurface Method "
-                           f"'{node.subsurface_method}' of node '{node.name}' is rendered "
-                           "as Random Walk")
-            c.subsurface = self._walk_params(
-                node, w, c.base_color, "Subsurface Radius", "Subsurface Scale",
-                "Subsurface IOR" if skin else None, c.ior, "Subsurface Anisotropy",
-                c.roughness)
             c.base_color = ss.diffuse_color(c.base_color, w)
-            return
         else:
-            colour = (c.base_color if c.texture is None else
-                      self.pm.shadernodes.MixColor(1.0, c.texture, c.base_color, "MULTIPLY"))
-            c.texture = ss.SubsurfaceColor(colour, w if wnode is None else wnode)
+            c.texture = ss.SubsurfaceColor(c.base_color if colour is None else colour,
+                                           w if wnode is None else wnode)
             c.base_color = np.ones(3)
-        self._warn(f"material '{self._mat.name}': 'Subsurface Weight' of node '{node.name}' "
-                   "with a texture on Base Color or Subsurface Weight is approximated: "
-                   "rendered as a diffuse surface of the albedo Cycles' random-walk "
-                   "subsurface scattering gives a thick object of its Base Color (no light "
-                   "spreads beneath the surface or through thin parts)")
 
     def _walk_params(self, node, weight, color, radius, scale, ior, ior_default, anisotropy,
-                     roughness):
-        """engine.subsurfacewalk.SubsurfaceParams of a node's constant inputs (the named
-        sockets; ior None: ior_default)."""
+                     roughness, color_node=None, weight_node=None):
+        """engine.subsurfacewalk.SubsurfaceParams of a node's inputs (the named sockets;
+        ior None: ior_default); color_node / weight_node: the per-hit colour / weight
+        (None: the constants). A textured Radius is evaluated per hit (x the Scale); a
+        textured Scale is warned and its socket's value used (_float)."""
+        rgb, tex = self._color(node, radius)
+        s = self._float(node, scale, 0.05)
+        radius_node = (None if tex is None else
+                       self.pm.shadernodes.MixColor(1.0, tex, np.full(3, s), "MULTIPLY"))
         return self.pm.subsurfacewalk.SubsurfaceParams.make(
-            weight, color, np.asarray(self._const_color(node, radius, (1.0, 0.2, 0.1)))
-            * self._float(node, scale, 0.05),
+            weight, color, np.asarray(rgb if tex is None else (1.0, 0.2, 0.1), np.float64) * s,
             ior_default if ior is None else self._float(node, ior, ior_default),
-            self._float(node, anisotropy, 0.0), roughness)
+            self._float(node, anisotropy, 0.0), roughness, color_node, weight_node,
+            radius_node)
 
     def _weighted_sum(self, node, a: Closure, b: Closure, wa, wb, ea, eb) -> Closure:
         """wa a + wb b of two surfaces (wa = mix or add weight x closure weight): their

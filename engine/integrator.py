@@ -1876,15 +1876,15 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
 
 def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, sample_id,
                       footprint, bounce, rng, counters, should_cancel, clamping, lpass):
-    """The BSSRDF part of a camera bounce's subsurface hits: walks (j, W) from
+    """The BSSRDF part of a camera bounce's subsurface hits: walks (j, W, per_walk) from
     SubsurfaceWalks.entries at the shaded rows dsel, walked (SubsurfaceWalks.exits) and
     each exit shaded as a Lambertian surface of weight W x the walk's throughput (direct
     light, caustic and indirect estimates), added where the entry's own diffuse share
     goes (the same passes and bounce limits)."""
     s = ctx.settings
-    j, W = walks
+    j, W, per_walk = walks
     every = len(dsel) == len(hit.p)
-    got = sss.exits(hit, None if every else dsel, j, W, rng)
+    got = sss.exits(hit, None if every else dsel, j, W, rng, per_walk)
     if got is None:
         return
     i, xhit, xw = got

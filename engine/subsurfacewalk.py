@@ -47,14 +47,18 @@ diffuse ancestor into a Lambertian of weight w c: bssrdf_setup's PATH_RAY_DIFFUS
 The stand-in differs from that by c - A(c): 0.01 at c = 0.8, 0.03 at 0.5, 0.09 at 1; it is
 kept so that the photon pass stays the same with the walk on or off.)
 
-Materials with a textured Base Color or a texture-driven Subsurface Weight keep the
-stand-in on camera paths too (their per-hit colour is the stand-in's; warned at export).
+A textured Base Color or a texture-driven Subsurface Weight walks too (ssstex41): the
+material's SubsurfaceParams carry the colour and weight nodes, evaluated at each walk's
+entry as the surface's textures are (SubsurfaceWalks.entries), and each walk's medium is
+fitted from its own albedo (coefficients is per row); a textured Subsurface Radius
+likewise gives each walk its own radius. A textured Scale keeps the socket's value
+(warned at export).
 """
 from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -92,14 +96,47 @@ class SubsurfaceParams:
     ior: float = 1.5
     anisotropy: float = 0.0
     roughness: float = 1.0
+    # Per-hit inputs (engine/shadernodes.py nodes, evaluate(geo, prim, u, v)), or None for
+    # the constants above: the Base Color / Color (before clamping) and the Subsurface
+    # Weight. (Compared as the nodes compare; left out of the hash: not every node is
+    # hashable.)
+    color_node: object = field(default=None, hash=False)
+    weight_node: object = field(default=None, hash=False)
+    # Radius x Scale per hit (a node, metres, before Cycles' 1/(4 pi)), or None: radius.
+    radius_node: object = field(default=None, hash=False)
 
     @classmethod
-    def make(cls, weight, color, radius, ior, anisotropy, roughness) -> "SubsurfaceParams":
+    def make(cls, weight, color, radius, ior, anisotropy, roughness, color_node=None,
+             weight_node=None, radius_node=None) -> "SubsurfaceParams":
         return cls(float(min(max(weight, 0.0), 1.0)),
                    tuple(float(x) for x in np.clip(np.asarray(color, float)[:3], 0.0, 1.0)),
                    tuple(float(max(x, 0.0)) for x in np.asarray(radius, float)[:3]),
                    float(min(max(ior, 1.01), 3.8)), float(min(max(anisotropy, 0.0), 0.9)),
-                   float(min(max(roughness, 0.0), 1.0)))
+                   float(min(max(roughness, 0.0), 1.0)), color_node, weight_node,
+                   radius_node)
+
+    @property
+    def textured(self) -> bool:
+        """Whether the colour, the weight or the radius is evaluated per hit."""
+        return (self.color_node is not None or self.weight_node is not None
+                or self.radius_node is not None)
+
+    def per_hit(self, geo, prim, u, v):
+        """(c (N,3) clamped to [0, 1], w (N,) clamped to [0, 1], radius (N,3) >= 0) at N
+        hits: the nodes' values (geo a shadernodes.ShadingGeometry of the hits for
+        view-dependent nodes), the constants where no node drives them."""
+        from .shadernodes import _eval
+        n = len(prim)
+        c = (np.tile(np.asarray(self.color, np.float64), (n, 1)) if self.color_node is None
+             else np.clip(np.nan_to_num(_eval(self.color_node, geo, prim, u, v, 3)[:, :3],
+                                        nan=0.0), 0.0, 1.0))
+        w = (np.full(n, self.weight) if self.weight_node is None
+             else np.clip(np.nan_to_num(_eval(self.weight_node, geo, prim, u, v, 1),
+                                        nan=0.0), 0.0, 1.0))
+        r = (np.tile(np.asarray(self.radius, np.float64), (n, 1)) if self.radius_node is None
+             else np.maximum(np.nan_to_num(_eval(self.radius_node, geo, prim, u, v, 3)[:, :3],
+                                           nan=0.0), 0.0))
+        return c, w, r
 
     def stand_in(self) -> np.ndarray:
         """The diffuse colour standing in for this surface where it does not walk
@@ -268,7 +305,8 @@ class ObjectMeshes:
             return got
 
 
-def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=None):
+def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=None,
+         albedo=None, radius=None):
     """Random walks from M entry points. obj (M,) the entry triangles' objects; p, n, ng,
     wi (M,3) the entry point, BSSRDF normal, geometric normal (both on the viewer's side)
     and the direction to the viewer; offset (M,) the entry's ray-origin offset; sp (M,)
@@ -276,10 +314,14 @@ def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=N
     the surface, prim (M,) int64 global exit triangle, u, v (M,), d (M,3) the exit
     direction (outwards), throughput (M,3): the walk's weight per unit closure weight
     over the albedo (Cycles' throughput / (w L))). stats: None, or a dict whose "rays"
-    entry is increased by the rays the walks cast."""
+    entry is increased by the rays the walks cast. albedo: None (each walk's sp.color),
+    or (M,3) in [0, 1] each walk's own (a textured Base Color at its entry); radius:
+    None (sp.radius) or (M,3) each walk's Radius x Scale (metres)."""
     m = len(p)
-    albedo = np.array([s.color for s in sp], np.float64).reshape(m, 3)
-    radius = np.array([s.radius for s in sp], np.float64).reshape(m, 3) * (0.25 / math.pi)
+    albedo = (np.array([s.color for s in sp], np.float64).reshape(m, 3) if albedo is None
+              else np.asarray(albedo, np.float64).reshape(m, 3))
+    radius = (np.array([s.radius for s in sp], np.float64).reshape(m, 3) if radius is None
+              else np.asarray(radius, np.float64).reshape(m, 3)) * (0.25 / math.pi)
     g = np.array([s.anisotropy for s in sp], np.float64)
     ior = np.array([s.ior for s in sp], np.float64)
     alpha_ggx = np.array([s.roughness for s in sp], np.float64) ** 2
@@ -660,7 +702,7 @@ class SubsurfaceWalks:
     @classmethod
     def for_context(cls, ctx):
         """The hook, or None where nothing walks (the setting off, or no material with a
-        constant-coloured subsurface closure): the camera paths are then untouched."""
+        subsurface closure): the camera paths are then untouched."""
         cached = getattr(ctx, "_subsurface_walks", False)
         if cached is not False:
             return cached
@@ -678,8 +720,11 @@ class SubsurfaceWalks:
     def entries(self, hit, rows, wd):
         """For the shaded rows `rows` (K,) of the bounce's hits (None: all) with diffuse
         weights wd (K,3): scales wd in place to the diffuse closure's share (1 - w) c / b
-        of the stand-in colour b the table gives, and returns (j (J,) the positions in
-        rows that walk, W (J,3) the walks' starting weight w wd / b), or None."""
+        of the stand-in colour b the table gives (per hit for a textured colour or
+        weight), and returns (j (J,) the positions in rows that walk, W (J,3) the walks'
+        starting weight w wd / b, per_walk: (albedo (J,3) their Base Colors c, radius
+        (J,3) their Radius x Scale), or None where every walk's are its material's
+        constants), or None."""
         mat = hit.mat if rows is None else np.take(hit.mat, rows)
         walking = np.take(self.walking, mat)
         if not walking.any():
@@ -690,19 +735,46 @@ class SubsurfaceWalks:
         sp = [self.params[i] for i in mat[j]]
         c = np.array([s.color for s in sp], np.float64).reshape(-1, 3)
         w = np.array([s.weight for s in sp], np.float64)[:, None]
+        radius = np.array([s.radius for s in sp], np.float64).reshape(-1, 3)
+        textured = self._textured(hit, rows, j, mat[j], c, w, radius)
         layer = np.divide(wd[j], b, out=np.zeros_like(b), where=b > 0)
-        small = np.array([s.radius for s in sp], np.float64).reshape(-1, 3) < BSSRDF_MIN_RADIUS
+        small = radius < BSSRDF_MIN_RADIUS
         # Channels too thin to walk stay a diffuse closure of the BSSRDF's weight (w c).
         wd[j] = layer * ((1.0 - w) * c + np.where(small, w * c, 0.0))
         W = np.where(small, 0.0, layer * w)
         keep = W.max(axis=1) > 0
-        return j[keep], W[keep]
+        return j[keep], W[keep], ((c[keep], radius[keep]) if textured else None)
 
-    def exits(self, hit, rows, j, W, rng):
+    def _textured(self, hit, rows, j, mat, c, w, radius) -> bool:
+        """Overwrites c (J,3), w (J,1), radius (J,3) in place with the per-hit colour,
+        weight and radius of the walks whose material has textured ones (SubsurfaceParams.per_hit, evaluated at
+        the entry as engine/bsdf.surface_hit evaluates the surface's textures); whether
+        there were any."""
+        mats = [int(mi) for mi in np.unique(mat) if self.params[mi].textured]
+        if not mats:
+            return False
+        from .shadernodes import ShadingGeometry
+        r = j if rows is None else np.asarray(rows)[j]
+        ns = hit.ns if hit.n_smooth is None else hit.n_smooth
+        for mi in mats:
+            k = np.flatnonzero(mat == mi)
+            rk = r[k]
+            sg = ShadingGeometry(self.ctx.geo, np.take(ns, rk, axis=0),
+                                 np.take(hit.wo, rk, axis=0), ~np.take(hit.front, rk))
+            bary = np.take(hit.bary, rk, axis=0)
+            ck, wk, rk = self.params[mi].per_hit(sg, np.take(hit.prim, rk), bary[:, 0],
+                                                 bary[:, 1])
+            c[k] = ck
+            w[k, 0] = wk
+            radius[k] = rk
+        return True
+
+    def exits(self, hit, rows, j, W, rng, per_walk=None):
         """Walk from the rows rows[j] (rows None: j are the hits' rows) of the bounce's
-        hits with starting weights W (J,3). Returns (i (E,) the positions in j whose walk
-        left the surface, the exit SurfaceHit (E rows, seen from outside), wd (E,3) the
-        exit's Lambertian weight W x the walk's throughput)."""
+        hits with starting weights W (J,3) (per_walk: entries' (albedo, radius) of each
+        walk, None: the materials'). Returns (i (E,) the positions in j whose walk left the surface,
+        the exit SurfaceHit (E rows, seen from outside), wd (E,3) the exit's Lambertian
+        weight W x the walk's throughput)."""
         from .bsdf import surface_hit
         r = j if rows is None else np.asarray(rows)[j]
         ctx = self.ctx
@@ -714,7 +786,8 @@ class SubsurfaceWalks:
         counts = {}
         ok, xprim, xu, xv, xd, tp = walk(
             self.meshes, obj, np.take(hit.p, r, axis=0), np.take(hit.ns, r, axis=0),
-            np.take(hit.ng, r, axis=0), np.take(hit.wo, r, axis=0), offset, sp, rng, counts)
+            np.take(hit.ng, r, axis=0), np.take(hit.wo, r, axis=0), offset, sp, rng, counts,
+            *(per_walk or (None, None)))
         i = np.flatnonzero(ok & (tp.max(axis=1) > 0))
         with self._stats_lock:
             self.stats["walks"] += len(r)

@@ -413,13 +413,15 @@ def _export_before_a_camera(bpy, scene):
     return out
 
 
-def test_subsurface_exports_the_walk_and_warns_a_textured_colour(fresh_scene, bpy_addon):
+def test_subsurface_exports_the_walk_of_a_constant_and_a_textured_colour(fresh_scene,
+                                                                         bpy_addon):
     """A Principled with Subsurface Weight (a skin, a candle) exports Cycles' random-walk
     BSSRDF (engine/subsurfacewalk.py: weight, colour, Radius x Scale, the IOR, anisotropy,
     roughness) without a warning; its diffuse base is the stand-in the photons see,
     Cycles' thick-slab albedo of its Base Color (s25 mixpale). With a texture on Base
-    Color the stand-in renders on camera paths too: the warning says so and names the
-    object that uses the material (s24 new user)."""
+    Color it walks too (ssstex41: the colour node evaluated at each walk's entry), still
+    without a warning, and so does a texture on Subsurface Radius; a texture on
+    Subsurface Scale is warned (its socket's value)."""
     bpy = bpy_addon
     obj = _cube(bpy, "Candle", (0, 0, 0))
     mat = bpy.data.materials.new("Wax")
@@ -438,19 +440,33 @@ def test_subsurface_exports_the_walk_and_warns_a_textured_colour(fresh_scene, bp
     q.inputs["Subsurface Weight"].default_value = 1.0
     nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Color"], q.inputs["Base Color"])
     other.data.materials.append(tex_mat)
+    third = _cube(bpy, "Marble", (-3, 0, 0))
+    radius_mat = bpy.data.materials.new("Marble")
+    if bpy.app.version < (5, 0, 0):
+        radius_mat.use_nodes = True
+    rt = radius_mat.node_tree
+    r = rt.nodes["Principled BSDF"]
+    r.inputs["Subsurface Weight"].default_value = 1.0
+    noise = rt.nodes.new("ShaderNodeTexNoise")
+    rt.links.new(noise.outputs["Color"], r.inputs["Subsurface Radius"])
+    rt.links.new(noise.outputs["Fac"], r.inputs["Subsurface Scale"])
+    third.data.materials.append(radius_mat)
     out = _export_before_a_camera(bpy, fresh_scene)
-    hits = [w for w in out.all_warnings() if "Subsurface Weight" in w]
-    assert len(hits) == 1, out.all_warnings()
-    assert hits[0].startswith("material 'Soap': 'Subsurface Weight'")
-    assert "rendered as a diffuse surface of the albedo Cycles' random-walk" in hits[0]
-    assert "no light spreads beneath the surface" in hits[0]
-    assert hits[0].endswith("(used by 'Soap')")
+    warned = out.all_warnings()
+    assert not [w for w in warned if "Subsurface Weight" in w or "'Soap'" in w
+                or "Subsurface Radius" in w], warned
+    scale_warn = [w for w in warned if "Subsurface Scale" in w]
+    assert len(scale_warn) == 1 and scale_warn[0].startswith("material 'Marble'"), warned
+    soap = out.materials["Soap"].subsurface
+    assert soap is not None and soap.color_node is not None and soap.weight_node is None
+    marble = out.materials["Marble"].subsurface
+    assert marble.color_node is None and marble.radius_node is not None
     # Base Color 0.8 (the default): Cycles' random walk reflects 0.7896 of the light on a
     # thick slab (engine/subsurface.py, measured by bench/bench_subsurface_albedo.py).
     wax = out.materials["Wax"]
     np.testing.assert_allclose(wax.base_color, [0.7896] * 3, atol=1e-4)
     sp = wax.subsurface
-    assert sp is not None and out.materials["Soap"].subsurface is None
+    assert sp is not None and not sp.textured
     assert sp.weight == 1.0 and sp.anisotropy == pytest.approx(0.3)
     np.testing.assert_allclose(sp.color, [0.8] * 3, atol=1e-6)
     radius = np.array(p.inputs["Subsurface Radius"].default_value[:3])
@@ -458,6 +474,27 @@ def test_subsurface_exports_the_walk_and_warns_a_textured_colour(fresh_scene, bp
                                rtol=1e-6)
     assert sp.ior == pytest.approx(p.inputs["IOR"].default_value, rel=1e-6)
     assert sp.roughness == pytest.approx(p.inputs["Roughness"].default_value, rel=1e-6)
+
+
+def test_subsurface_node_with_a_textured_colour_walks(fresh_scene, bpy_addon):
+    """The Subsurface Scattering node with a texture on Color exports the walk (weight 1,
+    the colour node evaluated per hit at each walk's entry; ssstex41) without a warning;
+    its table colour is the per-hit stand-in (engine/subsurface.SubsurfaceColor)."""
+    bpy = bpy_addon
+    from blender_helpers import node_material
+    obj = _cube(bpy, "Marble", (0, 0, 0))
+    m, nt, out_node = node_material(bpy, "MarbleSSS")
+    sss = nt.nodes.new("ShaderNodeSubsurfaceScattering")
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Color"], sss.inputs["Color"])
+    nt.links.new(sss.outputs[0], out_node.inputs["Surface"])
+    obj.data.materials.append(m)
+    out = _export_before_a_camera(bpy, fresh_scene)
+    assert not [w for w in out.all_warnings() if "MarbleSSS" in w], out.all_warnings()
+    mat = out.materials["MarbleSSS"]
+    sp = mat.subsurface
+    assert sp is not None and sp.weight == 1.0 and sp.color_node is not None
+    assert sp.weight_node is None
+    assert type(mat.texture).__name__ == "SubsurfaceColor"
 
 
 def _diffuse_translucent_mix(bpy, name, fac, diffuse_rgb, translucent_rgb):
