@@ -1218,6 +1218,14 @@ class MaterialConverter:
         if t == "MIX_SHADER":
             a = self._shader(self._source(inp[1]), depth + 1)
             b = self._shader(self._source(inp[2]), depth + 1)
+            if getattr(a, "subsurface", None) is not None \
+                    or getattr(b, "subsurface", None) is not None:
+                # (a mix's closure carries no walk: engine/subsurfacewalk.py takes one
+                # subsurface surface per material)
+                self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes a "
+                           "surface with subsurface scattering; the mix renders its "
+                           "subsurface part as the diffuse stand-in (no random walk beneath "
+                           "the surface)")
             fac = self._input(node, inp[0], depth) if self._source(inp[0]) else None
             if hasattr(fac, "evaluate") and (a.translucent > 0 or b.translucent > 0):
                 self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes a "

@@ -497,6 +497,29 @@ def test_subsurface_node_with_a_textured_colour_walks(fresh_scene, bpy_addon):
     assert type(mat.texture).__name__ == "SubsurfaceColor"
 
 
+def test_a_mix_with_a_subsurface_side_warns_that_it_does_not_walk(fresh_scene, bpy_addon):
+    """A Mix Shader of a subsurface Principled and a Glossy BSDF: the mix carries no
+    random walk (its subsurface part renders as the stand-in), said once, naming the
+    material and the node (ssstex41 found it silent)."""
+    bpy = bpy_addon
+    from blender_helpers import node_material
+    obj = _cube(bpy, "Wax", (0, 0, 0))
+    m, nt, out_node = node_material(bpy, "WaxMix")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Subsurface Weight"].default_value = 1.0
+    g = nt.nodes.new("ShaderNodeBsdfGlossy")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.name = "Coat mix"
+    mix.inputs["Fac"].default_value = 0.3
+    nt.links.new(p.outputs[0], mix.inputs[1])
+    nt.links.new(g.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out_node.inputs["Surface"])
+    obj.data.materials.append(m)
+    out = _export_before_a_camera(bpy, fresh_scene)
+    hits = [w for w in out.all_warnings() if "'WaxMix'" in w and "subsurface" in w]
+    assert len(hits) == 1 and "'Coat mix'" in hits[0], out.all_warnings()
+
+
 def _diffuse_translucent_mix(bpy, name, fac, diffuse_rgb, translucent_rgb):
     """A material: Mix Shader (factor fac) of a Diffuse BSDF and a Translucent BSDF."""
     from blender_helpers import node_material
