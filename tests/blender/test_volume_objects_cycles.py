@@ -312,6 +312,7 @@ def test_a_volume_without_a_density_grid(bpy_addon):
     m, nt, o = node_material(bpy, "blackbody")
     v = nt.nodes.new("ShaderNodeVolumePrincipled")
     v.inputs["Blackbody Intensity"].default_value = 1.0
+    v.inputs["Temperature"].default_value = 1.0  # (the grid is in kelvin)
     nt.links.new(v.outputs[0], o.inputs["Volume"])
     bpy.data.objects.remove(bpy.data.objects["Fire"])
     gn_volume(bpy, scene, {"temperature": (900.0, 1200.0)}, material=m)
