@@ -237,14 +237,9 @@ class _DirectionField:
         self.node = node
         self.reads_camera = reads_camera  # it reads the Camera or Window coordinates
 
-    def values(self, geo) -> np.ndarray:
-        """(n,) the field at geo's n directions (a colour read as its luminance)."""
-        n = len(geo.dirs)
-        val = np.asarray(self.node.evaluate(geo, np.arange(n), np.zeros(n), np.zeros(n)),
-                         np.float64)
-        if val.ndim == 2:
-            val = val[:, :3] @ np.array([0.2126, 0.7152, 0.0722])
-        return np.nan_to_num(np.broadcast_to(val, (n,)), nan=0.0, posinf=0.0, neginf=0.0)
+    def values(self, pm, geo) -> np.ndarray:
+        """(n,) the field at geo's n directions (engine worldgraph.direction_values)."""
+        return pm.worldgraph.direction_values(self.node, geo)
 
 
 class _Weight:
@@ -270,16 +265,12 @@ class _Weight:
 
     __hash__ = None
 
-    def values(self, geo) -> np.ndarray:
-        """(n,) the weight along geo's n directions."""
+    def values(self, pm, geo) -> np.ndarray:
+        """(n,) the weight along geo's n directions (engine worldgraph.factor's kinds; a
+        negative product is clamped, warned, after the sum)."""
         out = np.full(len(geo.dirs), self.const)
         for field, kind in self.factors:
-            f = field.values(geo)
-            if kind == "strength":
-                out *= f  # (a negative product is clamped, warned, after the sum)
-            else:
-                f = np.clip(f, 0.0, 1.0)
-                out *= f if kind == "fac" else 1.0 - f
+            out *= pm.worldgraph.factor(field.values(pm, geo), kind)
         return out
 
 
@@ -626,7 +617,7 @@ def _resolve_terms(pm, terms, warnings=None, who="the world", camera_view=None) 
     for w, term in terms:
         if not isinstance(w, _Weight) and w <= 0.0:
             continue
-        k = w.values(geo)[:, None] if isinstance(w, _Weight) else w
+        k = w.values(pm, geo)[:, None] if isinstance(w, _Weight) else w
         if isinstance(term, np.ndarray):
             if isinstance(w, _Weight):
                 pixels += k * term
@@ -639,7 +630,7 @@ def _resolve_terms(pm, terms, warnings=None, who="the world", camera_view=None) 
         w0 = maps[0][0]
         if isinstance(w0, _Weight):  # the weight toward the sun (travel: -direction)
             toward = -np.asarray(sun["direction"], np.float64).reshape(1, 3)
-            w0 = float(w0.values(pm.worldgraph.WorldDirections(
+            w0 = float(w0.values(pm, pm.worldgraph.WorldDirections(
                 toward / np.linalg.norm(toward), camera_view))[0])
         env.sun_light = dict(sun, color=np.asarray(sun["color"], np.float64) * w0)
     return env.average(), env

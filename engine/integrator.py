@@ -1902,20 +1902,35 @@ def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, s
             s, np.take(chain[:, 0], rows)))
     if lpass is not None:
         lpass.shaded(pix, direct, tp, rows, lightpasses.DIFFUSE_DIRECT)
-        if caustic is not None:
-            lpass.shaded(pix, caustic + indirect, tp, rows, lightpasses.DIFFUSE_INDIRECT)
+    _add_diffuse(acc, pix, tp, rows, chain, bounce, s.bounce_limits[0], direct, caustic,
+                 indirect)
+    if lpass is not None and caustic is not None:
+        # (after _add_diffuse: past the Diffuse limit the indirect estimate is dropped
+        # from the passes as from the image)
+        lpass.shaded(pix, caustic + indirect, tp, rows, lightpasses.DIFFUSE_INDIRECT)
+
+
+def _add_diffuse(acc, pix, tp, rows, chain, bounce, diffuse_limit, direct, caustic,
+                 indirect) -> None:
+    """Add rows' diffuse shading (direct, caustic, indirect (R,3); caustic None: no photon
+    terms) to the effect passes: at the camera's first hit each to its own; past a bent
+    bounce all to "specular", the indirect estimate zeroed in place where final
+    gathering's added diffuse bounce passes diffuse_limit (Light Paths > Diffuse: the
+    gather map holds the photons valid one diffuse bounce after the camera's first hit,
+    render._build_maps; the chain's bounces are not subtracted from them further,
+    docs/design.md, Bounce limits)."""
     if bounce == 0:
         acc.add("direct", pix, direct, tp, rows)
         if caustic is not None:
             acc.add("caustic", pix, caustic, tp, rows)
             acc.add("indirect", pix, indirect, tp, rows)
-    else:
-        if caustic is not None:
-            past = chain[rows, 0] + 1 > s.bounce_limits[0]
-            if past.any():
-                indirect[past] = 0.0
-        acc.add("specular", pix, direct if caustic is None else direct + caustic + indirect,
-                tp, rows)
+        return
+    if caustic is not None:
+        past = chain[rows, 0] + 1 > diffuse_limit
+        if past.any():
+            indirect[past] = 0.0
+    acc.add("specular", pix, direct if caustic is None else direct + caustic + indirect,
+            tp, rows)
 
 
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
@@ -3043,22 +3058,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 lpass.shaded(pix, d_part, tp, dsel, lightpasses.DIFFUSE_DIRECT)
                 if g_part is not None:
                     lpass.shaded(pix, g_part, tp, dsel, lightpasses.GLOSSY_DIRECT)
-            if bounce == 0:
-                acc.add("direct", pix, direct, tp, dsel)
-                if caustic is not None:
-                    acc.add("caustic", pix, caustic, tp, dsel)
-                    acc.add("indirect", pix, indirect, tp, dsel)
-            else:
-                if caustic is not None:
-                    # Final gathering adds a diffuse bounce to the chain's (the gather map
-                    # holds the photons valid one diffuse bounce after the camera's first
-                    # hit: render._build_maps; the chain's bounces are not subtracted from
-                    # them further, docs/design.md, Bounce limits).
-                    past = chain[dsel, 0] + 1 > limits[0]
-                    if past.any():
-                        indirect[past] = 0.0
-                acc.add("specular", pix, direct if caustic is None
-                        else direct + caustic + indirect, tp, dsel)
+            _add_diffuse(acc, pix, tp, dsel, chain, bounce, limits[0], direct, caustic,
+                         indirect)
             if lpass is not None and caustic is not None:
                 lpass.shaded(pix, caustic + indirect, tp, dsel, lightpasses.DIFFUSE_INDIRECT)
             if walks is not None and len(walks[0]):

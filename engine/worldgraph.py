@@ -58,18 +58,21 @@ class WorldDirections:
         return np.zeros((len(prim), 3))
 
 
-def _factor(values, kind) -> np.ndarray:
-    """A Mix Shader factor or a Strength along the directions (addon/world.py _Weight's
-    kinds): "fac" clamped to 0..1, "1-fac" one minus that, "strength" as it is."""
+def factor(values, kind) -> np.ndarray:
+    """A world term's factor along the directions, by kind (addon/world.py _Weight's):
+    "fac" a Mix Shader factor clamped to 0..1 (as svm_node_mix_closure), "1-fac" one
+    minus that, "strength" a Strength as it is."""
     if kind == "strength":
         return values
     f = np.clip(values, 0.0, 1.0)
     return f if kind == "fac" else 1.0 - f
 
 
-def _values(node, geo, n) -> np.ndarray:
-    """(n,) a shadernodes node's value along geo's n directions (a colour: its
-    luminance, Rec. 709 weights as Cycles converts colour to float)."""
+def direction_values(node, geo) -> np.ndarray:
+    """(n,) a shadernodes node's value along geo's n directions (a WorldDirections; a
+    colour: its luminance, Rec. 709 weights as Cycles converts colour to float; NaN and
+    inf read 0)."""
+    n = len(geo.dirs)
     val = np.asarray(node.evaluate(geo, np.arange(n), np.zeros(n), np.zeros(n)), np.float64)
     if val.ndim == 2:
         val = val[:, :3] @ np.array([0.2126, 0.7152, 0.0722])
@@ -81,7 +84,7 @@ class WorldGraph:
     the sum over terms of weight x colour, as Cycles sums a world's Background closures.
 
     terms: [(const, factors, colour)]: const a float; factors [(node, kind)] (shadernodes
-    nodes of the direction, kind "fac", "1-fac" or "strength": see _factor); colour an
+    nodes of the direction, kind "fac", "1-fac" or "strength": see factor); colour an
     RGB (3,) (W m^-2 sr^-1), an engine Environment (its radiance(d)) or a shadernodes
     colour node. camera_view: shadernodes.CameraView for the Camera and Window outputs.
     Negative radiance is read as 0 (the add-on warns, as for the baked map)."""
@@ -102,7 +105,7 @@ class WorldGraph:
         for const, factors, colour in self.terms:
             w = np.full(n, float(const))
             for node, kind in factors:
-                w = w * _factor(_values(node, geo, n), kind)
+                w = w * factor(direction_values(node, geo), kind)
             if hasattr(colour, "radiance"):
                 rgb = np.asarray(colour.radiance(d), np.float64)
             elif hasattr(colour, "evaluate"):
