@@ -8,6 +8,7 @@ the add-on shows, and the Film's stats record. Each effect can be forced on or o
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -1214,31 +1215,59 @@ _KIND_ORDER = ("mirror", "glass", "polished metal", "metal", "transparent", "glo
                "rough glossy", "matte")
 
 
+_INSTANCE_NAME = re.compile(r"^(.+)#(\d+)$")
+
+
+def _instance_groups(names) -> list[tuple[str, int, str]]:
+    """names as the report lists them: [(shown name, instance count, first member)]. The
+    add-on names instanced copies 'Instancer/Object#k' (addon/export.py); two or more
+    copies of one name are listed once as "'Scatter/Rock' (40 instances)" (a report
+    listed 'Scatter/Rock#0', 'Scatter/Rock#1' ... : newuser41b). Order of first appearance."""
+    groups: dict[str, list[str]] = {}
+    for n in names:
+        m = _INSTANCE_NAME.match(str(n))
+        groups.setdefault(m.group(1) if m else str(n), []).append(n)
+    out = []
+    for base, members in groups.items():
+        if len(members) > 1 and _INSTANCE_NAME.match(str(members[0])):
+            out.append((base, len(members), members[0]))
+        else:
+            out.extend((str(m), 1, m) for m in members)
+    return out
+
+
+def _shown(name: str, count: int) -> str:
+    return f"'{name}'" + (f" ({count:,} instances)" if count > 1 else "")
+
+
 def _quoted(names, most: int | None = 4) -> str:
     """"'a', 'b', 'c', 'd' ... (3 more)" for a report line: the first `most` names (None:
-    all) quoted, " ... (N more)" where N more were left off."""
-    names = list(names)
-    shown = names if most is None else names[:most]
-    left = len(names) - len(shown)
-    return ", ".join(f"'{n}'" for n in shown) + (f" ... ({left:,} more)" if left else "")
+    all) quoted, " ... (N more)" where N more were left off; instanced copies once with
+    their count (_instance_groups)."""
+    entries = _instance_groups(names)
+    shown = entries if most is None else entries[:most]
+    left = len(entries) - len(shown)
+    return (", ".join(_shown(n, c) for n, c, _ in shown)
+            + (f" ... ({left:,} more)" if left else ""))
 
 
 def _labelled(geo: Geometry, table: MaterialTable, names, most: int | None = None) -> str:
     """"glass 'ball', glossy 'vase'" for object names (a matte one with the specular
     layer that puts it in the list: "matte 'floor' (its rough specular layer)"); the
     first `most` (None: all), then " ... (N more)" as _quoted."""
-    names = list(names)
-    left = 0 if most is None else max(len(names) - most, 0)
-    names = names[:len(names) - left]
+    entries = _instance_groups(names)
+    left = 0 if most is None else max(len(entries) - most, 0)
+    entries = entries[:len(entries) - left]
     ids = {n: i for i, n in enumerate(geo.object_names)}
     out = []
-    for n in names:
+    for shown, count, n in entries:
         if n not in ids:
-            out.append(f"'{n}'")
+            out.append(_shown(shown, count))
             continue
         kind = specular_kind(geo, table, ids[n])
-        out.append(f"{kind} '{n}'" + (" (its rough specular layer)" if kind == "matte"
-                                      else _closure_words(geo, table, ids[n], kind)))
+        out.append(f"{kind} {_shown(shown, count)}"
+                   + (" (its rough specular layer)" if kind == "matte"
+                      else _closure_words(geo, table, ids[n], kind)))
     return ", ".join(out) + (f" ... ({left:,} more)" if left else "")
 
 

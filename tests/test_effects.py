@@ -384,6 +384,25 @@ def test_a_mirror_and_a_glass_ball_are_caustic_casters_by_name():
     assert "mirror 'Mirror'" in spec and "glass 'Ball'" in spec, spec
 
 
+def test_instanced_copies_are_listed_once_with_their_count():
+    """The add-on names instanced copies 'Instancer/Object#k': a report listed
+    'Scatter/Ball#0', 'Scatter/Ball#1' ... (newuser41b); now one entry with a count."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    s.add_material(Material("clear_glass", (1, 1, 1), transmission=1.0, ior=1.5))
+    for k in range(3):
+        s.add_sphere((-1.0 + k, 0.3, 0.3), 0.3, "clear_glass", name=f"Scatter/Ball#{k}",
+                     segments=12)
+    s.add_sphere((1.5, 0.8, 0.3), 0.3, "clear_glass", name="Lone#0", segments=12)
+    plan = _plan(s)
+    line = _line(plan, "caustics:")
+    assert "'Scatter/Ball' (3 instances)" in line and "'Lone#0'" in line, line
+    assert "Ball#1" not in line, line
+    spec = _line(plan, "specular reflection / refraction: on")
+    assert "glass 'Scatter/Ball' (3 instances)" in spec, spec
+    assert sorted(plan.casters) == ["Lone#0", "Scatter/Ball#0", "Scatter/Ball#1",
+                                    "Scatter/Ball#2"]
+
+
 def test_max_ray_depth_is_named_only_where_it_cuts_camera_paths():
     """The camera chain stops at the Light Paths limits (as Cycles'); Max Ray Depth
     (max_depth) is an extra cap, off by default, and the report says when it cuts paths
