@@ -298,6 +298,26 @@ def _closure_value(c: Closure, name: str):
     return c.scalars.get(name, getattr(c, name))
 
 
+def _no_metal_lobe(c: Closure) -> bool:
+    """A Principled side whose lobes do not depend on the colour model: no metal lobe
+    (closures/principled.py reads the node for the metal lobe's colour and the
+    anisotropy's mapping only)."""
+    return (c.node == "principled" and not hasattr(_closure_value(c, "metallic"), "evaluate")
+            and c.metallic == 0 and not hasattr(_closure_value(c, "anisotropic"), "evaluate")
+            and c.anisotropic == 0)
+
+
+def _lead(a: Closure, b: Closure, ga: float, gb: float) -> Closure:
+    """The side whose colour model (`node`) and distribution a blend keeps: the one with
+    more glossy / glass weight (ga, gb); on a tie a Glossy / Glass BSDF before a
+    Principled BSDF without a metal lobe, which renders the same under either model
+    (Mix of Principled and Glossy BSDF named the Glossy side 'polished metal (metallic 1)'
+    and coloured it by Principled's metal Fresnel: newuser41b)."""
+    if ga == gb and _no_metal_lobe(a) and b.node != "principled":
+        return b
+    return a if ga >= gb else b
+
+
 def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     """Mix two closures with weights wa, wb (wa + wb = 1 for Mix Shader).
 
@@ -358,7 +378,7 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         out.ior = ta * a.ior + tb * b.ior
     # One microfacet distribution and colour model per material: the side with more
     # glossy / glass weight decides (a Diffuse side has no say).
-    lead = a if ga >= gb else b
+    lead = _lead(a, b, ga, gb)
     out.multiscatter = lead.multiscatter
     out.node = lead.node
     out.anisotropic = lead.anisotropic
@@ -1578,8 +1598,16 @@ class MaterialConverter:
         # scalars would need engine nodes for that.
         ga = a.metallic + a.transmission + a.specular
         gb = b.metallic + b.transmission + b.specular
-        if (a if ga >= gb else b).node != "principled":
-            return False
+        if _lead(a, b, ga, gb).node != "principled":
+            # A Glossy / Glass BSDF leads: exact beside a side without a glossy lobe (a
+            # Diffuse BSDF) or one of the same roughness; a Principled layer of another
+            # roughness would take the blended roughness (Glossy 0.1 + Principled 0.6:
+            # highlight blocks 0.91-1.41 of Cycles).
+            if ga == 0 or gb == 0:
+                return False
+            ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
+            return (hasattr(ra, "evaluate") or hasattr(rb, "evaluate") or ra != rb
+                    or not MaterialConverter._same_layers(a, b, ga, gb))
         if a.translucent > 0 or b.translucent > 0:
             # _blend keeps a Translucent BSDF's share and colour apart (exact when one
             # side is wholly translucent).
@@ -1698,7 +1726,7 @@ class MaterialConverter:
             # anisotropic (anisotropy.anisotropic_materials).
             xa, xb = a.anisotropic, b.anisotropic
             out.anisotropic = xa if abs(xa) >= abs(xb) else xb
-            self._warn_per_material(a, b, out, node)
+            self._warn_per_material(a, b, out, node, hasattr(fac, "evaluate"))
 
         def colour(c):
             if c.texture is None:
@@ -1714,7 +1742,8 @@ class MaterialConverter:
             out.texture = sn.MixColor(f, colour(a), colour(b))
         return out
 
-    def _warn_per_material(self, a: Closure, b: Closure, out: Closure, node):
+    def _warn_per_material(self, a: Closure, b: Closure, out: Closure, node,
+                           varies: bool = True):
         """Warn where a picked Mix Shader's sides differ in what stays one per material:
         the shading normal (a Normal Map / Bump is evaluated per material, before the
         closure rows, engine.bsdf.surface_hit) and the colour model (a Glossy BSDF's colour
@@ -1724,16 +1753,20 @@ class MaterialConverter:
             self._warn(f"material '{self._mat.name}': {who} picks one of two surfaces per "
                        "hit, but their 'Normal' inputs differ: one shading normal per "
                        "material is used for both (the first side's that has one)")
-        if a.node != b.node:
+        other = b if out.node == a.node else a
+        if a.node != b.node and not _no_metal_lobe(other):
             names = {"glossy": "Glossy BSDF", "glass": "Glass BSDF",
                      "refraction": "Refraction BSDF"}
             model = names.get(out.node, "Principled BSDF")
             sides = " and a ".join(names.get(x, "Principled BSDF") for x in (a.node, b.node))
             # (newuser41 read "of different colour models" as jargon)
-            self._warn(f"material '{self._mat.name}': {who} mixes a {sides} by a factor "
-                       "that varies over the surface; a material keeps one way of "
-                       f"colouring its reflection, so both sides reflect as the {model} "
-                       "does (the mix's weights stay)")
+            # A constant factor picks per hit too where the sides do not blend exactly
+            # (two roughnesses): "varies over the surface" misread it (lead, s42).
+            how = ("by a factor that varies over the surface" if varies else
+                   "(each point of the surface takes one side, in the mix's proportions)")
+            self._warn(f"material '{self._mat.name}': {who} mixes a {sides} {how}; a "
+                       "material keeps one way of colouring its reflection, so both sides "
+                       f"reflect as the {model} does (the mix's weights stay)")
 
     def _normal(self, node):
         """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an

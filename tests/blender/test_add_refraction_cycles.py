@@ -134,6 +134,14 @@ MIX_CASES = {
     # The picked side's coat tint and IOR (a green-tinted coat on red, no coat on blue:
     # the blend's tint was halfway to white). A rough coat: no sharp highlight of the sun
     # in view, whose few pixels would decide the mean.
+    # A Glossy BSDF and a Principled dielectric of another roughness, in either order:
+    # with the Glossy BSDF first they were blended to one roughness (s42: highlight
+    # blocks 0.91-1.41 of Cycles on a ball); now picked per hit under the Glossy BSDF's
+    # colour model, exact for a side without a metal lobe.
+    "gold glossy+blue dielectric 0.4": lambda nd, ln: _mix(
+        nd, ln, 0.4, _glossy(nd, (0.9, 0.8, 0.3), 0.25), _blue_dielectric(nd)),
+    "blue dielectric+gold glossy 0.6": lambda nd, ln: _mix(
+        nd, ln, 0.6, _blue_dielectric(nd), _glossy(nd, (0.9, 0.8, 0.3), 0.25)),
     "green-coated red+blue 0.5": lambda nd, ln: _mix(
         nd, ln, 0.5, _principled(nd, (0.8, 0.2, 0.1), 0.4,
                                  coat=(1.0, (0.3, 0.9, 0.2), 2.0, 0.3)),
@@ -413,14 +421,18 @@ def test_ceiling_lit_by_a_mix_shader_floor_matches_cycles(fresh_scene, bpy_addon
 
 
 def test_picked_mix_warns_what_stays_one_per_material(fresh_scene, bpy_addon):
-    """mixsides: a picked mix of a Principled and a Glossy BSDF renders both sides with
-    one colour model (the Principled one), and sides with different Normal inputs share
-    one shading normal: both are warned, naming the material and the node; a pick whose
-    sides agree in both warns nothing of the kind."""
+    """mixsides: a picked mix of a Principled metal and a Glossy BSDF renders both sides
+    with one colour model (the Principled one), and sides with different Normal inputs
+    share one shading normal: both are warned, naming the material and the node; a pick
+    whose sides agree in both warns nothing of the kind, nor does a Glossy BSDF beside a
+    Principled without a metal lobe (the Glossy BSDF's model renders both exactly)."""
     from blender_helpers import convert_material
     bpy = bpy_addon
 
     def models(nd, ln):
+        return _noise_mix(nd, ln, _gold_metal(nd), _glossy(nd, (0.9, 0.7, 0.3), 0.2))
+
+    def dielectric_glossy(nd, ln):
         return _noise_mix(nd, ln, _blue_dielectric(nd), _glossy(nd, (0.9, 0.7, 0.3), 0.2))
 
     def normals(nd, ln):
@@ -436,6 +448,50 @@ def test_picked_mix_warns_what_stays_one_per_material(fresh_scene, bpy_addon):
     assert any("'Normals'" in x and "'Normal' inputs differ" in x for x in w), w
     w = convert_material(_material(bpy, "Plain", MIX_CASES["dielectric+metal noise"])).warnings
     assert not any("way of colouring" in x or "inputs differ" in x for x in w), w
+    m = convert_material(_material(bpy, "DG", dielectric_glossy))
+    assert m.node == "glossy", m.node
+    assert not any("way of colouring" in x for x in m.warnings), m.warnings
+
+
+@pytest.mark.parametrize("first", ["glossy", "principled"])
+def test_a_glossy_bsdf_mixed_with_a_principled_is_picked_and_named_glossy(
+        fresh_scene, bpy_addon, first):
+    """Mix of a Glossy BSDF (roughness 0.1) and a Principled dielectric (0.6) at a constant
+    factor, in either order: each hit takes one side whole (a blend held one roughness,
+    0.25, with the Glossy BSDF first), under the Glossy BSDF's colour model, without a
+    warning; the effect report names a glossy object, not 'polished metal (metallic 1)'
+    (newuser41b)."""
+    from blender_helpers import convert_material, export_warnings
+    from engine.shadernodes import ClosurePick
+    bpy = bpy_addon
+
+    def build(nd, ln):
+        g, p = _glossy(nd, (0.9, 0.8, 0.3), 0.1), _principled(nd, (0.7, 0.1, 0.1), 0.6)
+        return _mix(nd, ln, 0.3, g, p) if first == "glossy" else _mix(nd, ln, 0.7, p, g)
+    mat = _material(bpy, "GP", build)
+    m = convert_material(mat)
+    assert m.node == "glossy", m.node
+    roots = list((m.scalar_textures or {}).values())
+    assert any(isinstance(n, ClosurePick) for r in roots for n in _nodes_of(r)), roots
+    assert not any("Mix Shader" in x for x in m.warnings), m.warnings
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0, 0, 0.5))
+    bpy.context.object.data.materials.append(mat)
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    lamp.location = (1.0, -1.0, 3.0)
+    fresh_scene.collection.objects.link(lamp)
+    _camera(bpy, fresh_scene, (0.0, -3.0, 0.5), (math.radians(90.0), 0.0, 0.0))
+    from addon.core import load_engine
+    from addon import export
+    from engine import RenderSettings
+    from engine.render import prepare_context
+    scene, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                   width=16, height=12)
+    ctx = prepare_context(scene, RenderSettings(photons=2000, caustic_photons=2000,
+                                                workers=1))
+    ctx.accel.close()
+    line = next(x for x in ctx.plan.report() if x.startswith("specular reflection"))
+    assert "glossy 'Sphere' (Glossy BSDF, roughness 0.1)" in line, line
+    assert "metal" not in line, line
 
 
 def _glass_cylinder(bpy, scene, roughness):
