@@ -309,11 +309,11 @@ def _no_metal_lobe(c: Closure) -> bool:
 
 def _lead(a: Closure, b: Closure, ga: float, gb: float) -> Closure:
     """The side whose colour model (`node`) and distribution a blend keeps: the one with
-    more glossy / glass weight (ga, gb); on a tie a Glossy / Glass BSDF before a
-    Principled BSDF without a metal lobe, which renders the same under either model
+    more glossy / glass weight (ga, gb); on a tie a Glossy BSDF before a Principled
+    BSDF without a metal lobe, which renders the same under either model
     (Mix of Principled and Glossy BSDF named the Glossy side 'polished metal (metallic 1)'
     and coloured it by Principled's metal Fresnel: newuser41b)."""
-    if ga == gb and _no_metal_lobe(a) and b.node != "principled":
+    if ga == gb and _no_metal_lobe(a) and b.node == "glossy":
         return b
     return a if ga >= gb else b
 
@@ -1754,7 +1754,7 @@ class MaterialConverter:
                        "hit, but their 'Normal' inputs differ: one shading normal per "
                        "material is used for both (the first side's that has one)")
         other = b if out.node == a.node else a
-        if a.node != b.node and not _no_metal_lobe(other):
+        if a.node != b.node and not (out.node == "glossy" and _no_metal_lobe(other)):
             names = {"glossy": "Glossy BSDF", "glass": "Glass BSDF",
                      "refraction": "Refraction BSDF"}
             model = names.get(out.node, "Principled BSDF")
