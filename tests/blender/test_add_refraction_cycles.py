@@ -107,6 +107,13 @@ def _noise_mix(nodes, links, a, b):
     return n.outputs[0]
 
 
+def _glass_node(nd):
+    n = nd.new("ShaderNodeBsdfGlass")
+    n.inputs["Roughness"].default_value = 0.0
+    n.inputs["Color"].default_value = (0.9, 0.9, 0.6, 1.0)
+    return n.outputs[0]
+
+
 def _blue_dielectric(nd):
     return _principled(nd, (0.1, 0.4, 0.8), 0.6)
 
@@ -142,6 +149,10 @@ MIX_CASES = {
         nd, ln, 0.4, _glossy(nd, (0.9, 0.8, 0.3), 0.25), _blue_dielectric(nd)),
     "blue dielectric+gold glossy 0.6": lambda nd, ln: _mix(
         nd, ln, 0.6, _blue_dielectric(nd), _glossy(nd, (0.9, 0.8, 0.3), 0.25)),
+    # A Glass BSDF beside a Principled dielectric: blended, 4.6 / 2.3 / 1.4 x Cycles per
+    # channel on this plane (s42); picked per hit, within 1 %.
+    "yellow glass+blue dielectric 0.5": lambda nd, ln: _mix(
+        nd, ln, 0.5, _glass_node(nd), _blue_dielectric(nd)),
     "green-coated red+blue 0.5": lambda nd, ln: _mix(
         nd, ln, 0.5, _principled(nd, (0.8, 0.2, 0.1), 0.4,
                                  coat=(1.0, (0.3, 0.9, 0.2), 2.0, 0.3)),
