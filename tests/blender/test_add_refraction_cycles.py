@@ -153,6 +153,13 @@ MIX_CASES = {
     # channel on this plane (s42); picked per hit, within 1 %.
     "yellow glass+blue dielectric 0.5": lambda nd, ln: _mix(
         nd, ln, 0.5, _glass_node(nd), _blue_dielectric(nd)),
+    # A Glass BSDF's colour tints its own lobes: a blend with a blue Diffuse averaged the
+    # colours (4.8 / 1.6 / 0.85 x Cycles); two Glossy BSDFs of two colours and roughnesses
+    # were blended to one (0.84 / 1.04 / 1.33 x). Both picked per hit since s42.
+    "yellow glass+blue diffuse 0.5": lambda nd, ln: _mix(
+        nd, ln, 0.5, _glass_node(nd), _diffuse(nd, (0.1, 0.4, 0.8))),
+    "gold glossy 0.25+cyan glossy 0.6": lambda nd, ln: _mix(
+        nd, ln, 0.5, _glossy(nd, (0.9, 0.8, 0.3), 0.25), _glossy(nd, (0.3, 0.8, 0.9), 0.6)),
     "green-coated red+blue 0.5": lambda nd, ln: _mix(
         nd, ln, 0.5, _principled(nd, (0.8, 0.2, 0.1), 0.4,
                                  coat=(1.0, (0.3, 0.9, 0.2), 2.0, 0.3)),
