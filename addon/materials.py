@@ -337,7 +337,7 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         out.transparent_tint = (pa * a.transparent_tint + pb * b.transparent_tint) / (pa + pb)
     sa = wa * a.alpha if a.has_bsdf else 0.0
     sb = wb * b.alpha if b.has_bsdf else 0.0
-    # An emission-only closure is black as a surface: it dilutes the BSDF's colour.
+    # An emission-only closure is black as a surface (its share scales the BSDF: weight).
     da = wa * a.alpha if not a.has_bsdf else 0.0
     db = wb * b.alpha if not b.has_bsdf else 0.0
     total = sa + sb
@@ -383,7 +383,12 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     out.node = lead.node
     out.anisotropic = lead.anisotropic
     out.anisotropic_rotation = lead.anisotropic_rotation
-    out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
+    out.base_color = ta * a.base_color + tb * b.base_color
+    # An emission-only side is black as a surface: every BSDF lobe of the other side is
+    # scaled by its share, as Cycles weights the closures (the closure weight; scaling
+    # the colour dimmed a diffuse base but left a Glossy BSDF's colour, a dielectric's
+    # specular layer and a sheen whole: Mix of Emission and Glossy read 1.65 x Cycles).
+    out.weight = total / (total + da + db)
     if out.node == "glossy":
         # Diffuse + Glossy: the glossy lobe keeps the Glossy BSDF's colour and the diffuse
         # lobe the other side's, instead of both taking the blend of the two.
@@ -394,8 +399,7 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
             out.glossy_color = (ma * ca + mb * cb) / (ma + mb)
         na, nb = ta * (1.0 - a.metallic), tb * (1.0 - b.metallic)
         if na + nb > 0:
-            out.base_color = ((na * a.base_color + nb * b.base_color) / (na + nb)
-                              * (total / (total + da + db)))
+            out.base_color = (na * a.base_color + nb * b.base_color) / (na + nb)
     # Texture-driven scalar inputs blend with the same constant weights, as node trees;
     # the per-hit IOR, tints, distribution and anisotropy of a picked Mix Shader side
     # (_mix_per_hit) as their constants do: the IOR by glossy share, the tints as colours,
@@ -1557,7 +1561,7 @@ class MaterialConverter:
             out.weight = 0.0
         else:
             out = _blend(a, b, wa / total, wb / total, sn)
-            out.weight = total
+            out.weight = total * out.weight  # (an emission-only side's share: _blend)
         out.emission, out.emission_texture = _emission_mix(sn, ea, a, eb, b)
         if not all(c.alpha == 1.0 and c.alpha_texture is None for c in (a, b)):
             self._warn(f"material '{self._mat.name}': {node.type.replace('_', ' ').title()} "

@@ -107,6 +107,13 @@ def _noise_mix(nodes, links, a, b):
     return n.outputs[0]
 
 
+def _emission(nd, rgb, strength=0.5):
+    n = nd.new("ShaderNodeEmission")
+    n.inputs["Color"].default_value = (*rgb, 1.0)
+    n.inputs["Strength"].default_value = strength
+    return n.outputs[0]
+
+
 def _glass_node(nd):
     n = nd.new("ShaderNodeBsdfGlass")
     n.inputs["Roughness"].default_value = 0.0
@@ -160,6 +167,13 @@ MIX_CASES = {
         nd, ln, 0.5, _glass_node(nd), _diffuse(nd, (0.1, 0.4, 0.8))),
     "gold glossy 0.25+cyan glossy 0.6": lambda nd, ln: _mix(
         nd, ln, 0.5, _glossy(nd, (0.9, 0.8, 0.3), 0.25), _glossy(nd, (0.3, 0.8, 0.9), 0.6)),
+    # An Emission side is black as a surface: the other side's lobes scale by their
+    # share. The colour was scaled instead, which left a Glossy BSDF (1.65 x Cycles), a
+    # dielectric's specular layer (1.11-1.29 x) and a sheen (1.18 x) whole (s42).
+    "gold glossy+green emission 0.4": lambda nd, ln: _mix(
+        nd, ln, 0.4, _glossy(nd, (0.9, 0.8, 0.3), 0.25), _emission(nd, (0.2, 0.9, 0.3))),
+    "red dielectric+green emission 0.4": lambda nd, ln: _mix(
+        nd, ln, 0.4, _principled(nd, (0.8, 0.2, 0.1), 0.5), _emission(nd, (0.2, 0.9, 0.3))),
     "green-coated red+blue 0.5": lambda nd, ln: _mix(
         nd, ln, 0.5, _principled(nd, (0.8, 0.2, 0.1), 0.4,
                                  coat=(1.0, (0.3, 0.9, 0.2), 2.0, 0.3)),
