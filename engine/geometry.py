@@ -172,10 +172,20 @@ def scalar_columns(m: Material):
            "sheen_roughness": pr.M_SHEEN_ROUGH,
            "ior": pr.M_IOR, "coat_ior": pr.M_COAT_IOR, "multiscatter": pr.M_MULTI,
            "anisotropic": pr.M_ANISO, "anisotropic_rotation": pr.M_AROT,
+           "node": pr.M_NODE,
            "specular_tint": slice(pr.M_STINT, pr.M_STINT + 3),
            "coat_tint": slice(pr.M_CTINT, pr.M_CTINT + 3),
            "sheen_tint": slice(pr.M_SHEEN_TINT, pr.M_SHEEN_TINT + 3)}
     return [(col[k], node, *SCALAR_INPUTS[k]) for k, node in m.scalar_textures.items()]
+
+
+def node_code(node: str) -> int:
+    """closures/principled.py's code (its M_NODE column) of a Material.node name: the
+    closure model whose colour and lobes the row takes ('principled', 'glossy', 'glass',
+    'refraction')."""
+    from .closures import principled as pr
+    return {"principled": pr.NODE_PRINCIPLED, "glossy": pr.NODE_GLOSSY,
+            "glass": pr.NODE_GLASS, "refraction": pr.NODE_REFRACTION}[node]
 
 
 def closure_params(materials: list[Material]) -> np.ndarray:
@@ -198,8 +208,7 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         row[pr.M_COAT_IOR] = m.coat_ior
         row[pr.M_CTINT:pr.M_CTINT + 3] = m.coat_tint
         row[pr.M_MULTI] = 1.0 if m.multiscatter else 0.0
-        row[pr.M_NODE] = {"principled": pr.NODE_PRINCIPLED, "glossy": pr.NODE_GLOSSY,
-                          "glass": pr.NODE_GLASS, "refraction": pr.NODE_REFRACTION}[m.node]
+        row[pr.M_NODE] = node_code(m.node)
         if m.glossy_color is not None:
             row[pr.M_GCOL:pr.M_GCOL + 3] = m.glossy_color
             row[pr.M_HAS_GCOL] = 1.0

@@ -474,6 +474,9 @@ SCALAR_INPUTS = {"roughness": (0.0, 1.0), "metallic": (0.0, 1.0), "specular": (0
                  # coat's IOR >= 1, a 0 / 1 distribution flag, anisotropy in [-1, 1]).
                  "ior": (1e-5, np.inf), "coat_ior": (1.0, np.inf), "multiscatter": (0.0, 1.0),
                  "anisotropic": (-1.0, 1.0), "anisotropic_rotation": (-np.inf, np.inf),
+                 # The picked side's closure model (geometry.node_code: 0 Principled,
+                 # 1 Glossy, 2 Glass, 3 Refraction BSDF).
+                 "node": (0.0, 3.0),
                  # Colours (three columns each, per channel >= 0).
                  "specular_tint": (0.0, np.inf), "coat_tint": (0.0, np.inf),
                  "sheen_tint": (0.0, np.inf)}
