@@ -697,7 +697,14 @@ class MaterialConverter:
         if surface is None or not surface.is_linked:
             # Cycles renders an unconnected surface black.
             return Closure(base_color=(0.0, 0.0, 0.0))
+        self._subsurface_mixes = []
         closure = self._shader(self._source(surface), 0)
+        if self._subsurface_mixes and getattr(closure, "subsurface", None) is None:
+            # (engine/subsurfacewalk.py takes one subsurface surface per material row)
+            self._warn(f"material '{mat.name}': Mix Shader "
+                       f"'{self._subsurface_mixes[0]}' mixes a surface with subsurface "
+                       "scattering; the mix renders its subsurface part as the diffuse "
+                       "stand-in (no random walk beneath the surface)")
         disp = out.inputs.get("Displacement")
         if disp is not None and disp.is_linked:
             self._displacement(mat, disp, closure)
@@ -1244,12 +1251,11 @@ class MaterialConverter:
             b = self._shader(self._source(inp[2]), depth + 1)
             if getattr(a, "subsurface", None) is not None \
                     or getattr(b, "subsurface", None) is not None:
-                # (a mix's closure carries no walk: engine/subsurfacewalk.py takes one
-                # subsurface surface per material)
-                self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes a "
-                           "surface with subsurface scattering; the mix renders its "
-                           "subsurface part as the diffuse stand-in (no random walk beneath "
-                           "the surface)")
+                # A pick keeps the walk of its one subsurface side (_mix_per_hit); what
+                # else a mix makes carries none: warned once the surface is known
+                # (_material_closure).
+                self._subsurface_mixes = [*getattr(self, "_subsurface_mixes", ()),
+                                          node.name]
             fac = self._input(node, inp[0], depth) if self._source(inp[0]) else None
             if hasattr(fac, "evaluate") and (a.translucent > 0 or b.translucent > 0):
                 self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes a "
@@ -1610,6 +1616,9 @@ class MaterialConverter:
         # The colour model of their blend (_blend: the side with more glossy / glass
         # weight leads), found without building the blend: a side's texture-driven
         # scalars would need engine nodes for that.
+        if (getattr(a, "subsurface", None) is None) != (getattr(b, "subsurface", None) is None):
+            # Only a pick keeps the one subsurface side's walk (_picked_walk).
+            return True
         ga = a.metallic + a.transmission + a.specular
         gb = b.metallic + b.transmission + b.specular
         if _lead(a, b, ga, gb).node != "principled":
@@ -1770,7 +1779,31 @@ class MaterialConverter:
                 # Both sides' glossy lobes: the picked colour (the base), not _blend's
                 # constant glossy_color (two Glossy BSDFs: 0.84 / 1.04 / 1.33 x Cycles).
                 out.glossy_color = None
+        ssa, ssb = getattr(a, "subsurface", None), getattr(b, "subsurface", None)
+        if pick and (ssa is None) != (ssb is None):
+            out.subsurface = self._picked_walk(a, b, ssa, ssb, f, colour)
         return out
+
+    def _picked_walk(self, a: Closure, b: Closure, ssa, ssb, f, colour):
+        """The walk of a pick's one subsurface side (engine/subsurfacewalk.py): its
+        weight where a hit takes that side, 0 where it takes the other; the colour the
+        walk entry compares with the hit's base (SubsurfaceWalks.entries): the side's
+        own Base Color there, the other side's colour elsewhere (whose diffuse closure
+        is then left as it is). A Mix Shader of a skin and a Glossy BSDF walked nowhere
+        before s42 (the diffuse stand-in, warned)."""
+        from dataclasses import replace
+        sn = self.pm.shadernodes
+        ss = ssa if ssa is not None else ssb
+        other = b if ssa is not None else a
+        w = ss.weight if ss.weight_node is None else ss.weight_node
+        c = np.asarray(ss.color, np.float64) if ss.color_node is None else ss.color_node
+        if ssa is not None:
+            weight = sn.Math("MULTIPLY", sn.Math("SUBTRACT", 1.0, f), w)
+            color = sn.MixColor(f, c, colour(other))
+        else:
+            weight = sn.Math("MULTIPLY", f, w)
+            color = sn.MixColor(f, colour(other), c)
+        return replace(ss, weight_node=weight, color_node=color)
 
     def _warn_per_material(self, a: Closure, b: Closure, node):
         """Warn where a picked Mix / Add Shader's sides differ in what stays one per

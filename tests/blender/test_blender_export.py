@@ -497,17 +497,20 @@ def test_subsurface_node_with_a_textured_colour_walks(fresh_scene, bpy_addon):
     assert type(mat.texture).__name__ == "SubsurfaceColor"
 
 
-def test_a_mix_with_a_subsurface_side_warns_that_it_does_not_walk(fresh_scene, bpy_addon):
-    """A Mix Shader of a subsurface Principled and a Glossy BSDF: the mix carries no
-    random walk (its subsurface part renders as the stand-in), said once, naming the
-    material and the node (ssstex41 found it silent)."""
+def test_a_mix_of_two_subsurface_sides_warns_that_it_does_not_walk(fresh_scene, bpy_addon):
+    """A Mix Shader of two subsurface Principled BSDFs: the mix carries no random walk
+    (one walk per material; its subsurface part renders as the stand-in), said once,
+    naming the material and the node (ssstex41 found it silent). One subsurface side
+    walks since s42 (tests/blender/test_subsurface_walk_cycles.py)."""
     bpy = bpy_addon
     from blender_helpers import node_material
     obj = _cube(bpy, "Wax", (0, 0, 0))
     m, nt, out_node = node_material(bpy, "WaxMix")
     p = nt.nodes.new("ShaderNodeBsdfPrincipled")
     p.inputs["Subsurface Weight"].default_value = 1.0
-    g = nt.nodes.new("ShaderNodeBsdfGlossy")
+    g = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    g.inputs["Subsurface Weight"].default_value = 1.0
+    g.inputs["Base Color"].default_value = (0.2, 0.3, 0.9, 1.0)
     mix = nt.nodes.new("ShaderNodeMixShader")
     mix.name = "Coat mix"
     mix.inputs["Fac"].default_value = 0.3
