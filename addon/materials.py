@@ -1630,9 +1630,14 @@ class MaterialConverter:
                 # The Glossy BSDF's model keeps the two colours in their own lobes
                 # (glossy_color); a Glass BSDF's tints its lobes by the one base colour,
                 # which a blend averages (Glass + blue Diffuse: 4.8 / 1.6 / 0.85 x Cycles).
-                return not (_lead(a, b, ga, gb).node == "glossy"
-                            or (a.texture is None and b.texture is None
-                                and np.allclose(a.base_color, b.base_color)))
+                # A sheen or coat side would become a layer over the glossy lobe, dimming
+                # it by its albedo (Glossy + Sheen BSDF 0.975 x Cycles).
+                layered = any(_closure_value(c, k) != 0 if not hasattr(
+                    _closure_value(c, k), "evaluate") else True
+                    for c in (a, b) for k in ("sheen_weight", "coat_weight"))
+                return layered or not (_lead(a, b, ga, gb).node == "glossy"
+                                       or (a.texture is None and b.texture is None
+                                           and np.allclose(a.base_color, b.base_color)))
             ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
             return (hasattr(ra, "evaluate") or hasattr(rb, "evaluate") or ra != rb
                     or not MaterialConverter._same_layers(a, b, ga, gb))

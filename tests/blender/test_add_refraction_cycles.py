@@ -136,6 +136,12 @@ def _glass_node(nd, roughness=0.0, rgb=(0.9, 0.9, 0.6)):
     return n.outputs[0]
 
 
+def _sheen(nd, rgb):
+    n = nd.new("ShaderNodeBsdfSheen")
+    n.inputs["Color"].default_value = (*rgb, 1.0)
+    return n.outputs[0]
+
+
 def _refraction(nd, roughness=0.2, rgb=(0.6, 0.9, 0.6)):
     n = nd.new("ShaderNodeBsdfRefraction")
     n.inputs["Roughness"].default_value = roughness
@@ -202,6 +208,10 @@ MIX_CASES = {
         nd, ln, 0.4, _glass_node(nd, 0.3, (0.9, 0.9, 0.9)), _refraction(nd)),
     "gold metal+green refraction 0.4": lambda nd, ln: _mix(
         nd, ln, 0.4, _gold_metal(nd), _refraction(nd)),
+    # A Sheen BSDF beside a Glossy BSDF became a sheen layer over the glossy lobe,
+    # dimming it by the sheen's albedo (0.975-0.98 x Cycles, s42); picked since.
+    "gold glossy+pink sheen 0.4": lambda nd, ln: _mix(
+        nd, ln, 0.4, _glossy(nd, (0.9, 0.8, 0.3), 0.25), _sheen(nd, (0.9, 0.3, 0.5))),
     "green-coated red+blue 0.5": lambda nd, ln: _mix(
         nd, ln, 0.5, _principled(nd, (0.8, 0.2, 0.1), 0.4,
                                  coat=(1.0, (0.3, 0.9, 0.2), 2.0, 0.3)),
