@@ -1326,7 +1326,12 @@ class MaterialConverter:
                           roughness=out.roughness, transmission=out.transmission,
                           ior=out.ior, specular=out.specular,
                           emission=a.emission + b.emission,
-                          alpha=max(out.alpha, other.alpha), texture=out.texture,
+                          # An emission-only side adds light, not coverage: Add of a
+                          # Transparent BSDF and an Emission (a glowing hologram) is
+                          # see-through (it rendered an opaque grey card, 7.3 / 2.4 /
+                          # 5.2 x Cycles).
+                          alpha=out.alpha if out.has_bsdf else max(out.alpha, other.alpha),
+                          texture=out.texture,
                           has_bsdf=out.has_bsdf, normal_map=out.normal_map,
                           alpha_texture=out.alpha_texture,
                           **{k: getattr(out, k) for k in Closure.EXTRA})
