@@ -1626,6 +1626,10 @@ class MaterialConverter:
             return True
         ga = a.metallic + a.transmission + a.specular
         gb = b.metallic + b.transmission + b.specular
+        if a.translucent > 0 or b.translucent > 0:
+            # _blend keeps a Translucent BSDF's share and colour apart (exact when one
+            # side is wholly translucent).
+            return False
         if _lead(a, b, ga, gb).node != "principled":
             # A Glossy / Glass BSDF leads: exact beside a side without a glossy lobe (a
             # Diffuse BSDF) or one of the same roughness; a Principled layer of another
@@ -1646,10 +1650,6 @@ class MaterialConverter:
             ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
             return (hasattr(ra, "evaluate") or hasattr(rb, "evaluate") or ra != rb
                     or not MaterialConverter._same_layers(a, b, ga, gb))
-        if a.translucent > 0 or b.translucent > 0:
-            # _blend keeps a Translucent BSDF's share and colour apart (exact when one
-            # side is wholly translucent).
-            return False
 
         lobes = [(_closure_value(a, n), _closure_value(b, n))
                  for n in MaterialConverter.LINEAR_SCALARS]
