@@ -34,18 +34,10 @@ ARGV, sys.argv = sys.argv[1:], sys.argv[:1]
 import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
+from bench_product_shot import _principled  # noqa: E402
+from newuser24_scenes import camera as _camera, world_colour  # noqa: E402
+
 SCENES = ("sun_sky", "world", "product")
-
-
-def _principled(name, color, roughness=0.5, metallic=0.0):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    p = m.node_tree.nodes["Principled BSDF"]
-    p.inputs["Base Color"].default_value = (*color, 1.0)
-    p.inputs["Roughness"].default_value = roughness
-    p.inputs["Metallic"].default_value = metallic
-    return m
 
 
 def _active(name, mat):
@@ -53,26 +45,6 @@ def _active(name, mat):
     o.name = name
     o.data.materials.append(mat)
     return o
-
-
-def _camera(loc, target, lens):
-    bpy.ops.object.camera_add(location=loc)
-    cam = bpy.context.active_object
-    cam.data.lens = lens
-    cam.rotation_euler = (Vector(target) - Vector(loc)).to_track_quat("-Z", "Y").to_euler()
-    bpy.context.scene.camera = cam
-
-
-def _world(color, strength):
-    scene = bpy.context.scene
-    w = bpy.data.worlds.new("World")
-    scene.world = w
-    if bpy.app.version < (5, 0, 0):
-        w.use_nodes = True
-    bg = w.node_tree.nodes["Background"]
-    bg.inputs["Color"].default_value = (*color, 1.0)
-    bg.inputs["Strength"].default_value = strength
-    return w
 
 
 def _yard(ground_size):
@@ -109,8 +81,8 @@ def build(kind: str, path: str, width: int = 160, height: int = 120):
         to_sun = Vector((math.cos(elevation) * math.sin(rotation),
                          -math.cos(elevation) * math.cos(rotation), math.sin(elevation)))
         sun.rotation_euler = (-to_sun).to_track_quat("-Z", "Y").to_euler()
-        w = _world((1, 1, 1), 0.3)
-        nt = w.node_tree
+        world_colour(scene, (1, 1, 1), 0.3)
+        nt = scene.world.node_tree
         sky = nt.nodes.new("ShaderNodeTexSky")
         names = [i.identifier for i in sky.bl_rna.properties["sky_type"].enum_items]
         sky.sky_type = "NISHITA" if "NISHITA" in names else sky.sky_type
@@ -118,7 +90,7 @@ def build(kind: str, path: str, width: int = 160, height: int = 120):
         sky.sun_elevation, sky.sun_rotation = elevation, rotation
         nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
     elif kind == "world":
-        _world((0.5, 0.65, 0.9), 1.0)
+        world_colour(scene, (0.5, 0.65, 0.9), 1.0)
     elif kind == "product":
         bpy.ops.mesh.primitive_plane_add(size=50)
         _active("Floor", _principled("Floor", (0.7, 0.7, 0.7), 0.6))
@@ -134,7 +106,7 @@ def build(kind: str, path: str, width: int = 160, height: int = 120):
         key.data.energy, key.data.size = 150.0, 1.0
         key.rotation_euler = (Vector((0, 0, 0.3)) - key.location).to_track_quat(
             "-Z", "Y").to_euler()
-        _world((0.8, 0.85, 1.0), 0.3)
+        world_colour(scene, (0.8, 0.85, 1.0), 0.3)
         _camera((0.5, -4.5, 1.6), (0.1, 0, 0.35), 50)
     else:
         raise ValueError(f"unknown scene {kind!r}; one of {SCENES}")
