@@ -43,7 +43,7 @@ from .stagespans import StageSpans
 from .heterogeneous import HeterogeneousMedia
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
-from .visualimportance import indirect_share
+from .visualimportance import glow_share, indirect_share
 from .volumeemission import glows
 
 
@@ -709,6 +709,16 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
                              should_cancel=should_cancel,
                              first_hit=None if split is None else (split, False))
         if g_emitters is not None:
+            # The glow shot's size from the glow's share of what the camera sees, now
+            # that the global shot holds its caustic-kind photons (glow_split).
+            # (The bar was planned with the largest shot: a smaller one only ends the
+            # photon stage's span early.)
+            g_share = glow_share(ctx, shot, s.radius or 0.1 * geo.extent)
+            g_split = glow_split(g_share)
+            stats["glow_share"], stats["glow_split"] = g_share, g_split
+            g_emitters, g_counts = glow_emitters(emitters, counts,
+                                                 photon_counts(ctx, s.photons), g_split)
+            sizes = (sizes[0], int(sum(g_counts)), sizes[2])
             # The glow's caustic paths (light off rough specular layers first, or window
             # glass: L S+ D, the first S not a caster) from a shot of their own whose
             # photons are lighter (GLOW_STREAM's comment).
@@ -1293,25 +1303,44 @@ GLOW_KIND_WORDS = {"glossy": "soft glow off rough specular layers",
 GLOW_SHOT = True  # False: the glow from the global shot's photons, as before (A/B benches)
 GLOW_STREAM = 3  # trace_photons' random stream of the glow shot (global 1, caustic 2)
 GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one (glow_emitters)
+# The glow shot's split follows the glow's share of the light the camera sees
+# (visualimportance.glow_share, an rms of per-hit shares): GLOW_SPLIT from this share up,
+# in proportion below it, never under 1 (no glow photon heavier than a natural photon or
+# than the global shot's aimed ones). Caustic-map noise in a pixel is about share^2 x V / N
+# for N photons, their cost about N: variance x cost is least with N in proportion to
+# the share, as gather_count's rays. The roughglint wall (the shot's reason: sunlit grass's
+# specular layer most of a shaded wall's light) reads 0.11; small exteriors under a sun and
+# sky, a world colour or an area light 0.02-0.03, where the 4x shot (2.0-2.4M photons to
+# store 1.5-7k) was 40 % of a 16-spp render's CPU (docs/performance.md, "exterior42").
+GLOW_SHARE_FULL = 0.08
 
 
-def glow_emitters(emitters, counts, natural) -> tuple:
+def glow_split(share: float | None) -> float:
+    """Glow photons per global photon (and outside the region per natural one) for a
+    glow of rms share `share` (visualimportance.glow_share; None: not known, GLOW_SPLIT):
+    GLOW_SPLIT x share / GLOW_SHARE_FULL, from 1 to GLOW_SPLIT."""
+    if share is None or not math.isfinite(share):
+        return GLOW_SPLIT
+    return float(min(GLOW_SPLIT, max(1.0, GLOW_SPLIT * share / GLOW_SHARE_FULL)))
+
+
+def glow_emitters(emitters, counts, natural, split: float = GLOW_SPLIT) -> tuple:
     """The glow shot's (emitters, counts) from the global shot's (global_emitters: lights
     or visualimportance.RegionEmitters / portal.PortalEmitters, in ctx.lights' order) and the natural photon
-    counts per light (photon_counts). A RegionEmitter emits GLOW_SPLIT x its aimed photons
-    (into the region: each 1 / GLOW_SPLIT of the global shot's) and outside at least
-    GLOW_SPLIT x the light's natural count (each at most 1 / GLOW_SPLIT of a natural
+    counts per light (photon_counts). A RegionEmitter emits `split` (glow_split) x its
+    aimed photons (into the region: each 1 / split of the global shot's) and outside at
+    least split x the light's natural count (each at most 1 / split of a natural
     photon's power); the split of the emission space is the RegionEmitter's, so the
-    expected power anywhere is the light's own. Lights that do not aim keep GLOW_SPLIT x
+    expected power anywhere is the light's own. Lights that do not aim keep split x
     their global counts."""
     out_e, out_c = [], []
     for e, c, nat in zip(emitters, counts, natural):
         if getattr(e, "share", None) is None or c <= 0:
             out_e.append(e)
-            out_c.append(int(round(GLOW_SPLIT * c)))
+            out_c.append(int(round(split * c)))
             continue
-        aimed = GLOW_SPLIT * e.share * c
-        outside = GLOW_SPLIT * max((1.0 - e.share) * c, nat)
+        aimed = split * e.share * c
+        outside = split * max((1.0 - e.share) * c, nat)
         total = max(int(round(aimed + outside)), 1)
         g = copy.copy(e)  # the same light, region and sphere probabilities
         g.share = min(aimed / total, 1.0)

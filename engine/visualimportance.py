@@ -613,24 +613,18 @@ SHARE_RAYS = 1024
 SHARE_PHOTONS = 1 << 16
 
 
-def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
-                   max_photons: int = SHARE_PHOTONS) -> float | None:
-    """The share of the irradiance at the diffuse surfaces the camera sees that final
-    gathering carries: the INDIRECT photons' estimate over that of every photon the
-    gather map holds (direct, indirect, and caustic light one diffuse bounce back; the
-    caustic photons are left out as the gather map leaves them out), summed as luminance
-    over the pre-pass' diffuse camera hits (diffuse_camera_hits, ~`rays` camera rays,
-    mirrored on). Both estimates come from the same k-NN discs of a stride of the shot
-    (at most max_photons; radius (m) is scaled up by the stride's square root), so their
-    ratio keeps no blur of its own. None when the camera sees nothing diffuse or the shot
-    holds no photon there. Seeded by the settings' seed, on the calling thread: the
-    same value for any worker count."""
-    from .photonkernels import CAUSTIC, INDIRECT
+def _kind_estimates(ctx, shot, radius: float, rows: np.ndarray, kinds: tuple,
+                    rays: int, max_photons: int):
+    """Luminance (N,) of two k-NN irradiance estimates at the pre-pass' diffuse camera hits
+    (diffuse_camera_hits, ~`rays` camera rays, seeded by the settings' seed): from the
+    shot's photons `rows` (a stride of at most max_photons of them; radius (m), the
+    search cap, scaled up by the stride's square root), and from those of them whose
+    kind is in `kinds`. Same discs for both: their ratio keeps no blur of its own.
+    None when the camera sees nothing diffuse or `rows` holds fewer than two photons."""
     from .photonmap import PhotonMap
     from .photons import Photons
     s = ctx.settings
     p, ng, _ = diffuse_camera_hits(ctx, rays, np.random.default_rng([s.seed, 96]))
-    rows = np.flatnonzero(shot.kind != CAUSTIC)
     if len(p) == 0 or len(rows) < 2:
         return None
     step = max(1, -(-len(rows) // max_photons))
@@ -639,14 +633,55 @@ def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
     r = radius * math.sqrt(step)
     E = pm.irradiance(p, ng, r, s.k_nearest, 1, s.estimator)
     ph = pm.photons
-    indirect = (ph.kind == INDIRECT).astype(np.float32)[:, None]
-    pm.photons = Photons(ph.position, ph.power * indirect, ph.direction, ph.normal, ph.kind,
+    keep = np.isin(ph.kind, kinds).astype(np.float32)[:, None]
+    pm.photons = Photons(ph.position, ph.power * keep, ph.direction, ph.normal, ph.kind,
                          ph.emitted, surface=ph.surface)
-    Ei = pm.irradiance(p, ng, r, s.k_nearest, 1, s.estimator)
-    total = float(luminance(E).sum())
+    Ek = pm.irradiance(p, ng, r, s.k_nearest, 1, s.estimator)
+    return luminance(E), luminance(Ek)
+
+
+def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
+                   max_photons: int = SHARE_PHOTONS) -> float | None:
+    """The share of the irradiance at the diffuse surfaces the camera sees that final
+    gathering carries: the INDIRECT photons' estimate over that of every photon the
+    gather map holds (direct, indirect, and caustic light one diffuse bounce back; the
+    caustic photons are left out as the gather map leaves them out), summed as luminance
+    over the pre-pass' diffuse camera hits (_kind_estimates). None when the camera sees
+    nothing diffuse or the shot holds no photon there. On the calling thread: the same
+    value for any worker count."""
+    from .photonkernels import CAUSTIC, INDIRECT
+    est = _kind_estimates(ctx, shot, radius, np.flatnonzero(shot.kind != CAUSTIC),
+                          (INDIRECT,), rays, max_photons)
+    if est is None:
+        return None
+    total = float(est[0].sum())
     if not total > 0:
         return None
-    return float(luminance(Ei).sum()) / total
+    return float(est[1].sum()) / total
+
+
+def glow_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
+               max_photons: int = SHARE_PHOTONS) -> float | None:
+    """How much of the light the camera sees the caustic-kind photons of a global shot
+    carry (the glow off rough specular layers and window glass, render.glow_emitters):
+    the root mean square over the pre-pass' diffuse camera hits of each hit's share
+    E_caustic / E_all (_kind_estimates, every photon of the shot), unitless in [0, 1].
+    A pixel's relative variance from the caustic map is about its share^2 x the
+    estimate's relative variance, so this (not the share of the summed light) is what
+    the glow adds to relMSE: a shaded wall lit by sunlit grass's specular layer (most
+    of the wall's light) weighs in even where the grass holds most of the image's light
+    (tests/blender/test_rough_glow_cycles.py: 0.11 rms, 0.008 of the summed light).
+    None when the camera sees nothing diffuse or the shot holds no photon there."""
+    from .photonkernels import CAUSTIC
+    est = _kind_estimates(ctx, shot, radius, np.arange(len(shot)), (CAUSTIC,), rays,
+                          max_photons)
+    if est is None:
+        return None
+    E, Ec = est
+    lit = E > 0
+    if not lit.any():
+        return None
+    return float(np.sqrt(np.mean((Ec[lit] / E[lit]) ** 2)))
 
 
 # --- Window glass's rims (effects.window_glass) --------------------------------------------
