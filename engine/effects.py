@@ -454,6 +454,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                        and np.any(scene.world_medium.scattering > 0))):
             # (in a scattering world volume its final-gather rays find the fog's glow)
             auto, why = False, "a single flat surface cannot light itself"
+        elif s.photons <= 0:
+            # (newuser42: "on - 0 photons" while the image missed its bounce light)
+            auto, why = False, ("Photons is 0: the light that bounces off diffuse "
+                                "surfaces is missing from the image; set Photons above 0")
         else:
             most = (" at most (fewer where the indirect light is a small share)"
                     if s.gather_by_share else "")

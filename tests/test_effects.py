@@ -909,3 +909,15 @@ def test_a_volume_only_fog_box_is_not_reported_as_alpha():
     s.add_plane((1.5, 0.5, 0.5), (0, -1, 0), (0.5, 0.5), "card", name="Card")
     line = _line(_plan(s), "transparency")
     assert "alpha below 1 in 'card'" in line and "volume-only 'Fog'" in line, line
+
+
+def test_zero_photons_turn_indirect_light_off_and_say_why():
+    """Photons 0 read 'indirect light (global map): on - 0 photons' while the image
+    missed its bounce light (newuser42)."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    from engine.render import prepare_context
+    ctx = prepare_context(s, RenderSettings(photons=0, workers=1))
+    ctx.accel.close()
+    line = _line(ctx.plan, "indirect light (global map)")
+    assert line.startswith("indirect light (global map): off"), line
+    assert "Photons is 0" in line, line

@@ -1,4 +1,5 @@
 """Bad input gets a clear message naming the object or argument."""
+import os
 import subprocess
 import sys
 
@@ -128,3 +129,24 @@ def test_image_writers_round_trip(tmp_path, ext):
     back = read_image(path)
     tol = 1e-6 if ext in (".exr", ".npy") else 0.02
     np.testing.assert_allclose(back, img, atol=tol)
+
+
+def test_photons_alone_scale_the_scene_files_caustic_photons(tmp_path):
+    """--photons without --caustic-photons scales the scene file's caustic count in the
+    file's ratio (newuser42: paper mode's '--photons 1000' on figure6.toml kept its
+    100,000 caustic photons and took 35 minutes instead of 3); a file's 0 stays 0; an
+    explicit --caustic-photons wins; without either the file's counts stand."""
+    from engine.cli import _scene_and_overrides, build_parser
+    parser = build_parser()
+
+    def caustic(path, *extra):
+        args = parser.parse_args(["render", str(path), "-o", "x.png", *extra])
+        return _scene_and_overrides(args)[1]["caustic_photons"]
+    fig6 = os.path.join(ROOT, "scenes", "figure6.toml")
+    assert caustic(fig6, "--photons", "1000") == 500  # the file's 200,000 : 100,000
+    assert caustic(fig6, "--photons", "1000", "--caustic-photons", "7") == 7
+    assert caustic(fig6) == 100_000
+    text = open(fig6).read().replace("caustic_photons = 100000", "caustic_photons = 0")
+    none = tmp_path / "no_caustics.toml"
+    none.write_text(text)
+    assert caustic(none, "--photons", "1000") == 0

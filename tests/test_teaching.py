@@ -154,8 +154,8 @@ def test_compare_grid_has_four_labelled_tiles():
     assert "0 photons" in tiles[0].lines[1] and "0 photons" in tiles[1].lines[1]
     assert "30,000 photons" in tiles[2].lines[1]
     assert tiles[2].lines[2] == "brightness: the reference"
-    ref = teaching.mean_brightness(tiles[2].image)
-    d = (teaching.mean_brightness(tiles[1].image) - ref) / ref
+    ref = teaching.displayed_brightness(tiles[2].image)
+    d = (teaching.displayed_brightness(tiles[1].image) - ref) / ref
     assert tiles[1].lines[2] == f"brightness {100 * d:+.0f} % vs photon"
     assert d < 0  # ray tracing misses the indirect light
     assert tiles[3].image.any()  # the photon hits are drawn
@@ -305,3 +305,13 @@ def test_labels_are_never_clipped_at_small_preview_sizes(tile):
         band = img[y + th:, x0:x0 + cell].max(axis=2)
         ink = np.flatnonzero(band.max(axis=0) > 12)
         assert ink.size and ink[-1] < cell - 1, (i, tile)  # the text ends inside its cell
+
+
+def test_one_glint_does_not_set_the_brightness_label():
+    """The compare grid's label compares what the tiles show: a pixel of radiance 4,600
+    (a lamp seen in a polished ring) no longer makes alike tiles read -33 % (newuser42)."""
+    img = np.full((20, 20, 3), 0.4)
+    ref = img.copy()
+    ref[3, 4] = 4600.0
+    assert abs(teaching.brightness_difference(img, ref)) < 0.01
+    assert teaching.brightness_difference(img * 0.5, ref) < -0.45
