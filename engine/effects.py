@@ -665,6 +665,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                 plan.caustics = True  # the glow's estimate (above), as before
                 plan.add("caustics", False, f"{head}; {carried}")
             auto = None
+        elif not emitting:
+            # (newuser42: a scene without a lamp listed seven matte objects here)
+            auto, why = False, "no light emits power"
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "

@@ -921,3 +921,12 @@ def test_zero_photons_turn_indirect_light_off_and_say_why():
     line = _line(ctx.plan, "indirect light (global map)")
     assert line.startswith("indirect light (global map): off"), line
     assert "Photons is 0" in line, line
+
+
+def test_a_scene_without_light_says_so_in_the_caustics_line():
+    """No lamp: the caustics line said 'no light reaches the specular object(s)' and
+    listed every matte object with a specular layer (newuser42)."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0),
+              extra=(("glass", "Ball"),))
+    s.lights.clear()
+    assert _line(_plan(s), "caustics") == "caustics: off - no light emits power"
