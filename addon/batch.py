@@ -246,10 +246,15 @@ class _StatusPrinter:
             if self.status == "done":
                 if self.done_line:
                     print(self.done_line, file=self.stream)
-                if self.effects and self.effects == self.previous_effects:
-                    print("  Effects as the previous frame", file=self.stream)
-                    return
-                for line in self.effects:
+                lines = self.effects
+                if self.effects and self.previous_effects:
+                    # Only the lines that changed (a moving object changes the photon
+                    # counts, seldom the effects): the whole report of about 2 KB a
+                    # frame buried a classroom's batch log (newuser42).
+                    lines = [x for x in self.effects if x not in self.previous_effects]
+                    print("  Effects as the previous frame" + (", except:" if lines else ""),
+                          file=self.stream)
+                for line in lines:
                     print(f"  {line}", file=self.stream)
 
 
