@@ -50,6 +50,16 @@ AGREEMENT = 0.9
 # by the sky, held 95 % of the points; the nearest alone left most hits unguided).
 CANDIDATES = 8
 _ONE_BELOW = np.nextafter(1.0, 0.0)
+# Setting gather_guiding "auto" guides where share^2 x GatherGuide.gain (share: the
+# indirect light's share of the diffuse irradiance the camera sees,
+# visualimportance.indirect_share) is at least this: the predicted fall of a pixel's
+# relative variance per gather ray, against the guide's cost (its build, ~0.1-0.2 of
+# the map stage, and per-hit search and warp, ~+20 % of the gather's CPU). The cell-scale
+# prediction overstates the measured fall ~3x (docs/accuracy.md "night42": the example
+# blends read 0.002-0.12 and stay cosine; the night rooms 0.2-0.4).
+AUTO_GAIN = 0.2
+# Grid points: at most one per cube of this many gather radii (thin_points).
+SPACING = 2.0
 
 
 class GatherGuide:
@@ -68,11 +78,16 @@ class GatherGuide:
             raise ValueError(f"gather guide share {share!r}: expected 0 <= share < 1")
         self.share = float(share)
         self.radius = float(radius)
-        position = np.asarray(position, np.float64)
-        self.normal = np.asarray(normal, np.float64)
+        # One grid per SPACING x radius voxel and normal class: a grid sums the photons
+        # within 2 radii, so the gather map's denser points would repeat their
+        # neighbours' grids at their cost (k-NN, per-point tables, the per-hit search).
+        position, normal = thin_points(position, normal, SPACING * self.radius)
+        self.normal = normal
         p = len(position)
+        self.position = position
         self.tree = cKDTree(position) if p else None
         flux = np.zeros((p, CELLS))
+        w_sq = np.zeros(p)  # per point the summed squared weights of its photons
         rows = np.flatnonzero(photons.kind == INDIRECT)
         if source == "flux":
             flux = _flux_grids(position, self.normal, photons, radius, emitters)
@@ -99,13 +114,35 @@ class GatherGuide:
             w = np.where(ok, lum, 0.0)
             flat = (np.arange(p)[:, None] * CELLS + cell).ravel()
             flux = np.bincount(flat, weights=w.ravel(), minlength=p * CELLS).reshape(p, CELLS)
+            w_sq = (w * w).sum(axis=1)
         total = flux.sum(axis=1, keepdims=True)
         f = np.where(total > 0.0, flux / np.where(total > 0.0, total, 1.0), 1.0 / CELLS)
+        if source == "indirect":
+            # The grid of a few photons is mostly their own noise: shrunk towards the
+            # cosine lobe by what the photon count leaves of its concentration.
+            f, self.concentration = shrink(f, total[:, 0], w_sq)
+        else:
+            self.concentration = np.maximum(CELLS * (f * f).sum(axis=1) - 1.0, 0.0)
         # Cell probabilities of the mixture (sum 1); q = CELLS * prob.
         prob = ((1.0 - self.share) / CELLS + self.share * f).reshape(p, ROWS, COLS)
         self.row_prob = prob.sum(axis=2)                              # (P, ROWS)
         self.col_prob = prob / self.row_prob[:, :, None]              # (P, ROWS, COLS)
         self.guided_points = int(np.count_nonzero(total[:, 0] > 0.0))
+        # The cell-scale relative second moments of a gather ray's radiance, cosine
+        # (1 + C) and guided (sum_c CELLS f_c^2 / q_c, f the shrunk grid), summed over the
+        # points: their excesses over 1 are the two gathers' relative variances.
+        q = CELLS * prob.reshape(p, CELLS)
+        self.variance_cosine = float(self.concentration.sum())
+        self.points = p
+        self.variance_guided = float(np.maximum(
+            (CELLS * f * f / q).sum(axis=1) - 1.0, 0.0).sum())
+
+    @property
+    def gain(self) -> float:
+        """Predicted fall of a level-0 gather ray's relative variance, guided against
+        cosine, at cell scale (the light's spread within a cell is not seen), the mean
+        over the grids."""
+        return (self.variance_cosine - self.variance_guided) / max(self.points, 1)
 
     @property
     def nbytes(self) -> int:
@@ -143,6 +180,49 @@ class GatherGuide:
         rp[~ok] = 1.0 / ROWS
         cp[~ok] = 1.0 / COLS
         return rp, cp
+
+
+def thin_points(position, normal, spacing):
+    """(position (M,3), normal (M,3)) float64: of the points (P,3) and unit normals (P,3),
+    the first (by index) in each cube of side `spacing` (m) per normal class (the
+    dominant axis and its sign: a thin wall's two sides stay apart); all of them where
+    spacing <= 0. Deterministic."""
+    position = np.asarray(position, np.float64)
+    normal = np.asarray(normal, np.float64)
+    if spacing <= 0.0 or len(position) < 2:
+        return position, normal
+    cell = np.floor((position - position.min(axis=0)) / spacing).astype(np.int64)
+    axis = np.argmax(np.abs(normal), axis=1)
+    cls = 2 * axis + (np.take_along_axis(normal, axis[:, None], 1)[:, 0] < 0.0)
+    dims = cell.max(axis=0) + 1
+    key = ((cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]) * 6 + cls
+    _, first = np.unique(key, return_index=True)
+    keep = np.sort(first)
+    return position[keep], normal[keep]
+
+
+def shrink(f, total, w_sq):
+    """(f', C): per point (P of them) the cell shares f (P,CELLS) (rows sum to 1) of
+    photons of summed weight total (P,) and summed squared weight w_sq (P,), shrunk
+    towards the uniform 1 / CELLS, and the concentration C (P,) >= 0 of the flux they
+    were drawn from: CELLS sum_c pi_c^2 - 1, the cosine gather's relative variance at
+    cell scale.
+    k photons (effective count k = total^2 / w_sq for unequal weights) drawn from shares
+    pi give E[sum f^2] = (1 - 1/k) sum pi^2 + 1/k: sum pi^2 is estimated as
+    (sum f^2 - 1/k) / (1 - 1/k), and f' = 1/CELLS + lam (f - 1/CELLS) with lam^2 =
+    C / (CELLS sum f^2 - 1) has that concentration (lam in [0, 1]; 0 where the
+    photons' spread is within their noise: the point guides by the cosine lobe)."""
+    total = np.asarray(total, np.float64)
+    k = np.where(w_sq > 0.0, total * total / np.where(w_sq > 0.0, w_sq, 1.0), 0.0)
+    s2 = (f * f).sum(axis=1)
+    big = k > 1.0
+    pi2 = np.where(big, (s2 - 1.0 / np.where(big, k, 1.0))
+                   / np.where(big, 1.0 - 1.0 / np.where(big, k, 2.0), 1.0), 1.0 / CELLS)
+    conc = np.maximum(CELLS * pi2 - 1.0, 0.0)
+    raw = CELLS * s2 - 1.0
+    lam = np.sqrt(np.clip(conc / np.where(raw > 0.0, raw, 1.0), 0.0, 1.0))
+    lam = np.where(raw > 0.0, lam, 0.0)
+    return 1.0 / CELLS + lam[:, None] * (f - 1.0 / CELLS), conc
 
 
 def _cells(l0, l1):
