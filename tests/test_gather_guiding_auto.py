@@ -88,13 +88,13 @@ def _room(patch, seed=1, size=16, **st):
 
 
 def test_auto_guides_a_patch_lit_room_and_not_an_evenly_lit_one():
-    patch = _room(True)
+    patch = _room(True, spp=1)
     assert patch.stats["gather_guided"]
     assert patch.stats["gather_guide_gain"] >= AUTO_GAIN
-    even = _room(False)
+    even = _room(False, spp=1)
     assert not even.stats["gather_guided"]
     assert even.stats["gather_guide_gain"] < AUTO_GAIN
-    off = _room(False, gather_guiding="off")
+    off = _room(False, spp=1, gather_guiding="off")
     np.testing.assert_array_equal(np.asarray(even.combined), np.asarray(off.combined))
     assert "gather_guided" not in off.stats
 
@@ -102,10 +102,11 @@ def test_auto_guides_a_patch_lit_room_and_not_an_evenly_lit_one():
 def test_auto_lowers_the_patch_rooms_gather_noise_with_the_same_mean():
     """Paired seeds (the same photon maps): auto (guided here) against off, the indirect
     pass's mean within 3 standard errors and its per-pixel spread over seeds below 0.7 of
-    the cosine gather's (measured 0.34 / 0.49 of the mean, 16 x 16, 8 spp, 6 seeds)."""
+    the cosine gather's (measured 0.49 / 0.80 of the mean, 16 x 16, 8 spp, 5 seeds; paired
+    difference of the means 0.24 standard errors)."""
     def indirect(film):
         return np.asarray(film.passes()["indirect"], np.float64)[..., :3].mean(axis=-1)
-    seeds = range(1, 7)
+    seeds = range(1, 6)
     off = np.array([indirect(_room(True, seed=s, gather_guiding="off")) for s in seeds])
     auto = np.array([indirect(_room(True, seed=s)) for s in seeds])
     d = auto.mean(axis=(1, 2)) - off.mean(axis=(1, 2))
