@@ -60,6 +60,9 @@ _ONE_BELOW = np.nextafter(1.0, 0.0)
 AUTO_GAIN = 0.2
 # Grid points: at most one per cube of this many gather radii (thin_points).
 SPACING = 2.0
+# A hit reads the grid of the nearest agreeing point within this many gather radii (the
+# night room: 0.3 % of its hits found none at 2 with SPACING 2, none at 3.5).
+SEARCH = 2.0
 
 
 class GatherGuide:
@@ -155,17 +158,32 @@ class GatherGuide:
         n = len(p)
         if self.tree is None or n == 0:
             return np.full(n, -1, np.int64)
+        p = np.asarray(p, np.float64)
+        ns = np.asarray(ns, np.float64)
+        bound = SEARCH * self.radius
+        # The nearest point first; the CANDIDATES nearest only where it does not agree
+        # (the same answer: the nearest agreeing point either way).
+        _, j = self.tree.query(p, k=1, distance_upper_bound=bound)
+        out = self._agreeing(np.asarray(j, np.int64).reshape(n, 1), ns)
+        again = np.flatnonzero(out < 0)
         kq = min(CANDIDATES, len(self.normal))
-        _, j = self.tree.query(np.asarray(p, np.float64), k=kq,
-                               distance_upper_bound=2.0 * self.radius)
-        j = np.asarray(j, np.int64).reshape(n, kq)
+        if len(again) and kq > 1:
+            _, j = self.tree.query(p[again], k=kq, distance_upper_bound=bound)
+            out[again] = self._agreeing(np.asarray(j, np.int64).reshape(len(again), kq),
+                                        ns[again])
+        return out
+
+    def _agreeing(self, j, ns):
+        """(N,) the first of each row's candidate points j (N,K) (ascending distance; K =
+        len(normal): none) whose normal agrees with ns (N,3), -1 where none does."""
+        n = len(j)
         found = j < len(self.normal)
         jj = np.where(found, j, 0)
         nj = np.take(self.normal, jj, axis=0)
         # The grid is read in the hit's tangent frame (sampling.orthonormal_basis, Duff
         # et al.), which turns by 180 degrees where n_z changes sign: a point on the other
         # side of that cut would guide the rays the wrong way (review33).
-        same_frame = (nj[..., 2] >= 0.0) == (np.asarray(ns)[:, None, 2] >= 0.0)
+        same_frame = (nj[..., 2] >= 0.0) == (ns[:, None, 2] >= 0.0)
         agree = found & same_frame & (np.einsum("ikc,ic->ik", nj, ns) > AGREEMENT)
         first = np.argmax(agree, axis=1)
         return np.where(agree.any(axis=1), jj[np.arange(n), first], -1)
