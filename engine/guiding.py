@@ -100,13 +100,15 @@ class GatherGuide:
         elif p and len(rows):
             ppos = np.take(photons.position, rows, axis=0).astype(np.float64)
             k = min(k, len(rows))
-            dist, j = cKDTree(ppos).query(position, k=k, distance_upper_bound=2.0 * radius)
+            # (an unbalanced, uncompacted tree: half the build time, the same neighbours)
+            dist, j = cKDTree(ppos, balanced_tree=False, compact_nodes=False).query(
+                position, k=k, distance_upper_bound=2.0 * radius)
             dist, j = dist.reshape(p, k), j.reshape(p, k)
             found = np.isfinite(dist)
-            jj = np.where(found, j, 0)
+            jj = np.take(rows, np.where(found, j, 0))  # the neighbours' photon rows
             # Incoming direction (towards where the photon came from) in each point's frame.
-            wi = -np.take(photons.direction, rows, axis=0).astype(np.float64)[jj]
-            pn = np.take(photons.normal, rows, axis=0).astype(np.float64)[jj]
+            wi = -np.take(photons.direction, jj, axis=0).astype(np.float64)
+            pn = np.take(photons.normal, jj, axis=0).astype(np.float64)
             n = self.normal[:, None, :]
             t, b = orthonormal_basis(self.normal)
             l0 = np.einsum("pkc,pc->pk", wi, t)
@@ -115,7 +117,7 @@ class GatherGuide:
             ok = found & (np.einsum("pkc,pkc->pk", pn, np.broadcast_to(n, pn.shape))
                           > AGREEMENT) & (l2 > 0.0)
             cell = _cells(l0, l1)
-            pw = np.take(photons.power, rows, axis=0).astype(np.float64)[jj]
+            pw = np.take(photons.power, jj, axis=0).astype(np.float64)
             lum = pw @ np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance
             w = np.where(ok, lum, 0.0)
             flat = (np.arange(p)[:, None] * CELLS + cell).ravel()

@@ -803,9 +803,12 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         share = stats.get("indirect_share")
         if share is None:
             share = indirect_share(ctx, shot, ctx.gather_short)
-        stats["gather_guide_gain"] = share * share * guide.gain
+        # (None: the camera sees nothing diffuse, or no photon: no evidence, cosine)
+        gain = (share * share * guide.gain if share is not None and math.isfinite(share)
+                else None)
+        stats["gather_guide_gain"] = gain
         stats["gather_guided"] = (s.gather_guiding == "on"
-                                  or stats["gather_guide_gain"] >= AUTO_GAIN)
+                                  or (gain is not None and gain >= AUTO_GAIN))
         stats["gather_guide_points"] = guide.points
         if not stats["gather_guided"]:
             ctx.gather_map.guide = None

@@ -123,3 +123,21 @@ def test_gather_guiding_takes_auto_on_off_or_a_bool(value):
     assert RenderSettings().gather_guiding == "auto"
     with pytest.raises(ValueError, match="gather_guiding"):
         RenderSettings(gather_guiding=value)
+
+
+def test_auto_without_a_measured_share_keeps_the_cosine_gather():
+    """The camera sees nothing diffuse (a lamp over a floor, the camera looking up at the
+    empty world): no indirect share is measured, so no evidence for the grids; the render
+    finishes with the cosine gather."""
+    s = PaperScene(width=8, height=8)
+    s.add_material(Material("floor", (0.6,) * 3))
+    v, f = box_mesh((0, 0, -0.05), 2.0)
+    s.add_triangles(v * [1, 1, 0.05], f, "floor", name="slab")
+    s.add_point_light((0.0, 0.0, 1.0), power=100.0)
+    s.set_camera((0, 0, 0.5), (0, 0.01, 5.0), view_angle=30)
+    film = s.render(RenderSettings(photons=5_000, caustic_photons=0, spp=1, seed=1,
+                                   workers=1))
+    assert film.stats["indirect_share"] is None
+    assert film.stats["gather_guide_gain"] is None
+    assert film.stats["gather_guided"] is False
+    assert np.isfinite(np.asarray(film.combined)).all()
