@@ -32,7 +32,8 @@ closed room lit by a small patch, neither wins at equal time on the example blen
 daylit room. So the default, "auto" (docs/accuracy.md "night42"), builds the grids (one
 per 2-radius cube: thin_points; shrunk by their photons' noise: shrink) and keeps them
 only where the indirect share^2 x their predicted gain reaches AUTO_GAIN: rooms lit by
-lamps' bright patches (1.1-1.4x less time for the same noise), not the example blends.
+lamps' bright patches (a night room: 1.5x less time for the same noise; the lamp room
+of bench_lamp_room.py breaks even), not the example blends.
 """
 
 from __future__ import annotations
