@@ -57,10 +57,10 @@ _ONE_BELOW = np.nextafter(1.0, 0.0)
 # Setting gather_guiding "auto" guides where share^2 x GatherGuide.gain (share: the
 # indirect light's share of the diffuse irradiance the camera sees,
 # visualimportance.indirect_share) is at least this: the predicted fall of a pixel's
-# relative variance per gather ray, against the guide's cost (its build, ~0.1-0.2 of
-# the map stage, and per-hit search and warp, ~+20 % of the gather's CPU). The cell-scale
+# relative variance per gather ray, against the guide's cost (its build, 0.05-0.8 CPU s,
+# and the per-hit search and warp: +16 % CPU in the night room). The cell-scale
 # prediction overstates the measured fall ~3x (docs/accuracy.md "night42": the example
-# blends read 0.002-0.12 and stay cosine; the night rooms 0.2-0.4).
+# blends read 0.001-0.10 and stay cosine; the lamp-lit rooms 0.24 and 0.39).
 AUTO_GAIN = 0.2
 # Grid points: at most one per cube of this many gather radii (thin_points).
 SPACING = 2.0
