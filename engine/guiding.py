@@ -29,7 +29,11 @@ normal, the frame the gather_rays kernel uses).
 source="flux" fills the grids from the stored photons taken as small emitters instead
 (_flux_grids). Measured (docs/accuracy.md, "guide33"): both halve the gathered noise of a
 closed room lit by a small patch, neither wins at equal time on the example blends or a
-daylit room, so the setting is off.
+daylit room. So the default, "auto" (docs/accuracy.md "night42"), builds the grids (one
+per 2-radius cube: thin_points; shrunk by their photons' noise: shrink) and keeps them
+only where the indirect share^2 x their predicted gain reaches AUTO_GAIN: rooms lit by
+lamps' bright patches (a night room: 1.5x less time for the same noise; the lamp room
+of bench_lamp_room.py breaks even), not the example blends.
 """
 
 from __future__ import annotations
@@ -50,6 +54,19 @@ AGREEMENT = 0.9
 # by the sky, held 95 % of the points; the nearest alone left most hits unguided).
 CANDIDATES = 8
 _ONE_BELOW = np.nextafter(1.0, 0.0)
+# Setting gather_guiding "auto" guides where share^2 x GatherGuide.gain (share: the
+# indirect light's share of the diffuse irradiance the camera sees,
+# visualimportance.indirect_share) is at least this: the predicted fall of a pixel's
+# relative variance per gather ray, against the guide's cost (its build, 0.05-0.8 CPU s,
+# and the per-hit search and warp: +16 % CPU in the night room). The cell-scale
+# prediction overstates the measured fall ~3x (docs/accuracy.md "night42": the example
+# blends read 0.001-0.10 and stay cosine; the lamp-lit rooms 0.24 and 0.39).
+AUTO_GAIN = 0.2
+# Grid points: at most one per cube of this many gather radii (thin_points).
+SPACING = 2.0
+# A hit reads the grid of the nearest agreeing point within this many gather radii (the
+# night room: 0.3 % of its hits found none at 2 with SPACING 2, none at 3.5).
+SEARCH = 2.0
 
 
 class GatherGuide:
@@ -68,24 +85,31 @@ class GatherGuide:
             raise ValueError(f"gather guide share {share!r}: expected 0 <= share < 1")
         self.share = float(share)
         self.radius = float(radius)
-        position = np.asarray(position, np.float64)
-        self.normal = np.asarray(normal, np.float64)
+        # One grid per SPACING x radius voxel and normal class: a grid sums the photons
+        # within 2 radii, so the gather map's denser points would repeat their
+        # neighbours' grids at their cost (k-NN, per-point tables, the per-hit search).
+        position, normal = thin_points(position, normal, SPACING * self.radius)
+        self.normal = normal
         p = len(position)
+        self.position = position
         self.tree = cKDTree(position) if p else None
         flux = np.zeros((p, CELLS))
+        w_sq = np.zeros(p)  # per point the summed squared weights of its photons
         rows = np.flatnonzero(photons.kind == INDIRECT)
         if source == "flux":
             flux = _flux_grids(position, self.normal, photons, radius, emitters)
         elif p and len(rows):
             ppos = np.take(photons.position, rows, axis=0).astype(np.float64)
             k = min(k, len(rows))
-            dist, j = cKDTree(ppos).query(position, k=k, distance_upper_bound=2.0 * radius)
+            # (an unbalanced, uncompacted tree: half the build time, the same neighbours)
+            dist, j = cKDTree(ppos, balanced_tree=False, compact_nodes=False).query(
+                position, k=k, distance_upper_bound=2.0 * radius)
             dist, j = dist.reshape(p, k), j.reshape(p, k)
             found = np.isfinite(dist)
-            jj = np.where(found, j, 0)
+            jj = np.take(rows, np.where(found, j, 0))  # the neighbours' photon rows
             # Incoming direction (towards where the photon came from) in each point's frame.
-            wi = -np.take(photons.direction, rows, axis=0).astype(np.float64)[jj]
-            pn = np.take(photons.normal, rows, axis=0).astype(np.float64)[jj]
+            wi = -np.take(photons.direction, jj, axis=0).astype(np.float64)
+            pn = np.take(photons.normal, jj, axis=0).astype(np.float64)
             n = self.normal[:, None, :]
             t, b = orthonormal_basis(self.normal)
             l0 = np.einsum("pkc,pc->pk", wi, t)
@@ -94,18 +118,40 @@ class GatherGuide:
             ok = found & (np.einsum("pkc,pkc->pk", pn, np.broadcast_to(n, pn.shape))
                           > AGREEMENT) & (l2 > 0.0)
             cell = _cells(l0, l1)
-            pw = np.take(photons.power, rows, axis=0).astype(np.float64)[jj]
+            pw = np.take(photons.power, jj, axis=0).astype(np.float64)
             lum = pw @ np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance
             w = np.where(ok, lum, 0.0)
             flat = (np.arange(p)[:, None] * CELLS + cell).ravel()
             flux = np.bincount(flat, weights=w.ravel(), minlength=p * CELLS).reshape(p, CELLS)
+            w_sq = (w * w).sum(axis=1)
         total = flux.sum(axis=1, keepdims=True)
         f = np.where(total > 0.0, flux / np.where(total > 0.0, total, 1.0), 1.0 / CELLS)
+        if source == "indirect":
+            # The grid of a few photons is mostly their own noise: shrunk towards the
+            # cosine lobe by what the photon count leaves of its concentration.
+            f, self.concentration = shrink(f, total[:, 0], w_sq)
+        else:
+            self.concentration = np.maximum(CELLS * (f * f).sum(axis=1) - 1.0, 0.0)
         # Cell probabilities of the mixture (sum 1); q = CELLS * prob.
         prob = ((1.0 - self.share) / CELLS + self.share * f).reshape(p, ROWS, COLS)
         self.row_prob = prob.sum(axis=2)                              # (P, ROWS)
         self.col_prob = prob / self.row_prob[:, :, None]              # (P, ROWS, COLS)
         self.guided_points = int(np.count_nonzero(total[:, 0] > 0.0))
+        # The cell-scale relative second moments of a gather ray's radiance, cosine
+        # (1 + C) and guided (sum_c CELLS f_c^2 / q_c, f the shrunk grid), summed over the
+        # points: their excesses over 1 are the two gathers' relative variances.
+        q = CELLS * prob.reshape(p, CELLS)
+        self.variance_cosine = float(self.concentration.sum())
+        self.points = p
+        self.variance_guided = float(np.maximum(
+            (CELLS * f * f / q).sum(axis=1) - 1.0, 0.0).sum())
+
+    @property
+    def gain(self) -> float:
+        """Predicted fall of a level-0 gather ray's relative variance, guided against
+        cosine, at cell scale (the light's spread within a cell is not seen), the mean
+        over the grids."""
+        return (self.variance_cosine - self.variance_guided) / max(self.points, 1)
 
     @property
     def nbytes(self) -> int:
@@ -118,17 +164,32 @@ class GatherGuide:
         n = len(p)
         if self.tree is None or n == 0:
             return np.full(n, -1, np.int64)
+        p = np.asarray(p, np.float64)
+        ns = np.asarray(ns, np.float64)
+        bound = SEARCH * self.radius
+        # The nearest point first; the CANDIDATES nearest only where it does not agree
+        # (the same answer: the nearest agreeing point either way).
+        _, j = self.tree.query(p, k=1, distance_upper_bound=bound)
+        out = self._agreeing(np.asarray(j, np.int64).reshape(n, 1), ns)
+        again = np.flatnonzero(out < 0)
         kq = min(CANDIDATES, len(self.normal))
-        _, j = self.tree.query(np.asarray(p, np.float64), k=kq,
-                               distance_upper_bound=2.0 * self.radius)
-        j = np.asarray(j, np.int64).reshape(n, kq)
+        if len(again) and kq > 1:
+            _, j = self.tree.query(p[again], k=kq, distance_upper_bound=bound)
+            out[again] = self._agreeing(np.asarray(j, np.int64).reshape(len(again), kq),
+                                        ns[again])
+        return out
+
+    def _agreeing(self, j, ns):
+        """(N,) the first of each row's candidate points j (N,K) (ascending distance; K =
+        len(normal): none) whose normal agrees with ns (N,3), -1 where none does."""
+        n = len(j)
         found = j < len(self.normal)
         jj = np.where(found, j, 0)
         nj = np.take(self.normal, jj, axis=0)
         # The grid is read in the hit's tangent frame (sampling.orthonormal_basis, Duff
         # et al.), which turns by 180 degrees where n_z changes sign: a point on the other
         # side of that cut would guide the rays the wrong way (review33).
-        same_frame = (nj[..., 2] >= 0.0) == (np.asarray(ns)[:, None, 2] >= 0.0)
+        same_frame = (nj[..., 2] >= 0.0) == (ns[:, None, 2] >= 0.0)
         agree = found & same_frame & (np.einsum("ikc,ic->ik", nj, ns) > AGREEMENT)
         first = np.argmax(agree, axis=1)
         return np.where(agree.any(axis=1), jj[np.arange(n), first], -1)
@@ -143,6 +204,49 @@ class GatherGuide:
         rp[~ok] = 1.0 / ROWS
         cp[~ok] = 1.0 / COLS
         return rp, cp
+
+
+def thin_points(position, normal, spacing):
+    """(position (M,3), normal (M,3)) float64: of the points (P,3) and unit normals (P,3),
+    the first (by index) in each cube of side `spacing` (m) per normal class (the
+    dominant axis and its sign: a thin wall's two sides stay apart); all of them where
+    spacing <= 0. Deterministic."""
+    position = np.asarray(position, np.float64)
+    normal = np.asarray(normal, np.float64)
+    if spacing <= 0.0 or len(position) < 2:
+        return position, normal
+    cell = np.floor((position - position.min(axis=0)) / spacing).astype(np.int64)
+    axis = np.argmax(np.abs(normal), axis=1)
+    cls = 2 * axis + (np.take_along_axis(normal, axis[:, None], 1)[:, 0] < 0.0)
+    dims = cell.max(axis=0) + 1
+    key = ((cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]) * 6 + cls
+    _, first = np.unique(key, return_index=True)
+    keep = np.sort(first)
+    return position[keep], normal[keep]
+
+
+def shrink(f, total, w_sq):
+    """(f', C): per point (P of them) the cell shares f (P,CELLS) (rows sum to 1) of
+    photons of summed weight total (P,) and summed squared weight w_sq (P,), shrunk
+    towards the uniform 1 / CELLS, and the concentration C (P,) >= 0 of the flux they
+    were drawn from: CELLS sum_c pi_c^2 - 1, the cosine gather's relative variance at
+    cell scale.
+    k photons (effective count k = total^2 / w_sq for unequal weights) drawn from shares
+    pi give E[sum f^2] = (1 - 1/k) sum pi^2 + 1/k: sum pi^2 is estimated as
+    (sum f^2 - 1/k) / (1 - 1/k), and f' = 1/CELLS + lam (f - 1/CELLS) with lam^2 =
+    C / (CELLS sum f^2 - 1) has that concentration (lam in [0, 1]; 0 where the
+    photons' spread is within their noise: the point guides by the cosine lobe)."""
+    total = np.asarray(total, np.float64)
+    k = np.where(w_sq > 0.0, total * total / np.where(w_sq > 0.0, w_sq, 1.0), 0.0)
+    s2 = (f * f).sum(axis=1)
+    big = k > 1.0
+    pi2 = np.where(big, (s2 - 1.0 / np.where(big, k, 1.0))
+                   / np.where(big, 1.0 - 1.0 / np.where(big, k, 2.0), 1.0), 1.0 / CELLS)
+    conc = np.maximum(CELLS * pi2 - 1.0, 0.0)
+    raw = CELLS * s2 - 1.0
+    lam = np.sqrt(np.clip(conc / np.where(raw > 0.0, raw, 1.0), 0.0, 1.0))
+    lam = np.where(raw > 0.0, lam, 0.0)
+    return 1.0 / CELLS + lam[:, None] * (f - 1.0 / CELLS), conc
 
 
 def _cells(l0, l1):

@@ -28,7 +28,7 @@ from .lights import packing as pk
 from .lights.packing import pack_lights
 from .mallocheap import render_heap
 from .edgeimages import edge_images
-from .guiding import GatherGuide
+from .guiding import AUTO_GAIN, GatherGuide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
@@ -778,6 +778,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     diffuse_area = maps.pop("diffuse_area")
     images = maps.pop("caustic_images", 0)
     stats["secondary_images"] = maps.pop("secondary_images", 0)
+    if "time_gather_guide" in maps:
+        stats["time_gather_guide"] = maps.pop("time_gather_guide")
     for name, value in maps.items():
         setattr(ctx, name, value)
     stats["caustic_photons"] = len(ctx.caustic_map) - images if ctx.caustic_map is not None \
@@ -804,6 +806,22 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         ctx.gather_rays = gather_count(s.gather_rays, share)
         stats["indirect_share"] = share
         stats["gather_rays_used"] = ctx.gather_rays
+    guide = getattr(ctx.gather_map, "guide", None)
+    if guide is not None:
+        # Guided gather directions where the grids predict a fall of the pixels' relative
+        # variance worth their cost: share^2 x the gather ray's (guiding.AUTO_GAIN).
+        share = stats.get("indirect_share")
+        if share is None:
+            share = indirect_share(ctx, shot, ctx.gather_short)
+        # (None: the camera sees nothing diffuse, or no photon: no evidence, cosine)
+        gain = (share * share * guide.gain if share is not None and math.isfinite(share)
+                else None)
+        stats["gather_guide_gain"] = gain
+        stats["gather_guided"] = (s.gather_guiding == "on"
+                                  or (gain is not None and gain >= AUTO_GAIN))
+        stats["gather_guide_points"] = guide.points
+        if not stats["gather_guided"]:
+            ctx.gather_map.guide = None
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_photon_hit_view), always filled.
@@ -996,14 +1014,16 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary)
-            if s.gather_guiding and gather_map.tree is not None:
+            if s.gather_guiding != "off" and gather_map.tree is not None:
                 # Photon-guided gather directions (engine/guiding.py): each gather point's
                 # grid of the flux coming in (its INDIRECT photons', or the photons' as
                 # emitters); the level-0 gather rays read their nearest facing point's.
+                # ("auto": kept or dropped once the indirect share is known, _photon_maps)
+                t_guide = time.perf_counter()
                 gather_map.guide = GatherGuide(gather_map.position, gather_map.normal, shot,
-                                               gather_map.radius, k,
-                                               s.gather_guide_share,
+                                               gather_map.radius, k, s.gather_guide_share,
                                                s.gather_guide_source)
+                out_deeper["time_gather_guide"] = time.perf_counter() - t_guide
             out_deeper["regather_maps"] = level_maps(gather_map, level_of, secondary_of)
             if shot.bounces is not None:
                 # Lookups after a specular chain: which ones the map cannot serve.

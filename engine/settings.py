@@ -120,7 +120,10 @@ class RenderSettings:
     # rays drawn from a mixture of the cosine lobe and the nearest gather point's grid of
     # its indirect photons' incoming flux (share: the grid's part), each weighted by
     # cos / (pi pdf): unbiased.
-    gather_guiding: bool = False
+    # "auto": on where the grids predict a fall of the pixels' relative variance worth
+    # their cost (guiding.AUTO_GAIN: a room lit by lamps' bright patches), else off;
+    # True / "on": always; False / "off": never.
+    gather_guiding: str = "auto"
     gather_guide_share: float = 0.5
     # The grids' source: "indirect" (Jensen: the INDIRECT photons' incoming directions at
     # the point) or "flux" (the stored photons as small diffuse emitters, their form
@@ -264,7 +267,7 @@ class RenderSettings:
                          ("transmission_bounces", 0), ("volume_bounces", 0),
                          ("adaptive_min_samples", 0)):
             positive_int(name, lo)
-        for name in ("final_gather", "gather_by_share", "gather_guiding", "photon_mapping",
+        for name in ("final_gather", "gather_by_share", "photon_mapping",
                      "aim_caustics", "subsurface_walk",
                      "photon_importance",
                      "show_photons", "film_transparent", "paper_mode"):
@@ -272,7 +275,7 @@ class RenderSettings:
             if not isinstance(v, (bool, np.bool_)):  # "no" is a true string
                 raise ValueError(f"setting '{name}' must be true or false, got {v!r}")
             setattr(self, name, bool(v))
-        for name in EFFECT_SWITCHES:
+        for name in EFFECT_SWITCHES + ("gather_guiding",):
             v = getattr(self, name)
             if isinstance(v, bool) or v is None:
                 v = {True: "on", False: "off", None: "auto"}[v]
