@@ -556,17 +556,5 @@ def test_room_on_a_sunlit_lawn_at_cycles_default_limits_matches_cycles(bpy_addon
 
 
 if __name__ == "__main__":  # write the stored means: .venv/bin/python <this file>
-    import pathlib
-    import tempfile
-    here = os.path.dirname(os.path.abspath(__file__))
-    sys.path[:0] = [here, os.path.dirname(os.path.dirname(here))]
-    import bpy
-    import addon
-    addon.register()
-    with tempfile.TemporaryDirectory() as tmp:
-        means = _live_cycles_means(bpy, pathlib.Path(tmp))
-    with open(REF_PATH, "w") as f:
-        json.dump({"blender": bpy.app.version_string,
-                   "means": {k: [round(x, 7) for x in v] for k, v in means.items()}},
-                  f, indent=1)
-        f.write("\n")
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _live_cycles_means)

@@ -174,17 +174,5 @@ def test_stored_cycles_means_are_cycles_now(bpy_addon, tmp_path):
 
 
 if __name__ == "__main__":  # write the stored means: .venv/bin/python <this file>
-    import pathlib
-    import sys
-    import tempfile
-    here = os.path.dirname(os.path.abspath(__file__))
-    sys.path[:0] = [here, os.path.dirname(os.path.dirname(here))]
-    import bpy
-    import addon
-    addon.register()
-    with tempfile.TemporaryDirectory() as tmp:
-        means = _cycles_means(bpy, pathlib.Path(tmp))
-    with open(REF_PATH, "w") as f:
-        json.dump({"blender": bpy.app.version_string, "cycles_samples": 1024, "seed": 0,
-                   "means": {k: round(v, 7) for k, v in means.items()}}, f, indent=1)
-        f.write("\n")
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _cycles_means, cycles_samples=1024, seed=0)
