@@ -137,7 +137,6 @@ def _closed_room(bpy, albedo=0.8):
     return scene
 
 
-@pytest.mark.slow
 def _ours_at_seeds(bpy, scene, tmp_path, seeds=(0, 1)):
     """Our images (H,W,3) of scene at default settings but 16 spp and 100k photons, one
     per seed."""
