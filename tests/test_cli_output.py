@@ -155,8 +155,23 @@ def _own_line(lines, text, where):
     return found[0]
 
 
-def test_cli_warnings_each_on_a_line_of_their_own_in_a_shared_pipe(tmp_path):
-    rc, text = _run(tmp_path)
+# --radius 0.01 m: far below the spacing of the scene's 2000 global photons (~0.2 m), known
+# once the photon maps are built (engine/render.py, radius_warnings).
+RADIUS = ("--radius", "0.01")
+RADIUS_WARNING = "search radius 0.01 m is below the photon spacing"
+
+
+@pytest.fixture(scope="module")
+def radius_run(tmp_path_factory):
+    """_run with RADIUS: (return code, text, its tmp_path). One process for the two tests
+    that read a plain run's pipe (its warnings, bar and the radius warning's place; they
+    ran one each)."""
+    tmp_path = tmp_path_factory.mktemp("radius_run")
+    return (*_run(tmp_path, *RADIUS), tmp_path)
+
+
+def test_cli_warnings_each_on_a_line_of_their_own_in_a_shared_pipe(radius_run):
+    rc, text, tmp_path = radius_run
     assert rc == 0, text[-3000:]
     lines = text.split("\n")  # in a log file \r starts no line
     summary = next(i for i, line in enumerate(lines) if line.startswith("wrote "))
@@ -211,20 +226,14 @@ def test_render_tells_each_warning_once_when_it_arises(tmp_path):
         assert where < first_photons, events
 
 
-# --radius 0.01 m: far below the spacing of the scene's 2000 global photons (~0.2 m), known
-# once the photon maps are built (engine/render.py, radius_warnings).
-RADIUS = ("--radius", "0.01")
-RADIUS_WARNING = "search radius 0.01 m is below the photon spacing"
-
-
 def _first(lines, text):
     return next(i for i, line in enumerate(lines) if text in line)
 
 
-def test_cli_radius_warning_before_the_camera_pass(tmp_path):
+def test_cli_radius_warning_before_the_camera_pass(radius_run):
     """Said once its photon maps are built: on a line of its own before the camera pass's
     first bar (`Rendering NN%`), once (it came after the whole camera pass)."""
-    rc, text = _run(tmp_path, *RADIUS)
+    rc, text, _ = radius_run
     assert rc == 0, text[-3000:]
     lines = text.split("\n")
     i = _own_line(lines, RADIUS_WARNING, text)

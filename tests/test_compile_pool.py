@@ -197,7 +197,10 @@ def _run(tmp_path, package, engine_dir, *args):
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
-@pytest.mark.parametrize("join", ["helpers only", "join"])
+# "helpers only" is slow (each case compiles ~9 CPU s): the default run keeps "join" (a
+# helper and this process compile, the engine package) and the installed extension's
+# test below (the helper alone compiles), which together cover it.
+@pytest.mark.parametrize("join", [pytest.param("helpers only", marks=pytest.mark.slow), "join"])
 def test_a_helper_compiles_what_a_later_process_loads(tmp_path, join):
     """compile_shared in a fresh cache folder (a helper process, and with join the calling
     one too), then a new process runs the same warm-ups: every kernel comes from the

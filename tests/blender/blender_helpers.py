@@ -96,6 +96,25 @@ def default_photonmap(scene):
     return pm
 
 
+def store_cycles_means(path, means_of, **about):
+    """Script entry of the tests whose Cycles image means are stored (tests/references/):
+    registers the add-on in this process' Blender, means_of(bpy, tmp_path) -> {key: mean
+    or list of means}, written to path as JSON with the Blender version and `about`."""
+    import json
+    import pathlib
+    import tempfile
+    import bpy
+    import addon
+    addon.register()
+    with tempfile.TemporaryDirectory() as tmp:
+        means = means_of(bpy, pathlib.Path(tmp))
+    rounded = {k: [round(x, 7) for x in v] if isinstance(v, list) else round(v, 7)
+               for k, v in means.items()}
+    with open(path, "w") as f:
+        json.dump({"blender": bpy.app.version_string, **about, "means": rounded}, f, indent=1)
+        f.write("\n")
+
+
 def cycles_plain(scene, spp, bounces):
     """Cycles' sampling as the tests compare against it: CPU, seed 0, `spp` samples, no
     denoising, no adaptive sampling, no clamping, no glossy blur, `bounces` as Light

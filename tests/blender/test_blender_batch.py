@@ -55,18 +55,23 @@ def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
     assert out.is_file()
 
 
-def test_batch_says_when_it_creates_the_output_folder(tmp_path):
-    out = tmp_path / "new" / "f3.png"
-    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), *SMALL,
-                 "--quiet")
+@pytest.fixture(scope="module")
+def quiet_run(tmp_path_factory):
+    """The batch command with --quiet into a folder that does not exist yet: (result,
+    output path). One Blender process for the two tests below (they ran one each)."""
+    out = tmp_path_factory.mktemp("quiet") / "new" / "f3.png"
+    return _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), *SMALL,
+                  "--quiet"), out
+
+
+def test_batch_says_when_it_creates_the_output_folder(quiet_run):
+    res, out = quiet_run
     assert res.returncode == 0, res.stderr[-2000:]
     assert f"created folder {out.parent}" in res.stderr and out.is_file()
 
 
-def test_batch_quiet_prints_no_bar(tmp_path):
-    out = tmp_path / "f3.png"
-    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), *SMALL,
-                 "--quiet")
+def test_batch_quiet_prints_no_bar(quiet_run):
+    res, out = quiet_run
     assert res.returncode == 0, res.stderr[-2000:]
     assert "Rendering" not in res.stderr and "indirect light" not in res.stderr
     assert out.is_file()

@@ -13,19 +13,31 @@ from test_cli_output import WARNING_PATCHES, _own_line
 pytestmark = pytest.mark.blender
 
 
-def test_batch_warnings_in_a_shared_log_start_on_their_own_line(tmp_path):
-    log = tmp_path / "log"
-    # Max Ray Depth 1 below Glossy 4 with the glossy sphere in view: the effect analysis
-    # warns (engine/effects.py, _warn_max_ray_depth).
+RADIUS_WARNING = "search radius 0.01 m is below the photon spacing"
+BATCH_ARGS = ["-o", "f3.png", "--samples", "1", "--photons", "2000", "--caustic-photons", "1000",
+              "--resolution-percentage", "10", "--max-depth", "1", "--radius", "0.01"]
+
+
+@pytest.fixture(scope="module")
+def shared_log(tmp_path_factory):
+    """The batch command on figure3_sphere.blend with Max Ray Depth 1 below Glossy 4 with
+    the glossy sphere in view (the effect analysis warns: engine/effects.py,
+    _warn_max_ray_depth) and a search radius of 0.01 m (the photon pass warns), stdout
+    and stderr into one log file: (return code, text). One Blender process for the
+    tests that read a log (they ran one each)."""
+    tmp = tmp_path_factory.mktemp("shared_log")
+    log = tmp / "log"
+    args = [str(tmp / a) if a == "f3.png" else a for a in BATCH_ARGS]
     with open(log, "wb") as f:
         res = subprocess.run([PYTHON, "-m", "addon.batch",
-                              os.path.join(BLENDS, "figure3_sphere.blend"),
-                              "-o", str(tmp_path / "f3.png"), "--samples", "2",
-                              "--photons", "5000", "--caustic-photons", "2000",
-                              "--resolution-percentage", "25", "--max-depth", "1"],
+                              os.path.join(BLENDS, "figure3_sphere.blend"), *args],
                              cwd=ROOT, stdout=f, stderr=subprocess.STDOUT, timeout=300)
-    text = log.read_text()
-    assert res.returncode == 0, text[-3000:]
+    return res.returncode, log.read_text()
+
+
+def test_batch_warnings_in_a_shared_log_start_on_their_own_line(shared_log):
+    rc, text = shared_log
+    assert rc == 0, text[-3000:]
     lines = text.split("\n")
     warned = [i for i, line in enumerate(lines)
               if "Max Ray Depth 1 stops camera paths after" in line]
@@ -101,19 +113,12 @@ def test_batch_python_warnings_from_the_render_threads_on_their_own_lines(tmp_pa
         assert WHOLE_BAR.match(seg), repr(seg)
 
 
-RADIUS_WARNING = "search radius 0.01 m is below the photon spacing"
-
-
 def _batch_log(tmp_path, *extra):
-    """The batch command on figure3_sphere.blend with Max Ray Depth 1 (the effect
-    analysis' warning) and a search radius of 0.01 m (the photon pass'), stdout and
-    stderr in one pipe: its lines."""
+    """The shared log's command (BATCH_ARGS) with `extra` options, stdout and stderr in
+    one pipe: its lines."""
+    args = [str(tmp_path / a) if a == "f3.png" else a for a in BATCH_ARGS]
     res = subprocess.run([PYTHON, "-m", "addon.batch",
-                          os.path.join(BLENDS, "figure3_sphere.blend"),
-                          "-o", str(tmp_path / "f3.png"), "--samples", "1",
-                          "--photons", "2000", "--caustic-photons", "1000",
-                          "--resolution-percentage", "10", "--max-depth", "1",
-                          "--radius", "0.01", *extra],
+                          os.path.join(BLENDS, "figure3_sphere.blend"), *args, *extra],
                          cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                          timeout=600)
     text = res.stdout.decode("utf-8", "replace")
@@ -125,11 +130,13 @@ def _first(lines, text):
     return next(i for i, line in enumerate(lines) if text in line)
 
 
-def test_batch_radius_warning_before_the_camera_pass(tmp_path):
+def test_batch_radius_warning_before_the_camera_pass(shared_log):
     """The search radius' warning once, on a line of its own, when the photon maps are
     built: before the camera pass's first bar (`Rendering NN%`); it came after the
     render."""
-    lines, text = _batch_log(tmp_path)
+    rc, text = shared_log
+    assert rc == 0, text[-3000:]
+    lines = text.split("\n")
     i = _own_line(lines, RADIUS_WARNING, text)
     assert lines[i].startswith(f"Warning: Photon Mapping: {RADIUS_WARNING}"), repr(lines[i])
     assert i < _first(lines, "Rendering "), text

@@ -1,6 +1,12 @@
 """Cycles' Light Paths bounce limits through the add-on (docs/design.md, Bounce limits):
 the properties and their export, and a closed room at Cycles' default limits against
-live Cycles (the bpy wheel)."""
+Cycles (the bpy wheel).
+
+The default tests' Cycles image means (seeded: the same numbers every run) are stored in
+tests/references/light_paths.json (this file run as a script writes them; the slow
+test_stored_cycles_means_are_cycles_now renders them again live); the slow tests render
+Cycles live."""
+import json
 import math
 import os
 import sys
@@ -13,6 +19,7 @@ from blender_helpers import ROOT, cycles_plain, default_photonmap, read_rgba, re
 pytestmark = pytest.mark.blender
 
 LIMITS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces")
+REF_PATH = os.path.join(ROOT, "tests", "references", "light_paths.json")
 
 
 def test_light_paths_properties_default_to_cycles_and_export(fresh_scene, bpy_addon):
@@ -130,7 +137,6 @@ def _closed_room(bpy, albedo=0.8):
     return scene
 
 
-@pytest.mark.slow
 def _ours_at_seeds(bpy, scene, tmp_path, seeds=(0, 1)):
     """Our images (H,W,3) of scene at default settings but 16 spp and 100k photons, one
     per seed."""
@@ -151,17 +157,36 @@ def test_closed_room_at_cycles_default_limits_matches_cycles(bpy_addon, tmp_path
     corner regathers read the level-0 gather map), 0.999 at 64 bounces; our seeds differ
     by 0.2 %, Cycles' by 0.03 %. Bound 2 %."""
     bpy = bpy_addon
+    scene = _closed_room_at_default_limits(bpy)
+    cyc = _stored_means()["closed room 12/4/4/12"]  # Cycles 256 spp, seeds 0 and 1
+    ours = _ours_at_seeds(bpy, scene, tmp_path)
+    ratio = np.mean([o.mean() for o in ours]) / np.mean(cyc)
+    assert abs(ratio - 1.0) < 0.02, ratio
+
+
+def _closed_room_at_default_limits(bpy):
+    """_closed_room with Cycles' sampling at 256 spp and its default Light Paths (12 / 4 /
+    4 / 12), which ours reads too."""
     scene = _closed_room(bpy)
-    scene.render.engine = "CYCLES"
     c = cycles_plain(scene, 256, 12)
     c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = 12, 4, 4, 12
-    cyc = []
-    for seed in (0, 1):
-        c.seed = seed
-        cyc.append(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"c{seed}.exr"))[..., :3])
-    ours = _ours_at_seeds(bpy, scene, tmp_path)
-    ratio = np.mean([o.mean() for o in ours]) / np.mean([x.mean() for x in cyc])
-    assert abs(ratio - 1.0) < 0.02, ratio
+    return scene
+
+
+def _cycles_means(bpy, scene, tmp_path, seeds=(0,)):
+    """Cycles' image mean of scene as set, per seed (a list)."""
+    scene.render.engine = "CYCLES"
+    means = []
+    for seed in seeds:
+        scene.cycles.seed = seed
+        means.append(float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"c{seed}.exr"))
+                           [..., :3].mean()))
+    return means
+
+
+def _stored_means():
+    with open(REF_PATH) as f:
+        return json.load(f)["means"]
 
 
 def _glass_and_glossy_balls(bpy):
@@ -314,20 +339,18 @@ def test_light_by_way_of_a_mirror_or_a_pane_at_low_limits_matches_cycles(bpy_add
     its shadow rays counted the passage), 1.370 / 1.397 at 1 (Cycles' 128 spp are noisy
     here, +-2.5 % over seeds: the next tests compare closer). ~10 s."""
     bpy = bpy_addon
+    stored = _stored_means()
     means = {}
-    for surface, cases in (("mirror", ((12, 1, 0, 12), (12, 1, 1, 12), (12, 0, 1, 12))),
-                           ("pane", ((12, 1, 0, 0), (12, 1, 0, 1)))):
+    for surface, cases in LIT_THROUGH:
         scene = _floor_lit_through(bpy, surface)
         for lim in cases:
-            c = cycles_plain(scene, 128, lim[0])
-            c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = lim[1:]
-            scene.render.engine = "CYCLES"
-            cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3]
+            _set_limits(scene, 128, lim)
+            cyc = stored[_lit_through_key(surface, lim)][0]  # Cycles 128 spp, seed 0
             scene.render.engine = "PHOTONMAP"
             pm = default_photonmap(scene)
             pm.spp, pm.seed = 16, 0
             ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "o.exr"))[..., :3]
-            means[surface, lim] = float(cyc.mean()), float(ours.mean())
+            means[surface, lim] = cyc, float(ours.mean())
     lit = {k: v for k, v in means.items() if v[0] > 0.1}
     assert set(lit) == {("mirror", (12, 1, 0, 12)), ("mirror", (12, 1, 1, 12)),
                         ("pane", (12, 1, 0, 1))}, means
@@ -336,6 +359,21 @@ def test_light_by_way_of_a_mirror_or_a_pane_at_low_limits_matches_cycles(bpy_add
     for key in set(means) - set(lit):
         cyc, ours = means[key]
         assert ours < 0.01 * means["pane", (12, 1, 0, 1)][1] and cyc < 0.01, means
+
+
+LIT_THROUGH = (("mirror", ((12, 1, 0, 12), (12, 1, 1, 12), (12, 0, 1, 12))),
+               ("pane", ((12, 1, 0, 0), (12, 1, 0, 1))))
+
+
+def _lit_through_key(surface, lim):
+    return f"{surface} lit through {'/'.join(map(str, lim))}"
+
+
+def _set_limits(scene, spp, lim):
+    """Cycles' sampling at spp and Light Paths limits lim (Total, Diffuse, Glossy,
+    Transmission), which ours reads too."""
+    c = cycles_plain(scene, spp, lim[0])
+    c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = lim[1:]
 
 
 def _means(bpy, scene, tmp_path, lim, spp, seeds=(0,)):
@@ -404,6 +442,16 @@ def test_closed_room_with_a_mirror_and_a_glass_ball_at_total_5_matches_cycles(bp
     share of its power their counts keep (chaincounts.GatherCounts.last_level_scale):
     0.998x. Bound 1.2 %. ~12 s."""
     bpy = bpy_addon
+    scene = _closed_room_with_balls_at_total_5(bpy)
+    cyc = _stored_means()["closed room with balls, total 5"][0]  # Cycles 512 spp, seed 0
+    ours = _ours_at_seeds(bpy, scene, tmp_path)
+    ratio = np.mean([o.mean() for o in ours]) / cyc
+    assert abs(ratio - 1.0) < 0.012, ratio
+
+
+def _closed_room_with_balls_at_total_5(bpy):
+    """_closed_room with a mirror ball and a glass ball, Cycles' sampling at 512 spp, Max
+    Bounces 5 and the other limits 64 (ours reads them too)."""
     scene = _closed_room(bpy)
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends as mb
@@ -417,11 +465,31 @@ def test_closed_room_with_a_mirror_and_a_glass_ball_at_total_5_matches_cycles(bp
               (-1.0, 0.8, 0.6))
     c = cycles_plain(scene, 512, 5)
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 64
-    scene.render.engine = "CYCLES"
-    cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3].mean()
-    ours = _ours_at_seeds(bpy, scene, tmp_path)
-    ratio = np.mean([o.mean() for o in ours]) / cyc
-    assert abs(ratio - 1.0) < 0.012, ratio
+    return scene
+
+
+def _live_cycles_means(bpy, tmp_path):
+    """The stored means, rendered now: {key: [mean per seed]}."""
+    means = {"closed room 12/4/4/12": _cycles_means(
+                 bpy, _closed_room_at_default_limits(bpy), tmp_path, seeds=(0, 1)),
+             "closed room with balls, total 5": _cycles_means(
+                 bpy, _closed_room_with_balls_at_total_5(bpy), tmp_path)}
+    for surface, cases in LIT_THROUGH:
+        for lim in cases:
+            scene = _floor_lit_through(bpy, surface)
+            _set_limits(scene, 128, lim)
+            means[_lit_through_key(surface, lim)] = _cycles_means(bpy, scene, tmp_path)
+    return means
+
+
+@pytest.mark.slow
+def test_stored_cycles_means_are_cycles_now(bpy_addon, tmp_path):
+    """tests/references/light_paths.json is what this Blender's Cycles renders (seeded:
+    the same numbers up to float summation order; ~30 CPU s)."""
+    stored, now = _stored_means(), _live_cycles_means(bpy_addon, tmp_path)
+    assert set(now) == set(stored)
+    for k, v in now.items():
+        np.testing.assert_allclose(v, stored[k], rtol=1e-3, atol=1e-6, err_msg=k)
 
 
 def _house_on_a_lawn(bpy):
@@ -484,3 +552,8 @@ def test_room_on_a_sunlit_lawn_at_cycles_default_limits_matches_cycles(bpy_addon
     ours = _ours_at_seeds(bpy, scene, tmp_path)
     ratio = np.mean([o.mean() for o in ours]) / cyc
     assert abs(ratio - 1.0) < 0.04, ratio
+
+
+if __name__ == "__main__":  # write the stored means: .venv/bin/python <this file>
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _live_cycles_means)

@@ -15,12 +15,21 @@ where the image mean's spread over seeds is about 1 % (at the defaults, 16 spp a
 400k / 200k photons, 3-6 %: the dielectric floor's 0.965 of s30's bench at roughness 1
 plain GGX was one such draw, 1.012 over three seeds here).
 bench/bench_reflected_panel.py prints the same table.
+
+Cycles' image means (1024 spp, seed 0: the same numbers every run) are stored in
+tests/references/reflected_panel.json (this file run as a script writes them); the slow
+test_stored_cycles_means_are_cycles_now renders them again live.
 """
+import json
 import math
+import os
 
 import pytest
 
 pytestmark = pytest.mark.blender
+
+REF_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                        "references", "reflected_panel.json")
 
 CASES = ((0.5, "MULTI_GGX"), (1.0, "MULTI_GGX"), (1.0, "GGX"))
 
@@ -111,17 +120,34 @@ def image_mean(bpy, scene, path, engine, spp=64, photons=2_000_000, seed=0):
     return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
 
 
+def _key(kind, roughness, dist):
+    return f"{kind} {roughness} {dist}"
+
+
+def _cycles_means(bpy, tmp_path, kinds=("metal", "coated metal", "dielectric")):
+    """Cycles' image mean per kind and CASES entry, rendered now: {_key: mean}."""
+    return {_key(kind, roughness, dist): image_mean(
+                bpy, scene_for(bpy, roughness, dist, kind),
+                tmp_path / f"CYCLES_{kind}_{roughness}_{dist}.exr", "CYCLES")
+            for kind in kinds for roughness, dist in CASES}
+
+
+def _stored_means():
+    with open(REF_PATH) as f:
+        return json.load(f)["means"]
+
+
 def _ratios(bpy, tmp_path, kind):
-    """ours / Cycles per CASES entry."""
+    """ours / Cycles (the stored means) per CASES entry."""
+    cycles = _stored_means()
     ratio = {}
     for roughness, dist in CASES:
-        got = {}
-        for engine in ("PHOTONMAP", "CYCLES"):
-            scene = scene_for(bpy, roughness, dist, kind)
-            got[engine] = image_mean(bpy, scene, tmp_path / f"{engine}_{roughness}_{dist}.exr",
-                                     engine)
-        assert got["CYCLES"] > 0.01, got  # the panel is lit
-        ratio[roughness, dist] = got["PHOTONMAP"] / got["CYCLES"]
+        scene = scene_for(bpy, roughness, dist, kind)
+        ours = image_mean(bpy, scene, tmp_path / f"PHOTONMAP_{roughness}_{dist}.exr",
+                          "PHOTONMAP")
+        want = cycles[_key(kind, roughness, dist)]
+        assert want > 0.01, cycles  # the panel is lit
+        ratio[roughness, dist] = ours / want
     print(kind, "ours / Cycles:", {k: round(v, 4) for k, v in ratio.items()})
     return ratio
 
@@ -135,3 +161,18 @@ def test_panel_lit_by_a_rough_floor_matches_cycles(bpy_addon, tmp_path, kind):
     # same photon paths, so most of the noise cancels), ours against Cycles'.
     effect = ratio[1.0, "MULTI_GGX"] / ratio[1.0, "GGX"]
     assert abs(effect - 1.0) < 0.01, (effect, ratio)
+
+
+@pytest.mark.slow
+def test_stored_cycles_means_are_cycles_now(bpy_addon, tmp_path):
+    """The stored means are what this Blender's Cycles renders (9 renders at 1024 spp,
+    ~25 CPU s; seed 0, so the same numbers up to float summation order)."""
+    stored, now = _stored_means(), _cycles_means(bpy_addon, tmp_path)
+    assert set(now) == set(stored)
+    for k, v in now.items():
+        assert abs(v / stored[k] - 1.0) < 1e-3, (k, v, stored[k])
+
+
+if __name__ == "__main__":  # write the stored means: .venv/bin/python <this file>
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _cycles_means, cycles_samples=1024, seed=0)

@@ -7,14 +7,22 @@ the room 0.80-0.83, with a warning that no light passes through).
   (the translucent share is taken beside the other closure, with its own colour). Every
   pixel is one BSDF evaluation in both engines: image means within 2 %.
 - A room lit by a point lamp inside a Translucent lamp shade, full global illumination:
-  the shade, the floor and the walls within a few per cent of Cycles.
+  the shade, the floor and the walls within a few per cent of Cycles. Cycles' region
+  means (1024 spp, seed 0: the same numbers every run) are stored in
+  tests/references/translucent_lamp_room.json (this file run as a script writes them); the
+  slow test_stored_lamp_room_means_are_cycles_now renders them again live.
 """
+import json
 import math
+import os
 
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
+
+REF_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                        "references", "translucent_lamp_room.json")
 
 
 def _material(bpy, name, build):
@@ -150,11 +158,11 @@ def _lamp_room(bpy):
     return room, shade
 
 
-def test_room_lit_through_a_translucent_lamp_shade_matches_cycles(fresh_scene, bpy_addon,
-                                                                  tmp_path):
-    from blender_helpers import default_photonmap, project
-    bpy = bpy_addon
-    scene = fresh_scene
+def _lamp_room_scene(bpy, scene):
+    """The lamp room in scene at 64 x 48, with one set of Light Paths for both engines (the
+    add-on reads Cycles' own): a white room needs many diffuse bounces (the shade's is a
+    transmission bounce, as Cycles counts it)."""
+    from blender_helpers import cycles_plain, default_photonmap
     default_photonmap(scene)
     scene.render.resolution_x, scene.render.resolution_y = 64, 48
     scene.render.resolution_percentage = 100
@@ -162,27 +170,70 @@ def test_room_lit_through_a_translucent_lamp_shade_matches_cycles(fresh_scene, b
     _black_world(bpy, scene)
     _camera(bpy, scene, (-1.7, -1.7, 1.6), (0.3, 0.4, 0.9), lens=20.0)
     scene.photonmap.spp = 16
-    # One set of Light Paths for both (the add-on reads Cycles' own): a white room needs
-    # many diffuse bounces (the shade's is a transmission bounce, as Cycles counts it).
-    from blender_helpers import cycles_plain
     c = cycles_plain(scene, 1024, 8)
     c.diffuse_bounces = c.transmission_bounces = c.glossy_bounces = 8
-    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 16, 8)
-    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 1024, 8)
-    # Regions: the shade (around its projection), and the rest of the picture by thirds.
-    h, w = ours.shape[:2]
+    return scene
+
+
+def _region_means(bpy, scene, img):
+    """Mean luminance (RGB mean) of the regions: the shade (around its projection), and
+    the rest of the picture by thirds; and the whole image."""
+    from blender_helpers import project
+    h, w = img.shape[:2]
     sy, sx = project(bpy, scene, (0.3, 0.4, 1.2))
     yy, xx = np.mgrid[0:h, 0:w]
     near_shade = (np.abs(xx - sx) < 4) & (np.abs(yy - sy) < 4)
-    lum_o, lum_r = ours.mean(axis=2), ref.mean(axis=2)
-    report = {}
-    for name, mask in {"shade": near_shade,
-                       "top": (yy < h // 3) & ~near_shade,
-                       "middle": (yy >= h // 3) & (yy < 2 * h // 3) & ~near_shade,
-                       "bottom": (yy >= 2 * h // 3) & ~near_shade}.items():
-        report[name] = lum_o[mask].mean() / lum_r[mask].mean()
-    report["image"] = lum_o.mean() / lum_r.mean()
+    lum = img.mean(axis=2)
+    means = {name: float(lum[mask].mean()) for name, mask in {
+        "shade": near_shade,
+        "top": (yy < h // 3) & ~near_shade,
+        "middle": (yy >= h // 3) & (yy < 2 * h // 3) & ~near_shade,
+        "bottom": (yy >= 2 * h // 3) & ~near_shade}.items()}
+    means["image"] = float(lum.mean())
+    return means
+
+
+def _cycles_lamp_room(bpy, scene, tmp_path):
+    """Cycles' region means of the lamp room, rendered now."""
+    _lamp_room_scene(bpy, scene)
+    return _region_means(bpy, scene, _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES",
+                                              1024, 8))
+
+
+def _stored_means():
+    with open(REF_PATH) as f:
+        return json.load(f)["means"]
+
+
+def test_room_lit_through_a_translucent_lamp_shade_matches_cycles(fresh_scene, bpy_addon,
+                                                                  tmp_path):
+    bpy = bpy_addon
+    scene = _lamp_room_scene(bpy, fresh_scene)
+    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 16, 8)
+    cycles = _stored_means()
+    report = {k: v / cycles[k] for k, v in _region_means(bpy, scene, ours).items()}
     print("ours / Cycles:", {k: round(v, 3) for k, v in report.items()})
     assert np.all(np.isfinite(ours))
     for name, ratio in report.items():
         assert abs(ratio - 1.0) < (0.08 if name == "shade" else 0.05), (name, report)
+
+
+@pytest.mark.slow
+def test_stored_lamp_room_means_are_cycles_now(fresh_scene, bpy_addon, tmp_path):
+    """The stored region means are what this Blender's Cycles renders (1024 spp, ~12 CPU
+    s; seeded: the same numbers up to float summation order)."""
+    stored, now = _stored_means(), _cycles_lamp_room(bpy_addon, fresh_scene, tmp_path)
+    assert set(now) == set(stored)
+    for k, v in now.items():
+        assert abs(v / stored[k] - 1.0) < 1e-3, (k, v, stored[k])
+
+
+if __name__ == "__main__":  # write the stored means: .venv/bin/python <this file>
+    from blender_helpers import store_cycles_means
+
+    def lamp_room(bpy, tmp_path):
+        bpy.ops.wm.read_homefile(use_empty=True)  # as the fresh_scene fixture
+        scene = bpy.context.scene
+        scene.render.engine = "PHOTONMAP"
+        return _cycles_lamp_room(bpy, scene, tmp_path)
+    store_cycles_means(REF_PATH, lamp_room, cycles_samples=1024, seed=0)
