@@ -252,8 +252,10 @@ class _StatusPrinter:
                     # counts, seldom the effects): the whole report of about 2 KB a
                     # frame buried a classroom's batch log (newuser42).
                     lines = [x for x in self.effects if x not in self.previous_effects]
-                    print("  Effects as the previous frame" + (", except:" if lines else ""),
-                          file=self.stream)
+                    gone = [x for x in self.previous_effects if x not in self.effects]
+                    print("  Effects as the previous frame"
+                          + (", except:" if lines or gone else ""), file=self.stream)
+                    lines = lines + [f"no longer: {x}" for x in gone]
                 for line in lines:
                     print(f"  {line}", file=self.stream)
 

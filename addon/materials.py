@@ -31,8 +31,10 @@ from __future__ import annotations
 
 import os
 import traceback
+import zlib
 
 import bpy
+
 import numpy as np
 
 from . import lightpath, nodegroups
@@ -289,7 +291,7 @@ def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
 
 # Per-hit parameters (Closure.scalars) of a picked Mix Shader side that a blend takes from
 # its lead side, as it takes their constants, and those that are colours.
-_LEAD_SCALARS = ("multiscatter", "anisotropic", "anisotropic_rotation")
+_LEAD_SCALARS = ("multiscatter", "anisotropic", "anisotropic_rotation", "node")
 _COLOUR_SCALARS = ("specular_tint", "coat_tint", "sheen_tint")
 
 
@@ -701,7 +703,7 @@ class MaterialConverter:
         closure = self._shader(self._source(surface), 0)
         if self._subsurface_mixes and getattr(closure, "subsurface", None) is None:
             # (engine/subsurfacewalk.py takes one subsurface surface per material row)
-            self._warn(f"material '{mat.name}': Mix Shader "
+            self._warn(f"material '{mat.name}': shader "
                        f"'{self._subsurface_mixes[0]}' mixes a surface with subsurface "
                        "scattering; the mix renders its subsurface part as the diffuse "
                        "stand-in (no random walk beneath the surface)")
@@ -1317,6 +1319,10 @@ class MaterialConverter:
         if t == "ADD_SHADER":
             a = self._shader(self._source(inp[0]), depth + 1)
             b = self._shader(self._source(inp[1]), depth + 1)
+            if getattr(a, "subsurface", None) is not None \
+                    or getattr(b, "subsurface", None) is not None:
+                self._subsurface_mixes = [*getattr(self, "_subsurface_mixes", ()),
+                                          node.name]
             if a.has_bsdf and b.has_bsdf:
                 # Cycles sums the two closures: their mix by w_a : w_b at weight w_a + w_b.
                 return self._weighted_sum(node, a, b, a.weight, b.weight, 1.0, 1.0)
@@ -1563,7 +1569,9 @@ class MaterialConverter:
         """wa a + wb b of two surfaces (wa = mix or add weight x closure weight): their
         blend by wa : wb (_blend) at closure weight wa + wb, so that every BSDF lobe of
         either side keeps its own weight (exact where _blend is: equal or complementary
-        lobes, e.g. Diffuse + Diffuse, Diffuse + Glossy); emission ea x a's + eb x b's.
+        lobes, e.g. Diffuse + Diffuse, Diffuse + Glossy); unlike opaque surfaces
+        (_blend_inexact) pick one side per hit, b with probability wb / (wa + wb), at that
+        weight (_mix_per_hit); emission ea x a's + eb x b's.
         The transparent shares (alpha < 1) are averaged by wa : wb, not added up (warned)."""
         sn = self.pm.shadernodes
         total = wa + wb
@@ -1621,15 +1629,15 @@ class MaterialConverter:
         # The colour model of their blend (_blend: the side with more glossy / glass
         # weight leads), found without building the blend: a side's texture-driven
         # scalars would need engine nodes for that.
+        if a.translucent > 0 or b.translucent > 0:
+            # _blend keeps a Translucent BSDF's share and colour apart (exact when one
+            # side is wholly translucent); translucency is not picked per hit.
+            return False
         if (getattr(a, "subsurface", None) is None) != (getattr(b, "subsurface", None) is None):
             # Only a pick keeps the one subsurface side's walk (_picked_walk).
             return True
         ga = a.metallic + a.transmission + a.specular
         gb = b.metallic + b.transmission + b.specular
-        if a.translucent > 0 or b.translucent > 0:
-            # _blend keeps a Translucent BSDF's share and colour apart (exact when one
-            # side is wholly translucent).
-            return False
         if _lead(a, b, ga, gb).node != "principled":
             # A Glossy / Glass BSDF leads: exact beside a side without a glossy lobe (a
             # Diffuse BSDF) or one of the same roughness; a Principled layer of another
@@ -1648,8 +1656,12 @@ class MaterialConverter:
                                        or (a.texture is None and b.texture is None
                                            and np.allclose(a.base_color, b.base_color)))
             ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
+            # (A Glass BSDF's model tints its lobes by the blend's one colour.)
+            colours = (_lead(a, b, ga, gb).node == "glossy"
+                       or (a.texture is None and b.texture is None
+                           and np.allclose(a.base_color, b.base_color)))
             return (hasattr(ra, "evaluate") or hasattr(rb, "evaluate") or ra != rb
-                    or not MaterialConverter._same_layers(a, b, ga, gb))
+                    or not colours or not MaterialConverter._same_layers(a, b, ga, gb))
 
         lobes = [(_closure_value(a, n), _closure_value(b, n))
                  for n in MaterialConverter.LINEAR_SCALARS]
@@ -1704,15 +1716,18 @@ class MaterialConverter:
         probability f (engine.shadernodes.ClosurePick, Cycles' closure sampling): every
         lobe parameter, the IOR, distribution, anisotropy, specular / coat / sheen tints
         and the colour come from that side, so the mean over hits is the weighted sum of
-        the two BSDFs for camera rays and photons alike. Still one per material: the
-        colour model (Principled or Glossy BSDF's, the lead side's), the normal map and
-        the tangent. None when a side is emissive or not opaque (those keep the factor's
+        the two BSDFs for camera rays and photons alike, the closure model (Principled,
+        Glossy, Glass or Refraction BSDF) included since s42. Still one per material: the
+        normal map and the tangent. None when a side is emissive or not opaque (those keep the factor's
         own value)."""
         if not (self._opaque(a) and self._opaque(b)):
             return None
         sn = self.pm.shadernodes
         pick = self._blend_inexact(a, b)
-        f = sn.ClosurePick(fac) if pick else sn.Math("MULTIPLY", fac, 1.0, clamp=True)
+        # (Each pick its own random number: salted by the material and the node.)
+        salt = zlib.crc32(f"{getattr(self._mat, 'name', '')}/"
+                          f"{getattr(node, 'name', '')}".encode()) + 1
+        f = sn.ClosurePick(fac, salt) if pick else sn.Math("MULTIPLY", fac, 1.0, clamp=True)
         g = sn.Math("SUBTRACT", 1.0, f)
         out = _blend(a, b, 0.5, 0.5, sn)
         out.scalars = {}
@@ -1760,17 +1775,26 @@ class MaterialConverter:
                 cb = clean(b, name, lambda x: np.clip(x, 0.0, None))
                 if hasattr(ca, "evaluate") or hasattr(cb, "evaluate") or not np.array_equal(ca, cb):
                     out.scalars[name] = sn.MixColor(f, ca, cb)
-            if a.node != b.node:
+            if a.node != b.node or "node" in a.scalars or "node" in b.scalars:
                 # The picked side's closure model too (its metal lobe's colour and
                 # Fresnel, a Glass BSDF's tinted reflection, a Refraction BSDF's missing
                 # one): one model per material rendered rough Glass + Refraction 1.6-1.9 x
                 # Cycles, a metal + Refraction 1.03-1.08 x.
-                code = self.pm.geometry.node_code
-                out.scalars["node"] = per_hit(float(code(a.node)), float(code(b.node)))
+                def model(c):  # a nested pick's per-hit model, else the side's own
+                    x = c.scalars.get("node")
+                    return x if x is not None else float(self.pm.geometry.node_code(c.node))
+                out.scalars["node"] = per_hit(model(a), model(b))
             # The material's constant row enables the tangents where either side is
             # anisotropic (anisotropy.anisotropic_materials).
             xa, xb = a.anisotropic, b.anisotropic
             out.anisotropic = xa if abs(xa) >= abs(xb) else xb
+            if "node" in out.scalars and out.anisotropic < 0:
+                # A Glossy BSDF's negative anisotropy under a Principled row: the
+                # constant only enables the tangents (a > 0 for Principled's), the hits
+                # read their own value (review42).
+                out.scalars["anisotropic"] = sn.Math(
+                    "ADD", sn.Math("MULTIPLY", g, xa), sn.Math("MULTIPLY", f, xb))
+                out.anisotropic = abs(out.anisotropic)
             self._warn_per_material(a, b, node)
 
         def colour(c):

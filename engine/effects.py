@@ -1230,13 +1230,14 @@ def _instance_groups(names) -> list[tuple[str, int, str]]:
     add-on names instanced copies 'Instancer/Object#k' (addon/export.py); two or more
     copies of one name are listed once as "'Scatter/Rock' (40 instances)" (a report
     listed 'Scatter/Rock#0', 'Scatter/Rock#1' ... : newuser41b). Order of first appearance."""
-    groups: dict[str, list[str]] = {}
+    groups: dict[tuple, list[str]] = {}
     for n in names:
         m = _INSTANCE_NAME.match(str(n))
-        groups.setdefault(m.group(1) if m else str(n), []).append(n)
+        # (An object's own name apart from copies named after it.)
+        groups.setdefault((m.group(1), True) if m else (str(n), False), []).append(n)
     out = []
-    for base, members in groups.items():
-        if len(members) > 1 and _INSTANCE_NAME.match(str(members[0])):
+    for (base, copies), members in groups.items():
+        if copies and len(members) > 1:
             out.append((base, len(members), members[0]))
         else:
             out.extend((str(m), 1, m) for m in members)

@@ -1644,13 +1644,14 @@ class Fresnel:
         return fresnel_dielectric_cos(np.einsum("ij,ij->i", wi, n), eta)
 
 
-def hit_random(prim, u, v) -> np.ndarray:
+def hit_random(prim, u, v, salt: int = 0) -> np.ndarray:
     """(N,) float64 in [0, 1): a hash of the hit (triangle prim, barycentrics u, v as their
     float64 bits; splitmix64's finaliser, as integrator._mix64), uniform and independent of
     the sampler's dimensions. A function of the hit point alone, so every evaluation at one
     hit (its closure, its colour, its light sample and its bounce) agrees, and a render is
     reproducible without a seed: the camera's jitter and the photons' random streams (both
-    seeded) decide where the hits fall."""
+    seeded) decide where the hits fall. salt (a 64-bit integer, 0: none) gives another
+    independent number at the same hit (a Mix Shader's pick inside another's)."""
     from .integrator import _mix64 as mix  # splitmix64's finaliser (integrator imports us)
     p = np.asarray(prim).astype(np.uint64)
     bu = np.ascontiguousarray(u, np.float64).view(np.uint64)
@@ -1659,6 +1660,8 @@ def hit_random(prim, u, v) -> np.ndarray:
         h = mix(p * np.uint64(0x9E3779B97F4A7C15) + np.uint64(0x632BE59BD9B4E019))
         h = mix(h ^ bu)
         h = mix(h ^ bv)
+        if salt:
+            h = mix(h ^ np.uint64(salt & 0xFFFFFFFFFFFFFFFF))
     return (h >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
 
 
@@ -1672,15 +1675,20 @@ class ClosurePick:
     BSDFs and their mean over hits is (1 - f) f_a + f f_b, camera and photon pass alike
     (the one-sample estimate of the weighted sum; addon/materials.py _mix_per_hit)."""
 
-    def __init__(self, factor):
+    def __init__(self, factor, salt: int = 0):
         self.factor = factor
+        # Each pick's own random number at a hit (hit_random's salt): a pick nested in
+        # another (Mix inside a Mix or an Add) read the outer's number, so its choice
+        # followed the outer one (Mix 0.5 of Mix 0.5 of blue and gold, and green: 50 / 0 /
+        # 50 % for 25 / 25 / 50 %: found by review42).
+        self.salt = int(salt)
         # The last batch and its pick (_PickBatch): every parameter of a picked mix is a
         # Math tree reading this node (about 20 reads a hit set), and the factor (a Noise
         # Texture) and the hash cost more than all of them. Not pickled.
         self._last = None
 
     def __getstate__(self):
-        return {"factor": self.factor, "_last": None}
+        return {"factor": self.factor, "salt": getattr(self, "salt", 0), "_last": None}
 
     def evaluate(self, geo, prim, u, v):
         """(N,) float64, read-only: 1 where the hit takes the second closure, else 0. The
@@ -1691,7 +1699,7 @@ class ClosurePick:
         if last is not None and last.matches(geo, prim, u, v):
             return last.pick
         f = np.clip(_eval(self.factor, geo, prim, u, v, 1), 0.0, 1.0)
-        pick = (hit_random(prim, u, v) < f).astype(np.float64)
+        pick = (hit_random(prim, u, v, getattr(self, "salt", 0)) < f).astype(np.float64)
         pick.flags.writeable = False  # shared by every reader of the batch
         if geo is not None:
             self._last = _PickBatch(geo, prim, u, v, pick)

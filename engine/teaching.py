@@ -100,8 +100,8 @@ def mean_brightness(img: np.ndarray) -> float:
 
 
 def displayed_brightness(img: np.ndarray) -> float:
-    """Mean luminance of a linear (H, W, 3) image as a display shows it: each channel
-    clipped to [0, 1] (the PNG's range), so that a lamp or a glint seen in a mirror
+    """Mean luminance of a linear (H, W, 3) image with each channel clipped to [0, 1]
+    (the PNG's range; no view transform), so that a lamp or a glint seen in a mirror
     counts as a white pixel, not as its radiance."""
     return mean_brightness(np.clip(np.asarray(img, np.float64), 0.0, 1.0))
 

@@ -547,7 +547,6 @@ def test_picked_mix_warns_what_stays_one_per_material(fresh_scene, bpy_addon):
         ln.new(bump.outputs["Normal"], side.node.inputs["Normal"])
         return _noise_mix(nd, ln, side, _gold_metal(nd))
     m = convert_material(_material(bpy, "Models", models))
-    assert not any("way of colouring" in x for x in m.warnings), m.warnings
     rng = np.random.default_rng(3)
     n = 4000
     rows = scalar_params(MaterialTable.build([m]), None, np.zeros(n, np.int64),
@@ -747,3 +746,71 @@ def test_refraction_out_onto_a_touching_floor_matches_cycles(fresh_scene, bpy_ad
     print(f"cylinder's upper rows {rows} cols {cols}: ours {np.round(got, 4)} "
           f"Cycles {np.round(want, 4)}")
     assert ours.size and np.all(np.abs(got - want)[:2] <= 0.03), (got, want)
+
+
+def test_nested_picks_convert_and_choose_independently(fresh_scene, bpy_addon):
+    """review42: a pick inside an Add or another Mix failed to convert once the closure
+    model was picked per hit ('node' blended as a number), and a nested pick read the
+    outer pick's random number (Mix 0.5 of Mix 0.5 of blue and gold, and green: 50 / 0 /
+    50 % instead of 25 / 25 / 50 %)."""
+    from blender_helpers import convert_material
+    from engine.geometry import MaterialTable, node_code
+    from engine.textures import scalar_params
+    from engine.closures import principled as pr
+    bpy = bpy_addon
+    rng = np.random.default_rng(11)
+    n = 20000
+
+    def rows_of(build, name):
+        m = convert_material(_material(bpy, name, build))
+        assert not any("could not be read" in w for w in m.warnings), m.warnings
+        return scalar_params(MaterialTable.build([m]), None, np.zeros(n, np.int64),
+                             rng.integers(0, 4, n), rng.random(n) * 0.5, rng.random(n) * 0.5)
+
+    def in_add(nd, ln):
+        return _add(nd, ln, _mix(nd, ln, 0.5, _gold_metal(nd),
+                                 _glossy(nd, (0.9, 0.7, 0.3), 0.2)),
+                    _diffuse(nd, (0.1, 0.4, 0.8)))
+    rows = rows_of(in_add, "InAdd")
+    codes = rows[:, pr.M_NODE]
+    assert set(np.unique(codes)) == {node_code("principled"), node_code("glossy")}
+    glossy = codes == node_code("glossy")
+    assert abs(glossy.mean() - 0.25) < 0.02, glossy.mean()  # half of the Add's half
+
+    def in_mix(nd, ln):
+        return _mix(nd, ln, 0.5, _mix(nd, ln, 0.5, _blue_dielectric(nd), _gold_metal(nd)),
+                    _diffuse(nd, (0.1, 0.8, 0.2)))
+    rows = rows_of(in_mix, "InMix")
+    gold = rows[:, pr.M_METALLIC] > 0.5
+    blue = (~gold) & (rows[:, pr.M_SPEC] > 0.5)
+    green = (~gold) & ~blue
+    for part, want in ((gold, 0.25), (blue, 0.25), (green, 0.5)):
+        assert abs(part.mean() - want) < 0.02, (gold.mean(), blue.mean(), green.mean())
+    rows_of(lambda nd, ln: _mix(nd, ln, 0.5, _mix(nd, ln, 0.5, _glass_node(nd),
+                                                  _refraction(nd)),
+                                _diffuse(nd, (0.1, 0.4, 0.8))), "GlassRefrDiffuse")
+
+
+def test_translucent_share_and_equal_roughness_glass_stay_right(fresh_scene, bpy_addon):
+    """review42: a subsurface side beside a Translucent BSDF was picked with a fixed 0.5
+    translucent share (the factor's share since); a Glass BSDF and a Principled
+    dielectric of the same roughness but two colours were blended (the Glass BSDF's model
+    tints its lobes by the one blended colour): picked."""
+    from blender_helpers import convert_material
+    from engine.shadernodes import ClosurePick
+    bpy = bpy_addon
+
+    def sss_translucent(fac):
+        def build(nd, ln):
+            s = nd.new("ShaderNodeSubsurfaceScattering")
+            t = nd.new("ShaderNodeBsdfTranslucent")
+            return _mix(nd, ln, fac, s.outputs[0], t.outputs[0])
+        return build
+    for fac in (0.2, 0.8):
+        m = convert_material(_material(bpy, f"ST{fac}", sss_translucent(fac)))
+        assert abs(m.translucent - fac) < 1e-6, (fac, m.translucent)
+    m = convert_material(_material(bpy, "GP", lambda nd, ln: _mix(
+        nd, ln, 0.5, _glass_node(nd, 0.6, (1.0, 1.0, 1.0)),
+        _principled(nd, (0.1, 0.4, 0.8), 0.6))))
+    roots = list((m.scalar_textures or {}).values())
+    assert any(isinstance(x, ClosurePick) for r in roots for x in _nodes_of(r)), roots
