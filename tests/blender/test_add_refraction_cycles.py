@@ -291,49 +291,39 @@ def test_add_shader_on_sunlit_plane_matches_cycles(fresh_scene, bpy_addon, tmp_p
     _check(ours, ref, case)
 
 
-@pytest.mark.parametrize("case", sorted(ADD_UNLIKE_CASES))
-def test_add_shader_of_unlike_surfaces_matches_cycles(fresh_scene, bpy_addon, tmp_path, case):
-    """Each hit takes one of the two closures at weight 2 (ClosurePick): 16 spp as the
-    Mix Shader's picks below, so that the choice's noise stays inside the 2 %."""
-    bpy = bpy_addon
-    scene = fresh_scene
+def _picks_on_sunlit_plane(bpy, scene, tmp_path, build, case):
+    """The sunlit plane of material build, ours at 64 spp against Cycles at 256: a pick's
+    noise (each hit takes one of two closures, engine.shadernodes.ClosurePick; a sun's
+    highlight on a metal side) stays inside _check's 2 % (at 16 / 64 spp two cases sat at
+    1.1-1.3 % with one set of picks and 2.1-2.3 % with another)."""
     scene.render.resolution_x = scene.render.resolution_y = 24
     scene.render.resolution_percentage = 100
     bpy.ops.mesh.primitive_plane_add(size=40)
-    bpy.context.object.data.materials.append(_material(bpy, "Add", ADD_UNLIKE_CASES[case]))
+    bpy.context.object.data.materials.append(_material(bpy, "Picked", build))
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     sun.data.energy, sun.data.angle = 3.0, 0.0
     sun.rotation_euler = (0.0, math.radians(35.0), 0.0)
     scene.collection.objects.link(sun)
     _camera(bpy, scene, (-6.0, 0.0, 6.0), (math.radians(45.0), 0.0, math.radians(-90.0)))
     _black_world(bpy, scene)
-    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 16, 0)
-    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 64, 0)
+    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 64, 0)
+    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 256, 0)
     assert ref.mean() > 0.05
     _check(ours, ref, case)
+
+
+@pytest.mark.parametrize("case", sorted(ADD_UNLIKE_CASES))
+def test_add_shader_of_unlike_surfaces_matches_cycles(fresh_scene, bpy_addon, tmp_path, case):
+    """Each hit takes one of the two closures at weight 2 (an Add Shader sums them)."""
+    _picks_on_sunlit_plane(bpy_addon, fresh_scene, tmp_path, ADD_UNLIKE_CASES[case], case)
 
 
 @pytest.mark.parametrize("case", sorted(MIX_CASES))
 def test_mix_shader_of_unlike_surfaces_matches_cycles(fresh_scene, bpy_addon, tmp_path,
                                                       case):
-    """Each hit takes one of the two closures (engine.shadernodes.ClosurePick): 16 spp
-    so that the choice's noise stays well inside the 2 %."""
-    bpy = bpy_addon
-    scene = fresh_scene
-    scene.render.resolution_x = scene.render.resolution_y = 24
-    scene.render.resolution_percentage = 100
-    bpy.ops.mesh.primitive_plane_add(size=40)
-    bpy.context.object.data.materials.append(_material(bpy, "Mix", MIX_CASES[case]))
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy, sun.data.angle = 3.0, 0.0
-    sun.rotation_euler = (0.0, math.radians(35.0), 0.0)
-    scene.collection.objects.link(sun)
-    _camera(bpy, scene, (-6.0, 0.0, 6.0), (math.radians(45.0), 0.0, math.radians(-90.0)))
-    _black_world(bpy, scene)
-    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 16, 0)
-    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 64, 0)
-    assert ref.mean() > 0.05
-    _check(ours, ref, case)
+    """Each hit takes one of the two closures, or a blend where it is exact."""
+    _picks_on_sunlit_plane(bpy_addon, fresh_scene, tmp_path, MIX_CASES[case], case)
+
 
 @pytest.mark.parametrize("color", [(1.0, 1.0, 1.0), (0.9, 0.6, 0.3)])
 def test_refraction_slab_over_emissive_floor_matches_cycles(fresh_scene, bpy_addon, tmp_path,
