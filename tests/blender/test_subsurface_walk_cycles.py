@@ -45,19 +45,25 @@ def _add(bpy, scene, ob, m):
         scene.collection.objects.link(ob)
 
 
-def test_thin_slab_glows_when_lit_from_behind(fresh_scene, bpy_addon, tmp_path):
-    """A 1 x 1 m slab 2 cm thick, white subsurface of radius 5 cm, the sun below it: the
-    top face the camera sees is lit only through the slab."""
-    bpy, scene = bpy_addon, fresh_scene
+def _slab_from_behind(bpy, scene, tmp_path, material):
+    """(ours, Cycles) mean RGB (3,) of a 1 x 1 m slab 2 cm thick of `material` seen from
+    above, the sun below it: its top face is lit only through the slab."""
     bpy.ops.mesh.primitive_cube_add(size=1.0)
     slab = bpy.context.object
     slab.scale = (1.0, 1.0, 0.02)
-    _add(bpy, scene, slab, _material(bpy, (0.9, 0.9, 0.9), 0.05, (1.0, 1.0, 1.0)))
+    _add(bpy, scene, slab, material)
     black_world(bpy, scene)
     sun_light(bpy, scene, (math.pi, 0.0, 0.0), energy=3.0)  # travelling up (+Z)
     looking_down_camera(bpy, scene, 2.0, ortho_scale=0.8)
     ours, ref = _renders(bpy, scene, tmp_path)
-    got, want = ours.mean(axis=(0, 1)), ref.mean(axis=(0, 1))
+    return ours.mean(axis=(0, 1)), ref.mean(axis=(0, 1))
+
+
+def test_thin_slab_glows_when_lit_from_behind(fresh_scene, bpy_addon, tmp_path):
+    """A 1 x 1 m slab 2 cm thick, white subsurface of radius 5 cm, the sun below it: the
+    top face the camera sees is lit only through the slab."""
+    got, want = _slab_from_behind(bpy_addon, fresh_scene, tmp_path, _material(
+        bpy_addon, (0.9, 0.9, 0.9), 0.05, (1.0, 1.0, 1.0)))
     print(f"thin slab from behind: ours {np.round(got, 4)} Cycles {np.round(want, 4)}")
     assert want.min() > 0.05  # Cycles: the slab glows through
     np.testing.assert_allclose(got, want, rtol=0.03)
@@ -159,9 +165,6 @@ def test_a_subsurface_side_of_a_mix_walks(fresh_scene, bpy_addon, tmp_path, glos
     the subsurface side walk (addon/materials.py _picked_walk), so the slab glows through
     at 0.7 of its own light. Before s42 the mix rendered the stand-in, black here."""
     bpy, scene = bpy_addon, fresh_scene
-    bpy.ops.mesh.primitive_cube_add(size=1.0)
-    slab = bpy.context.object
-    slab.scale = (1.0, 1.0, 0.02)
     m = _material(bpy, (0.9, 0.9, 0.9), 0.05, (1.0, 1.0, 1.0))
     nt = m.node_tree
     p = nt.nodes["Principled BSDF"]
@@ -178,12 +181,7 @@ def test_a_subsurface_side_of_a_mix_walks(fresh_scene, bpy_addon, tmp_path, glos
     conv = convert_material(m)
     assert conv.subsurface is not None and conv.subsurface.weight_node is not None
     assert not any("subsurface" in w for w in conv.warnings), conv.warnings
-    _add(bpy, scene, slab, m)
-    black_world(bpy, scene)
-    sun_light(bpy, scene, (math.pi, 0.0, 0.0), energy=3.0)  # travelling up (+Z)
-    looking_down_camera(bpy, scene, 2.0, ortho_scale=0.8)
-    ours, ref = _renders(bpy, scene, tmp_path)
-    got, want = ours.mean(axis=(0, 1)), ref.mean(axis=(0, 1))
+    got, want = _slab_from_behind(bpy, scene, tmp_path, m)
     print(f"mixed slab from behind: ours {np.round(got, 4)} Cycles {np.round(want, 4)}")
     assert want.min() > 0.03  # Cycles: the slab glows through
     np.testing.assert_allclose(got, want, rtol=0.04)
