@@ -391,8 +391,9 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
     overrides.update(preset_overrides or {})
     # The counts before the options: --photons alone scales the caustic photons in this
     # ratio (below).
-    counts = (int(overrides.get("photons", _DEFAULTS.photons)),
-              int(overrides.get("caustic_photons", _DEFAULTS.caustic_photons)))
+    counts = ((int(overrides.get("photons", _DEFAULTS.photons)),
+               int(overrides["caustic_photons"])) if "caustic_photons" in overrides
+              else (_DEFAULTS.photons, _DEFAULTS.caustic_photons))
     if preview and args.width is None and args.height is None:
         from .teaching import PREVIEW_LONG_SIDE, preview_scene
         scene = preview_scene(scene, args.preview_size or PREVIEW_LONG_SIDE)
@@ -411,14 +412,15 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
         if v is not None:
             overrides[name] = v
     if args.photons is not None and args.caustic_photons is None:
-        # --photons alone scales the caustic photons too, in the ratio the preset and
-        # the scene file set (the defaults' without them; 0 stays 0): a quick 5,000-photon render should not trace
+        # --photons alone scales the caustic photons too, in the ratio the preset or
+        # the scene file set with its caustic count (else the defaults'; 0 stays 0): a quick 5,000-photon render should not trace
         # 200,000 caustic photons. The scene file's own count stood before (newuser42:
         # paper mode's "--photons 1000" on figure6.toml kept its 100,000 caustic photons
         # and took 35 minutes instead of 3).
         base, caustic = counts
-        overrides["caustic_photons"] = (args.photons * caustic // base if base > 0
-                                        else caustic)
+        from .settings import LIMITS
+        overrides["caustic_photons"] = min(args.photons * caustic // base if base > 0
+                                           else caustic, LIMITS["caustic_photons"])
     if args.no_photon_mapping:
         overrides["photon_mapping"] = False
     for name in ("caustics", "indirect", "specular", "soft_shadows"):

@@ -212,8 +212,12 @@ def test_final_gather_through_a_medium_matches_the_photon_estimate():
         s.add_spot_light((0, 0, 1.5), (0, 0, 0), power=500.0, spot_size_degrees=60.0,
                          blend=0.0)
         s.set_camera((0, 0, 1.0), (0, 0, 2.0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+        # (The cosine gather: the mechanism under test is the medium carried by gather
+        # rays; "auto" guides this spot-lit ceiling, whose guided gathers differ from the
+        # cosine ones by their noise, 1.0115 +- 0.012 over 10 seeds, not by a bias.)
         film = render(s, RenderSettings(workers=1, spp=8, photons=200_000, caustic_photons=0,
-                                        seed=1, final_gather=final_gather, gather_rays=8))
+                                        seed=1, final_gather=final_gather, gather_rays=8,
+                                        gather_guiding=False))
         return np.asarray(film.combined, np.float64)[..., :3].mean(axis=(0, 1))
     gathered, photons = ceiling(True), ceiling(False)
     np.testing.assert_allclose(gathered, photons, rtol=0.02)
