@@ -1251,13 +1251,7 @@ class MaterialConverter:
         if t == "MIX_SHADER":
             a = self._shader(self._source(inp[1]), depth + 1)
             b = self._shader(self._source(inp[2]), depth + 1)
-            if getattr(a, "subsurface", None) is not None \
-                    or getattr(b, "subsurface", None) is not None:
-                # A pick keeps the walk of its one subsurface side (_mix_per_hit); what
-                # else a mix makes carries none: warned once the surface is known
-                # (_material_closure).
-                self._subsurface_mixes = [*getattr(self, "_subsurface_mixes", ()),
-                                          node.name]
+            self._note_subsurface_mix(a, b, node)
             fac = self._input(node, inp[0], depth) if self._source(inp[0]) else None
             if hasattr(fac, "evaluate") and (a.translucent > 0 or b.translucent > 0):
                 self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes a "
@@ -1319,10 +1313,7 @@ class MaterialConverter:
         if t == "ADD_SHADER":
             a = self._shader(self._source(inp[0]), depth + 1)
             b = self._shader(self._source(inp[1]), depth + 1)
-            if getattr(a, "subsurface", None) is not None \
-                    or getattr(b, "subsurface", None) is not None:
-                self._subsurface_mixes = [*getattr(self, "_subsurface_mixes", ()),
-                                          node.name]
+            self._note_subsurface_mix(a, b, node)
             if a.has_bsdf and b.has_bsdf:
                 # Cycles sums the two closures: their mix by w_a : w_b at weight w_a + w_b.
                 return self._weighted_sum(node, a, b, a.weight, b.weight, 1.0, 1.0)
@@ -1638,28 +1629,25 @@ class MaterialConverter:
             return True
         ga = a.metallic + a.transmission + a.specular
         gb = b.metallic + b.transmission + b.specular
-        if _lead(a, b, ga, gb).node != "principled":
+        lead = _lead(a, b, ga, gb).node
+        if lead != "principled":
             # A Glossy / Glass BSDF leads: exact beside a side without a glossy lobe (a
             # Diffuse BSDF) or one of the same roughness; a Principled layer of another
             # roughness would take the blended roughness (Glossy 0.1 + Principled 0.6:
-            # highlight blocks 0.91-1.41 of Cycles).
+            # highlight blocks 0.91-1.41 of Cycles). The Glossy BSDF's model keeps the two
+            # colours in their own lobes (glossy_color); a Glass BSDF's tints its lobes
+            # by the one base colour a blend averages (Glass + blue Diffuse: 4.8 / 1.6 /
+            # 0.85 x Cycles).
+            colours = lead == "glossy" or (a.texture is None and b.texture is None
+                                           and np.allclose(a.base_color, b.base_color))
             if ga == 0 or gb == 0:
-                # The Glossy BSDF's model keeps the two colours in their own lobes
-                # (glossy_color); a Glass BSDF's tints its lobes by the one base colour,
-                # which a blend averages (Glass + blue Diffuse: 4.8 / 1.6 / 0.85 x Cycles).
                 # A sheen or coat side would become a layer over the glossy lobe, dimming
                 # it by its albedo (Glossy + Sheen BSDF 0.975 x Cycles).
                 layered = any(_closure_value(c, k) != 0 if not hasattr(
                     _closure_value(c, k), "evaluate") else True
                     for c in (a, b) for k in ("sheen_weight", "coat_weight"))
-                return layered or not (_lead(a, b, ga, gb).node == "glossy"
-                                       or (a.texture is None and b.texture is None
-                                           and np.allclose(a.base_color, b.base_color)))
+                return layered or not colours
             ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
-            # (A Glass BSDF's model tints its lobes by the blend's one colour.)
-            colours = (_lead(a, b, ga, gb).node == "glossy"
-                       or (a.texture is None and b.texture is None
-                           and np.allclose(a.base_color, b.base_color)))
             return (hasattr(ra, "evaluate") or hasattr(rb, "evaluate") or ra != rb
                     or not colours or not MaterialConverter._same_layers(a, b, ga, gb))
 
@@ -1817,6 +1805,14 @@ class MaterialConverter:
         if pick and (ssa is None) != (ssb is None):
             out.subsurface = self._picked_walk(a, b, ssa, ssb, f, colour)
         return out
+
+    def _note_subsurface_mix(self, a: Closure, b: Closure, node):
+        """Record a Mix / Add Shader with a subsurface side: a pick keeps the walk of its
+        one subsurface side (_picked_walk); whatever else the shader makes carries none,
+        warned once the surface is known (_material_closure)."""
+        if getattr(a, "subsurface", None) is not None \
+                or getattr(b, "subsurface", None) is not None:
+            self._subsurface_mixes = [*getattr(self, "_subsurface_mixes", ()), node.name]
 
     def _picked_walk(self, a: Closure, b: Closure, ssa, ssb, f, colour):
         """The walk of a pick's one subsurface side (engine/subsurfacewalk.py): its

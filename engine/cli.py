@@ -413,8 +413,9 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
             overrides[name] = v
     if args.photons is not None and args.caustic_photons is None:
         # --photons alone scales the caustic photons too, in the ratio the preset or
-        # the scene file set with its caustic count (else the defaults'; 0 stays 0): a quick 5,000-photon render should not trace
-        # 200,000 caustic photons. The scene file's own count stood before (newuser42:
+        # the scene file set with its caustic count (else the defaults'; 0 stays 0): a
+        # quick 5,000-photon render should not trace 200,000 caustic photons. The scene
+        # file's own count stood before (newuser42:
         # paper mode's "--photons 1000" on figure6.toml kept its 100,000 caustic photons
         # and took 35 minutes instead of 3).
         base, caustic = counts
