@@ -19,12 +19,15 @@ venv: $(VENV)/.stamp
 render: venv
 	$(PY) -m addon.batch example_blends/figure6_box.blend -o $(OUT)/figure6_box.png
 
-# Default test run (fast); slow reference renders are marked and run by test-all.
+# Default test run (fast); slow reference renders are marked and run by test-all. The tests
+# run in TEST_WORKERS processes (pytest-xdist), a test file each at a time, so a file's
+# module fixtures are shared; TEST_WORKERS=0 runs them in this process.
+TEST_WORKERS ?= 2
 test: venv
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile tests
 
 test-all: venv
-	$(PY) -m pytest -q -m "slow or not slow" tests
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "slow or not slow" tests
 
 bench: venv
 	$(PY) bench/bench_core.py

@@ -32,3 +32,19 @@ def continuation_only(monkeypatch):
         m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
         return m
     monkeypatch.setattr(integrator, "light_modes", modes)
+
+
+def pytest_sessionstart(session):
+    """Under pytest-xdist (`make test` runs `-n`), compile the render kernels once in the
+    controlling process before its workers start: each worker then loads the cache in a
+    few seconds instead of every worker compiling the same kernels at once (a fresh
+    checkout's cold compile is 2-3 CPU minutes). xdist starts its workers in its own
+    sessionstart hook, marked trylast, so this one runs first."""
+    if os.environ.get("PYTEST_XDIST_WORKER") or not getattr(session.config.option,
+                                                            "numprocesses", None):
+        return
+    from engine import jit
+    if jit.needs_compile():
+        print(f"\n{jit.COMPILE_MESSAGE} (before the test workers start)", flush=True)
+    seconds = jit.ensure_compiled()
+    print(f"render kernels ready in {seconds:.0f} s", flush=True)
