@@ -215,6 +215,8 @@ class _StatusPrinter:
                 return
             if self.warnings and OVERFLOW_REPORT.fullmatch(line):
                 return  # every warning was printed here: "see the system console" is moot
+            if (self.status or "").startswith("error: ") and line == "Error: " + self.status[7:]:
+                return  # Blender's print of the failure (twice): the run's "render failed" says it
         self.write_line(line, out, end)
 
     @contextlib.contextmanager
@@ -223,13 +225,10 @@ class _StatusPrinter:
         operator's reports there when it returns), and Python's warnings (numpy's,
         numba's, ours, on any thread) through the console onto lines of their own on
         stderr, unless quiet. Entered once, on the main thread, around the render."""
-        if self.quiet:
-            yield
-            return
         real = sys.stdout
         sys.stdout = _LineWriter(real, self.blender_line)
         try:
-            with self.console.python_warnings():
+            with (contextlib.nullcontext() if self.quiet else self.console.python_warnings()):
                 yield
         finally:
             if isinstance(sys.stdout, _LineWriter):

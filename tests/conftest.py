@@ -44,7 +44,8 @@ def pytest_sessionstart(session):
                                                             "numprocesses", None):
         return
     from engine import jit
+    # (pytest captures print() here: its terminal writer shows the line)
+    say = session.config.pluginmanager.get_plugin("terminalreporter").write_line
     if jit.needs_compile():
-        print(f"\n{jit.COMPILE_MESSAGE} (before the test workers start)", flush=True)
-    seconds = jit.ensure_compiled()
-    print(f"render kernels ready in {seconds:.0f} s", flush=True)
+        say(f"{jit.COMPILE_MESSAGE} (before the test workers start)")
+    say(f"render kernels ready in {jit.ensure_compiled():.0f} s")
