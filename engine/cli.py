@@ -647,7 +647,16 @@ def _render(args) -> int:
                 bar.n = int(1000 * whole)
             bar.refresh()
 
-    should_cancel = (lambda: interrupt.requested)
+    def should_cancel():
+        # The engine's first poll ends the start, see below.
+        interrupt.at_once = where["stage"] == "compile"
+        return interrupt.requested
+
+    # Until the engine first polls should_cancel it loads (or compiles) its kernels:
+    # seconds to minutes of work that polls nothing and has nothing to keep, so a Ctrl-C
+    # stops at once (newuser42: 20 s on a loaded machine). Not on a cluster, whose start
+    # owns processes to stop.
+    interrupt.at_once = not args.dask
     try:
         if progressive:
             budget = Budget(args.passes or None, args.time_limit, args.target_error)

@@ -352,6 +352,45 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
         signal.signal(signal.SIGINT, started_with)
 
 
+def test_cli_ctrl_c_while_the_cached_kernels_load_stops_at_once(tmp_path, monkeypatch,
+                                                                 capsys):
+    """Loading the cached kernels reports no progress and polls nothing (2-3 s idle, 20 s
+    on a loaded machine: newuser42's Ctrl-C took 20 s "while preparing"). Until the engine
+    first polls should_cancel a Ctrl-C stops at once; after that it cancels as before
+    (test_cli_ctrl_c_leaves_the_target_untouched). The load is simulated: a step that runs 60 s."""
+    import importlib
+    import threading
+    import time
+
+    from engine.cli import main
+    render_module = importlib.import_module("engine.render")
+
+    def loading(progress=None):
+        timer.start()  # Ctrl-C 0.3 s into the load
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            time.sleep(0.01)  # a signal handler's exception lands here
+        return 60.0
+
+    monkeypatch.setattr(render_module, "ensure_compiled", loading)
+    started_with = signal.signal(signal.SIGINT, signal.default_int_handler)
+    target = tmp_path / "out.png"
+    target.write_bytes(OLD)
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+    t0 = time.monotonic()
+    try:
+        rc = main(["render", SCENE, "-o", str(target), "--width", "32", "--height", "24",
+                   "--spp", "1", "--photons", "2000"])
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGINT, started_with)
+    seconds = time.monotonic() - t0
+    err = capsys.readouterr().err
+    assert rc == 130 and seconds < 20, (rc, seconds, err[-1500:])
+    assert "interrupted while preparing" in err and "left untouched" in err, err
+    assert "Traceback" not in err and target.read_bytes() == OLD
+
+
 def _default_sigint():
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
