@@ -1,0 +1,121 @@
+"""Where aimed caustic photons go, with one bounding sphere per caster ("before") and with
+the clustered spheres of engine/casterspheres.py ("after"): spheres, the share of aimed
+photons whose first hit is a caster, the share stored in the caustic map, and the CPU
+seconds of the caustic shot (best of --repeat, one thread).
+
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_caster_spheres.py [--photons 200000]
+        [--pickles ring=/tmp/x/ring.pkl,figure8_caustic=/tmp/x/figure8_caustic.pkl]
+
+Pickles: engine Scenes exported from blends (bench_kernels.exported, or addon.export);
+without them only the built-in scenes of tests/caster_scenes.py run (a half ring, a
+torus, a curved glass sheet, a glass ball)."""
+import argparse
+import os
+import pickle
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+
+import numpy as np  # noqa: E402
+
+from engine import RenderSettings, casterspheres  # noqa: E402
+from engine.jit import ensure_compiled  # noqa: E402
+from engine.photons import CAUSTIC, trace_photons  # noqa: E402
+from engine.render import _allocate_aimed, close_context, prepare_context  # noqa: E402
+
+
+def first_hits_on_casters(ctx, targets, n, seed):
+    """Share of n aimed photons (per light, by _allocate_aimed's split) that carry power
+    and whose first hit belongs to a caster."""
+    rng = np.random.default_rng(seed)
+    counts = _allocate_aimed(ctx, targets, n)
+    hit = total = 0
+    casters = set(int(i) for i in ctx.plan.caster_ids)
+    for light, count in zip(ctx.lights, counts):
+        if not count:
+            continue
+        o, d, power = light.emit_towards(count, rng, *targets)
+        live = power.max(axis=1) > 0
+        _, prim, _, _ = ctx.accel.intersect(o[live], d[live])
+        ok = prim >= 0
+        hit += int(np.isin(ctx.geo.object_id[prim[ok]], list(casters)).sum())
+        total += count
+    return hit / max(total, 1)
+
+
+def measure(scene, photons, repeat, seed=1):
+    ctx = prepare_context(scene, RenderSettings(workers=1, seed=seed))
+    try:
+        targets = ctx.plan.caster_spheres
+        if not len(targets[1]):
+            return None
+        hits = first_hits_on_casters(ctx, targets, photons, seed)
+        # As the render's aimed shot (render._photon_pass): with rough specular surfaces
+        # (the table's coat) it keeps only paths whose first hit is a caster; the rest
+        # come from unaimed photons.
+        first_hit = None
+        if ctx.plan.rough_specular:
+            split = np.zeros(len(ctx.geo.object_names), bool)
+            split[ctx.plan.caster_ids] = True
+            first_hit = (split, True)
+        best = np.inf
+        for _ in range(repeat):
+            counts = _allocate_aimed(ctx, targets, photons)
+            t = time.process_time()
+            shot = trace_photons(ctx, ctx.lights, counts, caustic_only=True, stream=2,
+                                 targets=targets, first_hit=first_hit)
+            best = min(best, time.process_time() - t)
+        stored = int(np.count_nonzero(shot.kind == CAUSTIC))
+        power = float(shot.power[shot.kind == CAUSTIC].sum())
+        return dict(spheres=len(targets[1]), hits=hits, stored=stored,
+                    share=stored / photons, cpu=best, power=power)
+    finally:
+        close_context(ctx)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--photons", type=int, default=200_000)
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--pickles", default="")
+    args = ap.parse_args()
+    ensure_compiled()
+    from caster_scenes import ring_scene, sheet_scene, torus_scene
+    from test_scenes import caustic_scene
+    scenes = [("half ring (tests)", ring_scene), ("torus (tests)", torus_scene),
+              ("curved glass sheet (tests)", sheet_scene),
+              ("glass ball (tests)", lambda: caustic_scene(16))]
+    for item in filter(None, args.pickles.split(",")):
+        name, path = item.split("=")
+
+        def load(path=path):
+            with open(path, "rb") as f:
+                return pickle.load(f)
+        scenes.append((name, load))
+    print(f"{args.photons:,} caustic photons, 1 thread, CPU s best of {args.repeat}\n")
+    print("| scene | spheres before / after | first hit on a caster before / after | "
+          "stored before / after | stored share gain | caustic power after / before | "
+          "CPU s before / after | stored per CPU s gain |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, make in scenes:
+        res = {}
+        for label, on in (("before", False), ("after", True)):
+            casterspheres.CLUSTER_CASTERS = on
+            res[label] = measure(make(), args.photons, args.repeat)
+        casterspheres.CLUSTER_CASTERS = True
+        b, a = res["before"], res["after"]
+        if b is None:
+            print(f"| {name} | no caster |")
+            continue
+        print(f"| {name} | {b['spheres']} / {a['spheres']} | {b['hits']:.1%} / {a['hits']:.1%} "
+              f"| {b['stored']:,} ({b['share']:.1%}) / {a['stored']:,} ({a['share']:.1%}) "
+              f"| {a['stored'] / max(b['stored'], 1):.2f}x | {a['power'] / b['power']:.4f} "
+              f"| {b['cpu']:.2f} / {a['cpu']:.2f} "
+              f"| {(a['stored'] / a['cpu']) / (b['stored'] / b['cpu']):.2f}x |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

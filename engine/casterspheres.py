@@ -1,0 +1,147 @@
+"""Bounding spheres that caustic photons are aimed at: one per caster, or, where the caster
+fills its bounding sphere poorly (a thin ring, a long rod, a curved sheet), a few smaller
+spheres around clusters of its triangles.
+
+The aimed shot (engine/lights/emission.py, aim_direction / aim_origin) picks a sphere by
+the solid angle (or, from infinity, the shadow disk) it subtends and weighs each photon
+by natural pdf / aimed pdf, the aimed pdf summed over every sphere whose cone holds the
+direction, so overlapping spheres stay unbiased: only the photons' spread changes. A
+photon aimed at a sphere that the caster barely fills misses it, and a missed caustic
+photon is a wasted trace (newuser42's half ring, 1 m radius, 0.35 m high: 3.5 % of the
+caustic photons were stored).
+
+The rule is geometric and light-free: the cost of a set of spheres is the sum of their
+squared radii (each sphere's share of aimed photons is its solid angle, ~ r^2 from afar),
+and a caster is split only where that sum drops by at least MIN_GAIN. A ball, a cube or a
+square mirror never gains (a half-ball's sphere is 1.12 x the ball's: two of them cost
+2.5 x one; a plane's pieces cost the same as the whole), so it keeps the one sphere it had,
+bit for bit (docs/design.md, "Photon mapping model")."""
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import PIECE_TRIANGLES, Geometry
+from .rayoffset import ulp32
+
+# Off: one bounding sphere per caster, as before (the benchmark's "before").
+CLUSTER_CASTERS = True
+# Spheres one caster may be split into, and all casters together (the aimed kernels loop
+# over every sphere per photon; 64 of them cost ~5 % of a photon's trace: docs/performance.md
+# "ring43").
+MAX_PER_CASTER = 16
+MAX_SPHERES = 64
+# A split must cut the summed r^2 by at least this share (else one sphere, as before);
+# each extra sphere is charged SPHERE_COST of the set's cost when choosing the count.
+MIN_GAIN = 0.25
+SPHERE_COST = 0.02
+# Depth of the median-split tree of triangle clusters (2^5 = 32 leaves to choose from).
+TREE_DEPTH = 5
+
+
+def triangle_pieces(sel: np.ndarray):
+    """Indices of triangles sel (indices, or a (T,) bool mask), PIECE_TRIANGLES rows of
+    the list or of the mask at a time (no index list of every masked triangle)."""
+    for a in range(0, len(sel), PIECE_TRIANGLES):
+        piece = sel[a:a + PIECE_TRIANGLES]
+        yield a + np.nonzero(piece)[0] if piece.dtype == np.bool_ else piece
+
+
+def corner_pieces(geo: Geometry, sel: np.ndarray):
+    """The corners (3n,3) of triangles sel (indices or a bool mask), a piece at a time."""
+    for idx in triangle_pieces(sel):
+        if not len(idx):
+            continue
+        v0 = np.take(geo.v0, idx, axis=0)
+        yield np.concatenate([v0, v0 + np.take(geo.e1, idx, axis=0),
+                              v0 + np.take(geo.e2, idx, axis=0)])
+
+
+def bounding_sphere(geo: Geometry, sel: np.ndarray) -> tuple:
+    """(centre (3,), radius) around the corners of triangles sel (indices or a bool mask):
+    centred on their bounding box, 0.1 % margin, and at least the float32 resolution at
+    the sphere's coordinates. Corners are read a piece at a time: all of a large
+    object's would cost 72 B a triangle at the peak of the preparation."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for pts in corner_pieces(geo, sel):
+        lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
+    c = (lo + hi) / 2.0
+    far = big = 0.0
+    for pts in corner_pieces(geo, sel):
+        far = max(far, float(np.linalg.norm(pts - c, axis=1).max()))
+        big = max(big, float(np.abs(pts).max()))
+    return c, far * 1.001 + 16.0 * float(ulp32(big))
+
+
+def per_caster(casters: int) -> int:
+    """Spheres each of `casters` casters may take: MAX_PER_CASTER within MAX_SPHERES in
+    all (at least one each: many casters keep one sphere apiece, as before)."""
+    if not CLUSTER_CASTERS or casters <= 0:
+        return 1
+    return int(max(1, min(MAX_PER_CASTER, MAX_SPHERES // casters)))
+
+
+class _Node:
+    __slots__ = ("center", "radius", "children")
+
+    def __init__(self, center, radius):
+        self.center, self.radius, self.children = center, radius, ()
+
+
+def _tree(geo: Geometry, sel: np.ndarray, cent: np.ndarray, rows: np.ndarray, depth: int,
+          root=None) -> _Node:
+    """Median-split tree of the triangles sel[rows] (along their centroids' longest
+    extent), each node with its bounding sphere."""
+    node = _Node(*(root if root is not None else bounding_sphere(geo, sel[rows])))
+    if depth <= 0 or len(rows) < 2:
+        return node
+    pts = cent[rows]
+    extent = pts.max(axis=0) - pts.min(axis=0)
+    axis = int(np.argmax(extent))
+    if not extent[axis] > 0:
+        return node  # every centroid at one point: nothing to split
+    half = len(rows) // 2
+    order = np.argpartition(pts[:, axis], half)
+    node.children = (_tree(geo, sel, cent, rows[order[:half]], depth - 1),
+                     _tree(geo, sel, cent, rows[order[half:]], depth - 1))
+    return node
+
+
+def _best(node: _Node, most: int) -> list:
+    """best[b] for b = 0 .. most: (summed r^2, spheres) of the cheapest cut of node's
+    subtree into at most b spheres (b = 0: none, infinite cost)."""
+    own = node.radius * node.radius
+    best = [(np.inf, [])] + [(own, [node])] * most
+    if node.children:
+        left, right = (_best(child, most) for child in node.children)
+        for b in range(2, most + 1):
+            for b1 in range(1, b):
+                cost = left[b1][0] + right[b - b1][0]
+                if cost < best[b][0]:
+                    best[b] = (cost, left[b1][1] + right[b - b1][1])
+    return best
+
+
+def caster_spheres(geo: Geometry, sel: np.ndarray, most: int = MAX_PER_CASTER) -> tuple:
+    """Bounding spheres (centers (m,3), radii (m,)) covering every corner of one caster's
+    triangles sel (indices or a bool mask), 1 <= m <= most: the cheapest cut of a
+    median-split cluster tree by summed r^2, each extra sphere charged SPHERE_COST; one
+    sphere (bounding_sphere's, unchanged) unless the cut saves MIN_GAIN of its cost."""
+    root = bounding_sphere(geo, sel)
+    rows_sel = sel if sel.dtype != np.bool_ else np.nonzero(sel)[0]
+    if most <= 1 or len(rows_sel) < 2 or not CLUSTER_CASTERS:
+        return root[0][None, :], np.array([root[1]])
+    cent = np.empty((len(rows_sel), 3))
+    for a in range(0, len(rows_sel), PIECE_TRIANGLES):
+        idx = rows_sel[a:a + PIECE_TRIANGLES]
+        cent[a:a + len(idx)] = (np.take(geo.v0, idx, axis=0)
+                                + (np.take(geo.e1, idx, axis=0)
+                                   + np.take(geo.e2, idx, axis=0)) / 3.0)
+    tree = _tree(geo, rows_sel, cent, np.arange(len(rows_sel)), TREE_DEPTH, root)
+    best = _best(tree, most)
+    score = [best[b][0] * (1.0 + SPHERE_COST * (b - 1)) for b in range(1, most + 1)]
+    b = 1 + int(np.argmin(score))
+    if not best[b][0] <= (1.0 - MIN_GAIN) * best[1][0]:
+        b = 1
+    nodes = best[b][1]
+    return (np.array([n.center for n in nodes]).reshape(-1, 3),
+            np.array([n.radius for n in nodes], np.float64))
