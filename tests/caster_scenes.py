@@ -9,7 +9,9 @@ from engine.api import PaperScene
 from engine.scene import Material
 
 POLISHED_METAL = Material("polished_metal", (0.95, 0.9, 0.8), metallic=1.0, roughness=0.02)
-TABLE = Material("table", (0.8, 0.8, 0.8), roughness=0.5)
+# Blender's default Principled (specular layer on): as newuser42's table, a rough specular
+# surface, so the aimed shot keeps only paths whose first hit is a caster (render.py).
+TABLE = Material("table", (0.8, 0.8, 0.8), roughness=0.5, specular=1.0, ior=1.45)
 
 
 def half_ring_mesh(radius=1.0, height=0.35, thick=0.02, n=64):
