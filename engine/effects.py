@@ -535,6 +535,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             + (["glass"] if glassy or plan.window_glass or plan.pane_glass else [])
             + (["translucent"] if translucent else []))
         reached = []
+        aimed_spheres = None  # (spheres, owner ids) of the reached casters: _aim_spheres
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):
                 if any(_light_reaches(li, accel, geo, oid, c, r, rng) for li in emitting):
@@ -582,6 +583,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # A forest of 300 instanced glass leaves is named by its first few (the
             # line listed all 300 in a new user's outdoor scene).
             names_r = _quoted([n for _, _, _, n in reached], most=REPORT_NAMES_MAX)
+            aimed_spheres = _aim_spheres(geo, sharp_tri,
+                                         np.array([oid for oid, _, _, _ in reached], np.int64))
+            if len(aimed_spheres[1]) > len(reached) and s.aim_caustics:
+                # (newuser42's thin half ring: 3.5 % of its aimed photons were stored)
+                names_r += (f" (at {len(aimed_spheres[1])} spheres round "
+                            + ("the parts of those that fill" if len(reached) > 1
+                               else "its parts: it fills") + " one bounding sphere poorly)")
             auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
@@ -691,8 +699,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         if plan.caustics and len(plan.caster_ids):
             # Several smaller spheres where a caster fills its own poorly (a thin ring:
             # engine/casterspheres.py); a ball keeps its one sphere.
-            plan.caster_spheres, plan.caster_sphere_ids = _aim_spheres(
-                geo, sharp_tri, plan.caster_ids)
+            plan.caster_spheres, plan.caster_sphere_ids = (
+                aimed_spheres if reached and aimed_spheres is not None
+                else _aim_spheres(geo, sharp_tri, plan.caster_ids))
         if plan.caustics and s.cycles_filter_glossy > 0:
             # Only strong reflectors: a dielectric specular layer (a Principled wall's
             # ~4 %) throws too little light for the blur to show.

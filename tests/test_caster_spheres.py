@@ -1,6 +1,8 @@
 """Caustic photons aimed at several spheres per thin caster (engine/casterspheres.py):
 the spheres cover the caster, the caustic stays unbiased, more of the aimed photons are
 stored, and degenerate casters give no NaN."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -74,6 +76,16 @@ def test_spheres_cover_every_corner_of_the_caster():
         d = np.linalg.norm(corners[:, None, :] - centers[None], axis=2)
         assert (d <= radii[None]).any(axis=1).all()
         assert 1 <= len(radii) <= casterspheres.MAX_PER_CASTER
+
+
+def test_a_caster_of_zero_area_gets_one_finite_sphere():
+    """Every corner at one point (the preparation drops such triangles; the rule must
+    not divide by their extent): one sphere of the float32 resolution's radius."""
+    corner = np.array([[0.2, 0.1, 0.5]] * 4)
+    geo = SimpleNamespace(v0=corner, e1=np.zeros((4, 3)), e2=np.zeros((4, 3)))
+    centers, radii = casterspheres.caster_spheres(geo, np.arange(4))
+    assert len(radii) == 1 and np.allclose(centers[0], corner[0])
+    assert 0 < radii[0] < 1e-5
 
 
 def test_a_ball_keeps_its_one_bounding_sphere():
@@ -184,10 +196,11 @@ def _degenerate(kind):
         v = np.array([[0.2, 0.1, 0.5]] * 4 + [[0.2, 0.1, 0.5], [0.6, 0.1, 0.5]])
         s.add_triangles(v, np.array([[0, 1, 2], [1, 2, 3], [4, 5, 4]]), "polished_metal",
                         name="Point")
-    else:  # a mirror dome over the table, around the light: its spheres hold the light
-        v, f = half_ring_mesh(radius=2.5, height=3.0, thick=0.02, n=24)
-        s.add_triangles(v - [0, 0.5, 0], f, "polished_metal", name="Dome")
-        light = (0.0, 0.8, 1.0)
+    else:  # a large thin ring round the light, close to its wall: the whole ring's
+        # sphere and the nearest cluster's hold the light, the others do not
+        v, f = half_ring_mesh(radius=2.5, height=0.35, thick=0.02, n=48)
+        s.add_triangles(v - [0, 0.5, 0], f, "polished_metal", name="Hoop")
+        light = (0.0, 1.85, 0.2)
     s.add_point_light(light, power=300, name="Lamp")
     s.set_camera((0, -3, 2.5), (0, 0, 0.3))
     return s
@@ -202,6 +215,9 @@ def test_degenerate_casters_give_no_nan(kind):
     close_context(ctx)
     centers, radii = ctx.plan.caster_spheres
     assert np.isfinite(centers).all() and np.isfinite(radii).all() and (radii > 0).all()
+    if kind == "enclosing the light":
+        inside = np.linalg.norm(centers - ctx.lights[0].pos, axis=1) < radii
+        assert inside.any() and not inside.all()
     film = scene.render(RenderSettings(workers=1, photons=2000, caustic_photons=5000,
                                        spp=2, seed=3))
     assert np.isfinite(film.combined).all() and np.isfinite(film.caustic).all()
