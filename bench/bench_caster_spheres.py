@@ -5,6 +5,8 @@ seconds of the caustic shot (best of --repeat, one thread).
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_caster_spheres.py [--photons 200000]
         [--pickles ring=/tmp/x/ring.pkl,figure8_caustic=/tmp/x/figure8_caustic.pkl]
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_caster_spheres.py --map-noise /tmp/x/ring.pkl
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_caster_spheres.py --sphere-cost --repeat 3
     PYTHONPATH=$PWD .venv/bin/python bench/bench_caster_spheres.py --noise /tmp/x/ring.pkl
         [--seeds 8] [--width 96]
 
@@ -176,6 +178,30 @@ def map_noise(path, seeds, photons, cell, repeat_cpu=2):
               f"{x.sum(axis=1).mean() / r.sum():.4f} |", flush=True)
 
 
+def sphere_cost(photons, repeat):
+    """CPU seconds of the aimed caustic shot of the glass ball (tests/test_scenes.py) with
+    its sphere given 1, 8, 16, 64 times (the same pdf: only the kernels' per-sphere loop
+    grows), best of `repeat`."""
+    from test_scenes import caustic_scene
+    ctx = prepare_context(caustic_scene(16), RenderSettings(workers=1, seed=1))
+    try:
+        c, r = ctx.plan.caster_spheres
+        print("| spheres | caustic shot CPU s | / one sphere |\n|---:|---:|---:|")
+        base = None
+        for k in (1, 8, 16, 64):
+            targets = (np.repeat(c, k, axis=0), np.repeat(r, k))
+            best = np.inf
+            for _ in range(repeat):
+                t = time.process_time()
+                trace_photons(ctx, ctx.lights, [photons], caustic_only=True, stream=2,
+                              targets=targets)
+                best = min(best, time.process_time() - t)
+            base = base or best
+            print(f"| {k} | {best:.3f} | {best / base:.2f} |", flush=True)
+    finally:
+        close_context(ctx)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--photons", type=int, default=200_000)
@@ -183,12 +209,16 @@ def main():
     ap.add_argument("--pickles", default="")
     ap.add_argument("--noise", default="")
     ap.add_argument("--map-noise", default="")
+    ap.add_argument("--sphere-cost", action="store_true")
     ap.add_argument("--cell", type=float, default=0.05)
     ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--width", type=int, default=96)
     ap.add_argument("--radius", type=float, default=0.05)
     args = ap.parse_args()
     ensure_compiled()
+    if args.sphere_cost:
+        sphere_cost(args.photons, args.repeat)
+        return
     if args.map_noise:
         map_noise(args.map_noise, args.seeds, args.photons, args.cell)
         return

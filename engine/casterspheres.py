@@ -25,9 +25,9 @@ from .rayoffset import ulp32
 
 # Off: one bounding sphere per caster, as before (the benchmark's "before").
 CLUSTER_CASTERS = True
-# Spheres one caster may be split into, and all casters together (the aimed kernels loop
-# over every sphere per photon; 64 of them cost ~5 % of a photon's trace: docs/performance.md
-# "ring43").
+# Spheres one caster may be split into, and all casters together: the aimed kernels test
+# every sphere per photon (at worst, 64 spheres each holding every photon's direction,
+# +43 % of a glass ball's caustic shot, 8 +6 %: docs/accuracy.md "ring43").
 MAX_PER_CASTER = 16
 MAX_SPHERES = 64
 # A split must cut the summed r^2 by at least this share (else one sphere, as before);

@@ -118,6 +118,9 @@ def test_thin_ring_stores_far_more_of_its_aimed_photons(clustering):
         finally:
             close_context(ctx)
         assert (spheres > 1) == clustered
+        line = next(d.reason for d in ctx.plan.decisions if d.effect == "caustics")
+        assert (f"aimed at 'MetalRing' (at {spheres} spheres round its parts" in line) \
+            == clustered, line
     assert shares[1] > 2.0 * shares[0]
 
 
