@@ -34,8 +34,10 @@ MAX_SPHERES = 64
 # each extra sphere is charged SPHERE_COST of the set's cost when choosing the count.
 MIN_GAIN = 0.25
 SPHERE_COST = 0.02
-# Depth of the median-split tree of triangle clusters (2^5 = 32 leaves to choose from).
+# Depth of the tree of triangle clusters (2^5 = 32 leaves to choose from),
+# built on at most SAMPLE_TRIANGLES of a caster's triangles.
 TREE_DEPTH = 5
+SAMPLE_TRIANGLES = 8192
 
 
 def triangle_pieces(sel: np.ndarray):
@@ -81,33 +83,73 @@ def per_caster(casters: int) -> int:
 
 
 class _Node:
-    __slots__ = ("center", "radius", "children")
+    __slots__ = ("radius", "axis", "split", "children")
 
-    def __init__(self, center, radius):
-        self.center, self.radius, self.children = center, radius, ()
+    def __init__(self, radius):
+        self.radius, self.axis, self.split, self.children = radius, 0, 0.0, ()
 
 
-def _tree(geo: Geometry, sel: np.ndarray, cent: np.ndarray, rows: np.ndarray, depth: int,
-          root=None) -> _Node:
-    """Median-split tree of the triangles sel[rows] (along their centroids' longest
-    extent), each node with its bounding sphere."""
-    node = _Node(*(root if root is not None else bounding_sphere(geo, sel[rows])))
+def _centroids(geo: Geometry, rows: np.ndarray) -> np.ndarray:
+    """(n,3) centroids of triangles rows, a piece at a time."""
+    cent = np.empty((len(rows), 3))
+    for a in range(0, len(rows), PIECE_TRIANGLES):
+        idx = rows[a:a + PIECE_TRIANGLES]
+        cent[a:a + len(idx)] = (np.take(geo.v0, idx, axis=0)
+                                + (np.take(geo.e1, idx, axis=0)
+                                   + np.take(geo.e2, idx, axis=0)) / 3.0)
+    return cent
+
+
+def _boxes(geo: Geometry, rows: np.ndarray) -> tuple:
+    """(lo, hi) (n,3): each triangle's bounding box (the sample's only: small)."""
+    v0 = np.take(geo.v0, rows, axis=0)
+    v1, v2 = v0 + np.take(geo.e1, rows, axis=0), v0 + np.take(geo.e2, rows, axis=0)
+    return np.minimum(np.minimum(v0, v1), v2), np.maximum(np.maximum(v0, v1), v2)
+
+
+def _sweep(lo, hi, cent) -> tuple:
+    """The split of triangles (boxes lo, hi, centroids cent (n,3)) by centroid along one
+    axis into two runs whose boxes' squared diagonals sum least (a surface-area
+    heuristic's sweep, with the box's circumscribed sphere as the cost: r^2 of each
+    side); (cost, axis, order, k): order[:k] go left."""
+    best = (np.inf, 0, None, 0)
+    n = len(cent)
+    for axis in range(3):
+        order = np.argsort(cent[:, axis], kind="stable")
+        l, h = lo[order], hi[order]
+        # left run 0..i and right run i+1..n-1 boxes, all i at once
+        pl = np.maximum.accumulate(h, axis=0) - np.minimum.accumulate(l, axis=0)
+        sr = (np.maximum.accumulate(h[::-1], axis=0)
+              - np.minimum.accumulate(l[::-1], axis=0))[::-1]
+        cost = (pl[:-1] ** 2).sum(axis=1) + (sr[1:] ** 2).sum(axis=1)
+        # a split between equal centroids cannot be kept by _assign's test
+        cost[cent[order[1:], axis] <= cent[order[:-1], axis]] = np.inf
+        i = int(np.argmin(cost)) if n > 1 else 0
+        if n > 1 and cost[i] < best[0]:
+            best = (float(cost[i]), axis, order, i + 1)
+    return best
+
+
+def _tree(geo: Geometry, rows: np.ndarray, cent: np.ndarray, lo, hi, depth: int,
+          radius=None) -> _Node:
+    """Tree of triangles rows (centroids cent, boxes lo, hi) split by _sweep, each node
+    with the radius of its triangles' bounding sphere and its split (axis, coordinate:
+    centroids below it go left)."""
+    node = _Node(radius if radius is not None else bounding_sphere(geo, rows)[1])
     if depth <= 0 or len(rows) < 2:
         return node
-    pts = cent[rows]
-    extent = pts.max(axis=0) - pts.min(axis=0)
-    axis = int(np.argmax(extent))
-    if not extent[axis] > 0:
+    cost, axis, order, k = _sweep(lo, hi, cent)
+    if order is None:
         return node  # every centroid at one point: nothing to split
-    half = len(rows) // 2
-    order = np.argpartition(pts[:, axis], half)
-    node.children = (_tree(geo, sel, cent, rows[order[:half]], depth - 1),
-                     _tree(geo, sel, cent, rows[order[half:]], depth - 1))
+    left, right = order[:k], order[k:]
+    node.axis, node.split = axis, float(cent[right[0], axis])
+    node.children = tuple(_tree(geo, rows[part], cent[part], lo[part], hi[part], depth - 1)
+                          for part in (left, right))
     return node
 
 
 def _best(node: _Node, most: int) -> list:
-    """best[b] for b = 0 .. most: (summed r^2, spheres) of the cheapest cut of node's
+    """best[b] for b = 0 .. most: (summed r^2, nodes) of the cheapest cut of node's
     subtree into at most b spheres (b = 0: none, infinite cost)."""
     own = node.radius * node.radius
     best = [(np.inf, [])] + [(own, [node])] * most
@@ -121,27 +163,44 @@ def _best(node: _Node, most: int) -> list:
     return best
 
 
-def caster_spheres(geo: Geometry, sel: np.ndarray, most: int = MAX_PER_CASTER) -> tuple:
+def _assign(node: _Node, cut: set, rows: np.ndarray, cent: np.ndarray, out: list):
+    """Split triangles rows (centroids cent) down the tree by its splits into the cut's
+    clusters (out: one index array per cut node reached)."""
+    if id(node) in cut:
+        if len(rows):
+            out.append(rows)
+        return
+    below = cent[:, node.axis] < node.split
+    _assign(node.children[0], cut, rows[below], cent[below], out)
+    _assign(node.children[1], cut, rows[~below], cent[~below], out)
+
+
+def caster_spheres(geo: Geometry, sel: np.ndarray, most: int = MAX_PER_CASTER,
+                   root=None) -> tuple:
     """Bounding spheres (centers (m,3), radii (m,)) covering every corner of one caster's
     triangles sel (indices or a bool mask), 1 <= m <= most: the cheapest cut of a
-    median-split cluster tree by summed r^2, each extra sphere charged SPHERE_COST; one
-    sphere (bounding_sphere's, unchanged) unless the cut saves MIN_GAIN of its cost."""
-    root = bounding_sphere(geo, sel)
-    rows_sel = sel if sel.dtype != np.bool_ else np.nonzero(sel)[0]
-    if most <= 1 or len(rows_sel) < 2 or not CLUSTER_CASTERS:
-        return root[0][None, :], np.array([root[1]])
-    cent = np.empty((len(rows_sel), 3))
-    for a in range(0, len(rows_sel), PIECE_TRIANGLES):
-        idx = rows_sel[a:a + PIECE_TRIANGLES]
-        cent[a:a + len(idx)] = (np.take(geo.v0, idx, axis=0)
-                                + (np.take(geo.e1, idx, axis=0)
-                                   + np.take(geo.e2, idx, axis=0)) / 3.0)
-    tree = _tree(geo, rows_sel, cent, np.arange(len(rows_sel)), TREE_DEPTH, root)
+    cluster tree (_sweep's splits) by summed r^2, each extra sphere charged SPHERE_COST; one
+    sphere (bounding_sphere's, or root = (centre, radius) already computed from it)
+    unless the cut saves MIN_GAIN of its cost. The cut is chosen on at most
+    SAMPLE_TRIANGLES of the triangles (a stride through them: a million-triangle ball
+    costs ~0.05 CPU s more than its one sphere); every triangle then goes down the tree's
+    splits into its cluster, whose sphere bounds all of its corners."""
+    root = bounding_sphere(geo, sel) if root is None else root
+    one = (np.asarray(root[0], np.float64)[None, :], np.array([root[1]], np.float64))
+    rows = sel if sel.dtype != np.bool_ else np.nonzero(sel)[0]
+    if most <= 1 or len(rows) < 2 or not CLUSTER_CASTERS:
+        return one
+    step = -(-len(rows) // SAMPLE_TRIANGLES)
+    sample = rows[::step]
+    tree = _tree(geo, sample, _centroids(geo, sample), *_boxes(geo, sample), TREE_DEPTH,
+                 root[1])
     best = _best(tree, most)
     score = [best[b][0] * (1.0 + SPHERE_COST * (b - 1)) for b in range(1, most + 1)]
     b = 1 + int(np.argmin(score))
-    if not best[b][0] <= (1.0 - MIN_GAIN) * best[1][0]:
-        b = 1
-    nodes = best[b][1]
-    return (np.array([n.center for n in nodes]).reshape(-1, 3),
-            np.array([n.radius for n in nodes], np.float64))
+    if b == 1 or not best[b][0] <= (1.0 - MIN_GAIN) * best[1][0]:
+        return one
+    clusters = []
+    _assign(tree, {id(n) for n in best[b][1]}, rows, _centroids(geo, rows), clusters)
+    spheres = [bounding_sphere(geo, c) for c in clusters]
+    return (np.array([c for c, _ in spheres]).reshape(-1, 3),
+            np.array([r for _, r in spheres], np.float64))

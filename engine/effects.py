@@ -282,14 +282,16 @@ def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
     return ids, np.array(centers).reshape(-1, 3), np.array(radii), names
 
 
-def _aim_spheres(geo: Geometry, tri_mask: np.ndarray, ids: np.ndarray) -> tuple:
+def _aim_spheres(geo: Geometry, tri_mask: np.ndarray, ids: np.ndarray, roots: dict) -> tuple:
     """The spheres caustic photons aim at: ((centers (K,3), radii (K,)), owner object id
     (K,)) for casters ids, each one or a few spheres around its masked triangles
-    (casterspheres.caster_spheres, at most per_caster(len(ids)) each)."""
+    (casterspheres.caster_spheres, at most per_caster(len(ids)) each); roots: object id
+    -> its bounding sphere (centre, radius) from _object_spheres."""
     most = per_caster(len(ids))
     centers, radii, owners = [], [], []
     for oid in ids:
-        c, r = caster_spheres(geo, np.nonzero(tri_mask & (geo.object_id == oid))[0], most)
+        c, r = caster_spheres(geo, np.nonzero(tri_mask & (geo.object_id == oid))[0], most,
+                              roots[int(oid)])
         centers.append(c)
         radii.append(r)
         owners.append(np.full(len(r), oid, np.int64))
@@ -536,6 +538,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             + (["translucent"] if translucent else []))
         reached = []
         aimed_spheres = None  # (spheres, owner ids) of the reached casters: _aim_spheres
+        roots = {int(oid): (c, r) for oid, c, r in zip(ids, centers, radii)}
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):
                 if any(_light_reaches(li, accel, geo, oid, c, r, rng) for li in emitting):
@@ -584,7 +587,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # line listed all 300 in a new user's outdoor scene).
             names_r = _quoted([n for _, _, _, n in reached], most=REPORT_NAMES_MAX)
             aimed_spheres = _aim_spheres(geo, sharp_tri,
-                                         np.array([oid for oid, _, _, _ in reached], np.int64))
+                                         np.array([oid for oid, _, _, _ in reached], np.int64),
+                                         roots)
             if len(aimed_spheres[1]) > len(reached) and s.aim_caustics:
                 # (newuser42's thin half ring: 3.5 % of its aimed photons were stored)
                 names_r += (f" (at {len(aimed_spheres[1])} spheres round "
@@ -701,7 +705,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # engine/casterspheres.py); a ball keeps its one sphere.
             plan.caster_spheres, plan.caster_sphere_ids = (
                 aimed_spheres if reached and aimed_spheres is not None
-                else _aim_spheres(geo, sharp_tri, plan.caster_ids))
+                else _aim_spheres(geo, sharp_tri, plan.caster_ids, roots))
         if plan.caustics and s.cycles_filter_glossy > 0:
             # Only strong reflectors: a dielectric specular layer (a Principled wall's
             # ~4 %) throws too little light for the blur to show.

@@ -63,7 +63,8 @@ def test_spheres_cover_every_corner_of_the_caster():
     """Each corner of a caster's triangles lies in one of its spheres (so a path whose
     first hit is the caster starts in the aimed shot's cones)."""
     for v, f in (half_ring_mesh(), torus_mesh((0.2, 0, 0.1), 0.6, 0.05),
-                 half_ring_mesh(thick=0.0, n=7)):
+                 half_ring_mesh(thick=0.0, n=7),
+                 half_ring_mesh(n=1200)):  # more than SAMPLE_TRIANGLES: a sampled tree
         s = PaperScene(width=8, height=8)
         s.add_material(POLISHED_METAL)
         s.add_triangles(v, f, "polished_metal", name="caster")
