@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .closures.ggx import ALPHA_MIN
-from .geometry import CAMERA, PIECE_TRIANGLES, SHADOW, Geometry, MaterialTable
+from .geometry import CAMERA, SHADOW, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
