@@ -15,7 +15,7 @@ squared radii (each sphere's share of aimed photons is its solid angle, ~ r^2 fr
 and a caster is split only where that sum drops by at least MIN_GAIN. A ball, a cube or a
 square mirror never gains (a half-ball's sphere is 1.12 x the ball's: two of them cost
 2.5 x one; a plane's pieces cost the same as the whole), so it keeps the one sphere it had,
-bit for bit (docs/design.md, "Photon mapping model")."""
+bit for bit (docs/design.md, Photon mapping model)."""
 from __future__ import annotations
 
 import numpy as np
