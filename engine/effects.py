@@ -290,8 +290,12 @@ def _aim_spheres(geo: Geometry, tri_mask: np.ndarray, ids: np.ndarray, roots: di
     most = per_caster(len(ids))
     centers, radii, owners = [], [], []
     for oid in ids:
-        c, r = caster_spheres(geo, np.nonzero(tri_mask & (geo.object_id == oid))[0], most,
-                              roots[int(oid)])
+        if most <= 1:  # (many casters: no pass over the triangles per caster)
+            c, r = roots[int(oid)]
+            c, r = np.asarray(c, np.float64)[None, :], np.array([r], np.float64)
+        else:
+            c, r = caster_spheres(geo, np.nonzero(tri_mask & (geo.object_id == oid))[0],
+                                  most, roots[int(oid)])
         centers.append(c)
         radii.append(r)
         owners.append(np.full(len(r), oid, np.int64))
