@@ -1,5 +1,5 @@
 """Bounding spheres that caustic photons are aimed at: one per caster, or, where the caster
-fills its bounding sphere poorly (a thin ring, a long rod, a curved sheet), a few smaller
+fills its bounding sphere poorly (a thin ring, a long strip of many triangles), a few smaller
 spheres around clusters of its triangles.
 
 The aimed shot (engine/lights/emission.py, aim_direction / aim_origin) picks a sphere by
