@@ -14,12 +14,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .closures.ggx import ALPHA_MIN
-from .geometry import CAMERA, PIECE_TRIANGLES, SHADOW, Geometry, MaterialTable
+from .geometry import CAMERA, SHADOW, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
 from . import raymaterials, shadelight, worldmedium
 from .shadelight import find_shades
+from .casterspheres import bounding_sphere, caster_spheres, per_caster
+from .casterspheres import corner_pieces as _corner_pieces
+from .casterspheres import triangle_pieces as _pieces
 from .rayoffset import ulp32
 from .sampling import luminance
 from .scene import AREA, SUN
@@ -115,6 +118,8 @@ class EffectPlan:
     casters: list = field(default_factory=list)        # names of caustic-casting objects
     caster_spheres: tuple = (np.zeros((0, 3)), np.zeros(0))
     caster_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # their object ids
+    # the object id of each of caster_spheres (a caster may have several: casterspheres.py)
+    caster_sphere_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     rough_specular: list = field(default_factory=list)  # specular objects too rough to focus
     window_glass: list = field(default_factory=list)    # thin flat glass: shadow rays pass it
     pane_glass: list = field(default_factory=list)      # single-plane glass only suns light
@@ -270,23 +275,32 @@ def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
     ids = np.unique(geo.object_id[tri_mask])
     centers, radii, names = [], [], []
     for oid in ids:
-        sel = np.nonzero(tri_mask & (geo.object_id == oid))[0]
-        # A piece of the corners at a time: all of a large object's would cost 72 B a
-        # triangle at the peak of the preparation.
-        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        for pts in _corner_pieces(geo, sel):
-            lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
-        c = (lo + hi) / 2.0
-        far = big = 0.0
-        for pts in _corner_pieces(geo, sel):
-            far = max(far, float(np.linalg.norm(pts - c, axis=1).max()))
-            big = max(big, float(np.abs(pts).max()))
-        # 0.1 % margin, and at least the float32 resolution at the sphere's coordinates.
-        r = far * 1.001 + 16.0 * float(ulp32(big))
+        c, r = bounding_sphere(geo, np.nonzero(tri_mask & (geo.object_id == oid))[0])
         centers.append(c)
         radii.append(r)
         names.append(geo.object_names[oid])
     return ids, np.array(centers).reshape(-1, 3), np.array(radii), names
+
+
+def _aim_spheres(geo: Geometry, tri_mask: np.ndarray, ids: np.ndarray, roots: dict) -> tuple:
+    """The spheres caustic photons aim at: ((centers (K,3), radii (K,)), owner object id
+    (K,)) for casters ids, each one or a few spheres around its masked triangles
+    (casterspheres.caster_spheres, at most per_caster(len(ids)) each); roots: object id
+    -> its bounding sphere (centre, radius) from _object_spheres."""
+    most = per_caster(len(ids))
+    centers, radii, owners = [], [], []
+    for oid in ids:
+        if most <= 1:  # (many casters: no pass over the triangles per caster)
+            c, r = roots[int(oid)]
+            c, r = np.asarray(c, np.float64)[None, :], np.array([r], np.float64)
+        else:
+            c, r = caster_spheres(geo, np.nonzero(tri_mask & (geo.object_id == oid))[0],
+                                  most, roots[int(oid)])
+        centers.append(c)
+        radii.append(r)
+        owners.append(np.full(len(r), oid, np.int64))
+    return ((np.concatenate(centers).reshape(-1, 3), np.concatenate(radii)),
+            np.concatenate(owners))
 
 
 def _light_reaches(light: PreparedLight, accel, geo: Geometry, oid: int, center, radius, rng) -> bool:
@@ -527,6 +541,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             + (["glass"] if glassy or plan.window_glass or plan.pane_glass else [])
             + (["translucent"] if translucent else []))
         reached = []
+        aimed_spheres = None  # (spheres, owner ids) of the reached casters: _aim_spheres
+        roots = {int(oid): (c, r) for oid, c, r in zip(ids, centers, radii)}
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):
                 if any(_light_reaches(li, accel, geo, oid, c, r, rng) for li in emitting):
@@ -574,6 +590,14 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # A forest of 300 instanced glass leaves is named by its first few (the
             # line listed all 300 in a new user's outdoor scene).
             names_r = _quoted([n for _, _, _, n in reached], most=REPORT_NAMES_MAX)
+            aimed_spheres = _aim_spheres(geo, sharp_tri,
+                                         np.array([oid for oid, _, _, _ in reached], np.int64),
+                                         roots)
+            if len(aimed_spheres[1]) > len(reached) and s.aim_caustics:
+                # (newuser42's thin half ring: 3.5 % of its aimed photons were stored)
+                names_r += (f" (at {len(aimed_spheres[1])} spheres round "
+                            + ("the parts of those that fill" if len(reached) > 1
+                               else "its parts: it fills") + " one bounding sphere poorly)")
             auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
@@ -677,12 +701,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         if plan.caustics and reached:
             plan.casters = [n for _, _, _, n in reached]
             plan.caster_ids = np.array([oid for oid, _, _, _ in reached], np.int64)
-            plan.caster_spheres = (np.array([c for _, c, _, _ in reached]),
-                                   np.array([r for _, _, r, _ in reached]))
         elif plan.caustics and len(ids):
-            plan.caster_spheres = (centers, radii)
             plan.caster_ids = np.asarray(ids, np.int64)
             plan.casters = names
+        if plan.caustics and len(plan.caster_ids):
+            # Several smaller spheres where a caster fills its own poorly (a thin ring:
+            # engine/casterspheres.py); a ball keeps its one sphere.
+            plan.caster_spheres, plan.caster_sphere_ids = (
+                aimed_spheres if reached and aimed_spheres is not None
+                else _aim_spheres(geo, sharp_tri, plan.caster_ids, roots))
         if plan.caustics and s.cycles_filter_glossy > 0:
             # Only strong reflectors: a dielectric specular layer (a Principled wall's
             # ~4 %) throws too little light for the blur to show.
@@ -1334,24 +1361,6 @@ def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:
         lo, hi = min(lo, float(h.min())), max(hi, float(h.max()))
         big = max(big, float(np.abs(corners).max()))
     return bool(hi - lo <= 16.0 * float(ulp32(big)))
-
-
-def _pieces(sel: np.ndarray):
-    """Indices of triangles sel (indices, or a (T,) bool mask), PIECE_TRIANGLES rows of
-    the list or of the mask at a time (no index list of every masked triangle)."""
-    for a in range(0, len(sel), PIECE_TRIANGLES):
-        piece = sel[a:a + PIECE_TRIANGLES]
-        yield a + np.nonzero(piece)[0] if piece.dtype == np.bool_ else piece
-
-
-def _corner_pieces(geo: Geometry, sel: np.ndarray):
-    """The corners (3n,3) of triangles sel (indices or a bool mask), a piece at a time."""
-    for idx in _pieces(sel):
-        if not len(idx):
-            continue
-        v0 = np.take(geo.v0, idx, axis=0)
-        yield np.concatenate([v0, v0 + np.take(geo.e1, idx, axis=0),
-                              v0 + np.take(geo.e2, idx, axis=0)])
 
 
 def window_glass(geo: Geometry, table: MaterialTable) -> np.ndarray:

@@ -142,12 +142,13 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                   should_cancel=None, targets=None, first_hit=None, label=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
     paths only and stop a photon as soon as it scatters diffusely (the caustic shot).
-    targets=(centers, radii): aim the photons at these bounding spheres (caustic casters).
+    targets=(centers, radii): aim the photons at these bounding spheres (caustic casters:
+    one or several per caster, engine/casterspheres.py).
     first_hit=(is_caster, keep): is_caster (objects,) bool by object id; store CAUSTIC
     photons only if whether the first surface they hit belongs to a caster equals keep.
     An aimed shot (keep=True) and an unaimed one (keep=False) thus split the L S+ D paths
-    between them without overlap: a path whose first hit is a caster starts inside that
-    caster's bounding sphere, which the aimed shot covers (engine/render.py).
+    between them without overlap: a path whose first hit is a caster starts inside one of
+    that caster's spheres, which the aimed shot covers (engine/render.py).
     label: what the progress text calls the photons ("Tracing {label} 62k/400k");
     default "caustic photons" for a caustic_only shot, else "photons"."""
     settings = ctx.settings

@@ -1389,7 +1389,8 @@ def _allocate_aimed(ctx, targets, total):
     others = None  # the targets that are not panes, for the panes' suns and world
     if panes is not None:
         pane_ids = {int(ctx.geo.object_id[p.rows[0]]) for p in panes.panes}
-        keep = np.array([int(i) not in pane_ids for i in ctx.plan.caster_ids], bool)
+        keep = np.array([int(i) not in pane_ids for i in ctx.plan.caster_sphere_ids],
+                        bool)
         if len(keep) == len(targets[1]) and not keep.all():
             others = (targets[0][keep], targets[1][keep])
     weights = []
