@@ -185,8 +185,9 @@ class _StatusPrinter:
                 if event == "stats":
                     text = str(value)
                     compiling = is_compile_text(text)
-                    # The bar's clock moves through a compile step that reports nothing.
-                    self.console.keep_alive(compiling)
+                    # The bar's clock moves through steps that report nothing (the
+                    # compile, a slow estimator chunk).
+                    self.console.keep_alive(True)
                     if compiling:
                         self.eta.restart()
                     if text.startswith("Done: "):

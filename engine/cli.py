@@ -627,7 +627,7 @@ def _render(args) -> int:
     def progress(stage, fraction, text):
         where["stage"], where["fraction"] = stage, fraction
         interrupt.at_once = stage == "compile"  # polls nothing for a minute
-        console.keep_alive(stage == "compile")  # the bar's clock moves through it
+        console.keep_alive(True)  # the bar's clock moves through steps that report nothing
         if stage == "compile":
             eta.restart()
         whole = spans.whole(stage, fraction)

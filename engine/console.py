@@ -16,7 +16,8 @@ stage changes (its text, counts aside; the stage's last state first, when it was
 drawn), every LOG_FRAME_SECONDS otherwise, and at the close; never twice with the same
 text, its clock aside (a stage's text and then its first progress step drew one state
 twice, and closing the bar drew its last state again, below the lines printed after it:
-"Cancelled" twice in a log, s30)."""
+"Cancelled" twice in a log, s30), unless LOG_IDLE_SECONDS passed without a new one: then
+the same text with its clock, so a log shows the run alive."""
 from __future__ import annotations
 
 import re
@@ -37,6 +38,11 @@ _CLOCK = re.compile(r"\s*\[[^\[\]]*\]\s*$")
 # In a file or a pipe, a frame of the same stage at most this often (seconds): a minute's
 # render logs a handful of lines, not one per chunk.
 LOG_FRAME_SECONDS = 10.0
+# ... and a frame that says what the last one said, after this long: its clock shows the
+# run is alive through a step that reports nothing for minutes (a slow estimator chunk:
+# 4.5 silent minutes in a teacher's log, newuser42). Needs the bar redrawn meanwhile
+# (keep_alive, on through a whole render).
+LOG_IDLE_SECONDS = 60.0
 
 
 def isatty(stream) -> bool:
@@ -100,9 +106,11 @@ class BarConsole:
             if msg is not None:  # (a clear, never used in a file: passed on)
                 return draw(msg, pos)
             state, stage, now = _frame_state(bar), _stage(bar), time.monotonic()
-            if state == self._last_frame or (
+            idle = (state == self._last_frame and not self._closing
+                    and now - self._last_time >= LOG_IDLE_SECONDS)
+            if not idle and (state == self._last_frame or (
                     stage == self._last_stage and not self._closing
-                    and now - self._last_time < LOG_FRAME_SECONDS):
+                    and now - self._last_time < LOG_FRAME_SECONDS)):
                 if state != self._last_frame:
                     self._skipped = str(bar)
                 return True
@@ -151,7 +159,8 @@ class BarConsole:
     def keep_alive(self, on: bool, interval: float = 1.0) -> None:
         """While on, a daemon thread redraws the bar every `interval` seconds, so its
         clock moves through a long step that reports nothing (the kernel compile: one
-        module can take minutes on a busy machine). Idempotent; close() stops it."""
+        module can take minutes on a busy machine; a slow estimator chunk). In a file the
+        redraws draw a frame only as the rules above allow. Idempotent; close() stops it."""
         with self.lock:
             ticker = getattr(self, "_ticker", None)
             if on and ticker is None:

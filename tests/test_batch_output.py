@@ -78,14 +78,20 @@ def test_warnings_on_a_terminal_clear_the_bar_and_it_is_redrawn_below():
 
 
 def test_quiet_leaves_blenders_print_alone():
+    """--quiet prints no warning itself: Blender's print of each report passes through
+    as it is, except its two prints of a failure, which the run's "render failed" line
+    says (newuser42: a memory refusal read three times)."""
     shared = io.StringIO()
     printer = batch._StatusPrinter(quiet=True, stream=shared, out=shared)
-    real = sys.stdout
     with printer.beside_bar():
-        assert sys.stdout is real
         printer("warning", WARNINGS[0])
+        print(f"Warning: Photon Mapping: {WARNINGS[0]}")
+        printer("finished", "error: Photon Mapping: not rendered: too big")
+        print("Error: Photon Mapping: not rendered: too big")
+        print("Error: Photon Mapping: not rendered: too big")
     printer.close()
-    assert shared.getvalue() == "" and printer.warnings == [WARNINGS[0]]
+    assert shared.getvalue() == f"Warning: Photon Mapping: {WARNINGS[0]}\n", shared.getvalue()
+    assert printer.warnings == [WARNINGS[0]]
 
 
 def test_more_warnings_than_blender_reports_are_each_printed_once():
@@ -142,7 +148,8 @@ def test_the_bar_redraws_its_clock_through_the_kernel_compile():
     """newuser24 watched "Compiling render kernels (first render only): 0%" for an hour:
     the module count was cut off by the bar's 46 characters and nothing redrew the bar
     between two modules. The count's text fits, and the bar redraws every second while
-    the compile runs, and stops when the next step reports."""
+    the compile runs, as through any step that reports nothing (a slow estimator chunk,
+    newuser42), until the bar closes."""
     import time
 
     from engine.jit import COMPILE_MESSAGE, COMPILE_PROGRESS
@@ -158,10 +165,13 @@ def test_the_bar_redraws_its_clock_through_the_kernel_compile():
     assert "Compiling kernels 1/14, first render only" in shared.getvalue()
     printer("stats", "Exporting 1/4 objects")
     settled = shared.getvalue().count("\r")
-    time.sleep(1.5)
-    assert shared.getvalue().count("\r") == settled
+    time.sleep(2.5)
+    assert shared.getvalue().count("\r") >= settled + 2
     printer("finished", "done")
     printer.close()
+    closed = shared.getvalue()
+    time.sleep(1.5)
+    assert shared.getvalue() == closed  # the ticker stopped with the bar
 
 
 def _frames(text):

@@ -106,3 +106,30 @@ def test_a_bar_in_a_log_file_draws_a_line_per_stage_and_per_interval(monkeypatch
     for line in lines:  # a whole bar or the warning, nothing glued together
         assert line == "Warning: a scene warning" or re.match(
             r"^(Tracing photons|Rendering pixels) [0-9k/]+ +\|[ #]*\| *\d+/1000$", line), line
+
+
+def test_a_bar_in_a_log_file_shows_it_is_alive_through_a_silent_step(monkeypatch):
+    """A step that reports nothing for minutes (a slow estimator chunk: 4.5 silent
+    minutes in a teacher's log, newuser42) still draws its unchanged frame every
+    LOG_IDLE_SECONDS, its clock moved, when the keep-alive ticker redraws the bar; the
+    close does not repeat it."""
+    from engine import console as console_module
+    clock = [100.0]
+    monkeypatch.setattr(console_module.time, "monotonic", lambda: clock[0])
+    shared = io.StringIO()
+    console = BarConsole(shared)
+    console.bar = tqdm(total=1000, file=console.bar_file, desc="Estimating caustics",
+                       bar_format="{desc:<26}| {n}/{total} [{postfix}]", postfix="  0 s",
+                       mininterval=0, miniters=1)
+    for second in range(1, 151):  # the ticker's redraws, one a second, no progress
+        clock[0] += 1.0
+        with console.drawing() as bar:
+            bar.set_postfix_str(f"{second:3d} s", refresh=False)
+            bar.refresh()
+    console.close()
+    lines = [line for line in shared.getvalue().split("\n") if line]
+    # the first frame, then one at 60 and one at 120 s: the text, then the clock moved
+    assert [line.split("[")[-1].lstrip(", ") for line in lines] == ["0 s]", "60 s]",
+                                                                   "120 s]"], lines
+    assert len({line.split("[")[0] for line in lines}) == 1, lines
+    assert console_module.LOG_IDLE_SECONDS == 60.0
