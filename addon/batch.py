@@ -346,8 +346,8 @@ def parse_args(argv):
                    help="local: direct light without shadows, mirrors or glass; raytrace: "
                         "shadows, mirrors and glass (paper Fig. 5b); photon: the full renderer")
     p.add_argument("--save-passes", action="store_true",
-                   help="also write each effect pass next to the output (name.direct.png ...) "
-                        "and the view layer's data passes as linear OpenEXR "
+                   help="also write each effect pass and the photon-hit view next to the "
+                        "output (name.direct.png ... name.photon_hits.png) and the view layer's data passes as linear OpenEXR "
                         "(name.denoising_albedo.exr ...)")
     p.add_argument("--strip", action="store_true",
                    help="also write the effect passes and their sum side by side, labelled "
@@ -616,11 +616,11 @@ def _extras(bpy, film, out, args):
     pm = load_engine()
     root, ext = os.path.splitext(out)
     if args.save_passes:
+        # The effect passes and the photon-hit view (newuser42: a teacher had to render
+        # --show-photons apart for it), then the view layer's data passes (Denoising Data,
+        # the Color passes) as linear EXR: as the CLI writes them.
         pass_ext = ext if ext in pm.imageio.FORMATS else ".png"
-        for name in pm.film.EFFECTS:
-            pm.imageio.write_image(getattr(film, name), f"{root}.{name}{pass_ext}")
-        # The view layer's data passes (Denoising Data, the Color passes) as linear EXR.
-        film.write_data_passes(root)
+        film.write_passes(root, pass_ext, spp=bpy.context.scene.photonmap.spp)
     if args.strip:
         tiles = pm.teaching.effects_strip(film)
         rgb8 = pm.teaching.compose(tiles, len(tiles), label_mask=operators.blf_label_mask)

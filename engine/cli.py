@@ -726,15 +726,7 @@ def _render(args) -> int:
         return interrupt.status
     if args.save_passes:
         root, ext = os.path.splitext(args.output)
-        for name, img in film.passes().items():
-            if name in ("combined", "depth", "alpha", "normal"):
-                continue
-            if name == "sample_count":  # grey: the share of --spp a pixel took
-                write_image(np.repeat((img / settings.spp)[..., None], 3, axis=2),
-                            f"{root}.{name}{ext}")
-                continue
-            write_image(img, f"{root}.{name}{ext}", args.exposure)
-        film.write_data_passes(root)
+        film.write_passes(root, ext, args.exposure, settings.spp)
         if film.catcher is not None:  # Cycles' Shadow Catcher pass: data, linear EXR
             write_image(shadowcatcher.shadow_catcher_pass(film, settings.film_transparent),
                          f"{root}.shadow_catcher.exr")

@@ -80,6 +80,28 @@ class Film:
         # Blender's render result; --save-passes writes them by write_data_passes.)
         return out
 
+    def write_passes(self, root: str, ext: str, exposure: float = 0.0,
+                     spp: int | None = None) -> list[str]:
+        """--save-passes of both front ends (engine/cli.py, addon/batch.py): each effect
+        pass, the photon-hit view and, with adaptive sampling, the sample count (grey: the
+        share of `spp` a pixel took) as `root.<name><ext>` at `exposure` stops, then the
+        data passes (write_data_passes). Returns the paths written. Raises OSError when a
+        file cannot be written."""
+        from .imageio import write_image
+        paths = []
+        for name, img in self.passes().items():
+            if name in ("combined", "depth", "alpha", "normal"):
+                continue
+            path = f"{root}.{name}{ext}"
+            if name == "sample_count":
+                if not spp:
+                    continue
+                write_image(np.repeat((img / spp)[..., None], 3, axis=2), path)
+            else:
+                write_image(img, path, exposure)
+            paths.append(path)
+        return paths + self.write_data_passes(root)
+
     def write_data_passes(self, root: str) -> list[str]:
         """Write each of Cycles' data passes made (self.data) as linear OpenEXR
         `root.<key>.exr` (one-channel passes as grey RGB); returns the paths. They are data

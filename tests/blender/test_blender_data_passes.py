@@ -137,6 +137,10 @@ def test_batch_save_passes_writes_the_data_passes(bpy_addon, renders, tmp_path):
                          text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-2000:]
     assert (tmp_path / "x.direct.png").is_file()
+    # The photon-hit view too, as the CLI writes it (newuser42: a teacher had to render
+    # --show-photons apart for it): dots on black, some lit.
+    hits = read_image(str(tmp_path / "x.photon_hits.png"))
+    assert 0.0 < (hits.max(axis=2) > 0).mean() < 0.9, (hits.max(axis=2) > 0).mean()
     for name, key in (("Denoising Albedo", "denoising_albedo"),
                       ("Denoising Normal", "denoising_normal"),
                       ("Diffuse Color", "diffuse_color")):

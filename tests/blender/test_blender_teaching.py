@@ -132,7 +132,8 @@ def test_batch_compare_strip_and_passes(tmp_path):
                  "--caustic-photons", "2000", "--resolution-percentage", "15", "--strip",
                  "--save-passes", "--method", "raytrace", "--quiet")
     assert res.returncode == 0, res.stderr[-2000:]
-    for name in ("direct", "indirect", "caustic", "specular", "emission", "strip"):
+    for name in ("direct", "indirect", "caustic", "specular", "emission", "photon_hits",
+                 "strip"):
         assert (tmp_path / f"f3.{name}.png").is_file(), name
     assert not np.asarray(Image.open(tmp_path / "f3.indirect.png")).any()  # raytrace
     strip = np.asarray(Image.open(tmp_path / "f3.strip.png").convert("RGB"))
