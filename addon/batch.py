@@ -347,8 +347,8 @@ def parse_args(argv):
                         "shadows, mirrors and glass (paper Fig. 5b); photon: the full renderer")
     p.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass and the photon-hit view next to the "
-                        "output (name.direct.png ... name.photon_hits.png) and the view layer's data passes as linear OpenEXR "
-                        "(name.denoising_albedo.exr ...)")
+                        "output (name.direct.png ... name.photon_hits.png) and the view "
+                        "layer's data passes as linear OpenEXR (name.denoising_albedo.exr ...)")
     p.add_argument("--strip", action="store_true",
                    help="also write the effect passes and their sum side by side, labelled "
                         "(name.strip.png)")
