@@ -6,11 +6,19 @@ burns the labels in with Blender's own font (BLF drawing into an image buffer) a
 the result as an Image (bpy.data.images) in an Image Editor. The Render menu and the
 Teaching panel (addon/ui.py) call them; addon/batch.py calls teaching_image() for
 --compare / --sweep / --strip.
+
+In Blender's window the renders run on a thread of their own (TeachingJob) while a modal
+operator keeps the UI live, moves the progress bar and cancels on Esc: a sweep takes
+minutes, and it froze Blender with no way out when it ran inside execute() (newuser42).
+The export before and the labels after (Blender's data and font) stay on the main
+thread. Scripts and background mode (`blender -b`, the batch command) run them inside
+execute(), as before.
 """
 from __future__ import annotations
 
 import os
 import tempfile
+import threading
 import time
 
 import bpy
@@ -108,6 +116,26 @@ def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
     tile); should_cancel() polled by the renders.
     Returns (tiles, rgb8 (H, W, 3) uint8). Raises ValueError (bad parameters, named),
     SceneError, ResourceError, engine.parallel.Cancelled (should_cancel() turned true)."""
+    work = prepare_teaching(kind, scene, depsgraph, preview_size, quality, params,
+                            sweep_preset, reference)
+    tiles, columns = work(progress, should_cancel)
+    return tiles, compose_teaching(tiles, columns, label_mask)
+
+
+def compose_teaching(tiles, columns: int, label_mask=None) -> np.ndarray:
+    """The tiles side by side, labelled with Blender's font (main thread: BLF), as
+    (H, W, 3) uint8."""
+    return load_engine().teaching.compose(tiles, columns,
+                                          label_mask=label_mask or blf_label_mask)
+
+
+def prepare_teaching(kind: str, scene, depsgraph, preview_size: int = 160,
+                     quality: str = "preview", params: dict | None = None,
+                     sweep_preset: str = "none", reference: str = ""):
+    """What teaching_image does on Blender's main thread before rendering: check the
+    arguments, export the scene, read the reference image. Returns work(progress,
+    should_cancel) -> (tiles, columns), which renders without touching Blender's data
+    (safe on another thread). Raises as teaching_image."""
     pm = load_engine()
     teaching = pm.teaching
     if kind not in IMAGE_NAMES:
@@ -133,27 +161,26 @@ def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
     settings = pm.RenderSettings(**kwargs)
     pm_scene.validate()
     pm.resources.check_resources(pm_scene, settings, in_blender=True)
-    if kind == "compare":
-        tiles = teaching.compare_methods(pm_scene, settings, progress, should_cancel)
-        columns = 4
-    elif kind == "sweep":
-        if not params:
-            raise ValueError("Parameter Sweep: give values (e.g. 1000,10000,100000) or "
-                             "choose a preset")
-        ref = load_reference(reference) if reference else None
-        tiles = teaching.sweep(pm_scene, settings, params, ref, progress=progress,
-                               should_cancel=should_cancel)
-        columns = min(len(tiles), 4)
-    else:
+    if kind == "sweep" and not params:
+        raise ValueError("Parameter Sweep: give values (e.g. 1000,10000,100000) or "
+                         "choose a preset")
+    ref = load_reference(reference) if kind == "sweep" and reference else None
+
+    def work(progress=None, should_cancel=None):
+        if kind == "compare":
+            return teaching.compare_methods(pm_scene, settings, progress, should_cancel), 4
+        if kind == "sweep":
+            tiles = teaching.sweep(pm_scene, settings, params, ref, progress=progress,
+                                   should_cancel=should_cancel)
+            return tiles, min(len(tiles), 4)
         t0 = time.perf_counter()
         film = pm.render(pm_scene, settings, progress=progress, should_cancel=should_cancel)
         if film.stats.get("cancelled"):
             raise pm.parallel.Cancelled()
         film.stats.setdefault("time_total", time.perf_counter() - t0)
         tiles = teaching.effects_strip(film)
-        columns = len(tiles)
-    rgb8 = teaching.compose(tiles, columns, label_mask=label_mask or blf_label_mask)
-    return tiles, rgb8
+        return tiles, len(tiles)
+    return work
 
 
 def load_reference(path: str) -> np.ndarray:
@@ -226,6 +253,55 @@ def show_in_image_editor(context, image) -> bool:
     return bool(areas)
 
 
+# --- a teaching render on its own thread -----------------------------------------------
+
+class TeachingJob:
+    """work(progress, should_cancel) on a daemon thread (prepare_teaching's, which touches
+    no Blender data), polled from Blender's main thread by the modal operator: fraction
+    and text of its progress, done, then result (its return value) or error (what it
+    raised; engine.parallel.Cancelled after cancel())."""
+
+    def __init__(self, work):
+        self._work = work
+        self._cancel = threading.Event()
+        self.fraction, self.text = 0.0, ""
+        self.result = self.error = None
+        self._thread = threading.Thread(target=self._run, daemon=True,
+                                        name="Photon Mapping teaching render")
+
+    def start(self) -> "TeachingJob":
+        self._thread.start()
+        return self
+
+    def _run(self):
+        try:
+            self.result = self._work(self._progress, self._cancel.is_set)
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+            self.error = exc
+
+    def _progress(self, stage, fraction, text):
+        self.fraction, self.text = min(max(float(fraction), 0.0), 1.0), text
+
+    def cancel(self):
+        """Ask the renders to stop at their next poll (engine should_cancel)."""
+        self._cancel.set()
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def wait(self, timeout=None) -> bool:
+        self._thread.join(timeout)
+        return self.done
+
+
+def runs_modal(context) -> bool:
+    """Whether an operator started in `context` can run modal: a window to live in.
+    Background mode (`blender -b`, the batch command) and scripts without a window run
+    the renders inside execute()."""
+    return not bpy.app.background and getattr(context, "window", None) is not None
+
+
 # --- operators -----------------------------------------------------------------------
 
 class _TeachingOperator:
@@ -249,23 +325,63 @@ class _TeachingOperator:
         return ""
 
     def execute(self, context):
-        scene = context.scene
+        try:
+            params, preset = self._params()
+            work = prepare_teaching(self.kind, context.scene,
+                                    context.evaluated_depsgraph_get(), self.preview_size,
+                                    self.quality, params, preset, self._reference())
+        except Exception as exc:  # noqa: BLE001 - a report, never a traceback dialog
+            self.report({"ERROR"}, f"Photon Mapping: {exc}")
+            return {"CANCELLED"}
         wm = context.window_manager
         wm.progress_begin(0, 1000)
+        if runs_modal(context):
+            self._job = TeachingJob(work).start()
+            self._timer = wm.event_timer_add(0.2, window=context.window)
+            wm.modal_handler_add(self)
+            context.workspace.status_text_set(f"{self.bl_label}: rendering (Esc cancels)")
+            return {"RUNNING_MODAL"}
 
         def progress(stage, fraction, text):
             wm.progress_update(int(1000 * min(max(fraction, 0.0), 1.0)))
 
         try:
-            params, preset = self._params()
-            tiles, rgb8 = teaching_image(self.kind, scene, context.evaluated_depsgraph_get(),
-                                         self.preview_size, self.quality, params, preset,
-                                         progress, reference=self._reference())
-        except Exception as exc:  # noqa: BLE001 - a report, never a traceback dialog
+            result = work(progress, None)
+        except Exception as exc:  # noqa: BLE001
             self.report({"ERROR"}, f"Photon Mapping: {exc}")
             return {"CANCELLED"}
         finally:
             wm.progress_end()
+        return self._finish(context, *result)
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC" and event.value == "PRESS":
+            job.cancel()  # the renders stop at their next poll; the timer sees it end
+            context.workspace.status_text_set(f"{self.bl_label}: cancelling")
+            return {"RUNNING_MODAL"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}  # the UI stays live while the renders run
+        if not job.done:
+            context.window_manager.progress_update(int(1000 * job.fraction))
+            if job.text:
+                context.workspace.status_text_set(
+                    f"{self.bl_label}: {job.text} (Esc cancels)")
+            return {"RUNNING_MODAL"}
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        context.workspace.status_text_set(None)
+        if isinstance(job.error, load_engine().parallel.Cancelled):
+            self.report({"WARNING"}, f"Photon Mapping: {self.bl_label} cancelled")
+            return {"CANCELLED"}
+        if job.error is not None:
+            self.report({"ERROR"}, f"Photon Mapping: {job.error}")
+            return {"CANCELLED"}
+        return self._finish(context, *job.result)
+
+    def _finish(self, context, tiles, columns):
+        rgb8 = compose_teaching(tiles, columns)
         image = store_image(IMAGE_NAMES[self.kind], rgb8)
         show_in_image_editor(context, image)
         summary = "; ".join(", ".join(line for line in t.lines if line) for t in tiles)

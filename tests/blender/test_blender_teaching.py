@@ -44,6 +44,103 @@ def _check_labelled_row(img, count, tile_w, tile_h):
     return xs
 
 
+class _Window:
+    """What the modal teaching operator asks of Blender's window manager and workspace,
+    recorded (no window in background mode, so the modal path is driven by hand)."""
+
+    def __init__(self):
+        self.progress, self.status, self.timers = [], [], 1
+        self.window_manager = self
+        self.workspace = self
+
+    def progress_update(self, value):
+        self.progress.append(value)
+
+    def progress_end(self):
+        self.progress.append("end")
+
+    def event_timer_remove(self, timer):
+        self.timers -= 1
+
+    def status_text_set(self, text):
+        self.status.append(text)
+
+
+class _Event:
+    def __init__(self, type_, value="NOTHING"):
+        self.type, self.value = type_, value
+
+
+def _modal_operator(bpy, kind, label, work):
+    """A stand-in for the operator instance in Blender's window: its job started, its
+    reports kept; the methods are the operator class's own."""
+    from addon import operators
+
+    class Op:
+        bl_label = label
+        _timer = object()
+        modal = operators._TeachingOperator.modal
+        _finish = operators._TeachingOperator._finish
+
+        def __init__(self):
+            self.kind, self.reports = kind, []
+            self._job = operators.TeachingJob(work).start()
+
+        def report(self, kinds, text):
+            self.reports.append((set(kinds), text))
+    return Op()
+
+
+def test_teaching_renders_on_a_thread_while_blenders_window_stays_live(bpy_addon):
+    """In Blender's window a sweep took minutes inside execute(): the UI froze with no way
+    to cancel (newuser42). There the renders run on a thread (TeachingJob) while the
+    modal operator passes other events through, moves the progress bar on its timer, and
+    composes and shows the image when they end; Esc cancels at the renders' next poll."""
+    import time
+    bpy = bpy_addon
+    from addon import operators
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene)
+    work = operators.prepare_teaching("strip", scene, bpy.context.evaluated_depsgraph_get(),
+                                      48, "preview")
+    window = _Window()
+    op = _modal_operator(bpy, "strip", "Effects Strip", work)
+    assert op.modal(window, _Event("MOUSEMOVE")) == {"PASS_THROUGH"}
+    result = {"RUNNING_MODAL"}
+    for _ in range(6000):
+        result = op.modal(window, _Event("TIMER"))
+        if result != {"RUNNING_MODAL"}:
+            break
+        time.sleep(0.01)
+    assert result == {"FINISHED"}, op.reports
+    assert window.progress[-1] == "end" and window.timers == 0 and window.status[-1] is None
+    assert any(isinstance(v, int) and v > 0 for v in window.progress)  # the bar moved
+    assert "Effects Strip" in bpy.data.images["Photon Mapping: Effects Strip"].name
+    assert op.reports and op.reports[-1][0] == {"INFO"}
+
+    # Esc: a work that polls should_cancel as the renders do ends Cancelled, reported.
+    def endless(progress, should_cancel):
+        while not should_cancel():
+            progress("render", 0.5, "Rendering")
+            time.sleep(0.01)
+        raise load_engine().parallel.Cancelled()
+    from addon.core import load_engine
+    window = _Window()
+    op = _modal_operator(bpy, "sweep", "Parameter Sweep", endless)
+    assert op.modal(window, _Event("ESC", "PRESS")) == {"RUNNING_MODAL"}
+    assert op._job.wait(10)
+    assert op.modal(window, _Event("TIMER")) == {"CANCELLED"}
+    assert op.reports == [({"WARNING"}, "Photon Mapping: Parameter Sweep cancelled")]
+    # An error in the renders is reported, not raised into Blender.
+    op = _modal_operator(bpy, "sweep", "Parameter Sweep",
+                         lambda progress, should_cancel: 1 / 0)
+    assert op._job.wait(10)
+    assert op.modal(_Window(), _Event("TIMER")) == {"CANCELLED"}
+    assert op.reports[0][0] == {"ERROR"} and "division by zero" in op.reports[0][1]
+    # Background mode and scripts without a window run inside execute(), as before.
+    assert not operators.runs_modal(bpy.context)
+
+
 def test_compare_methods_operator_headless(bpy_addon):
     bpy = bpy_addon
     scene = open_blend(bpy, "figure3_sphere.blend")
