@@ -126,10 +126,17 @@ def main(argv=None):
                     help="scenes: only Cycles' curve and our default render (the summary)")
     ap.add_argument("--no-figure6", action="store_true",
                     help="keep the Figure 6 box rows of docs/accuracy_time.csv (no re-render)")
+    ap.add_argument("--ladder-only", action="store_true",
+                    help="only docs/figure6_ladder.png (the paper's ladder on the Figure 6 "
+                         "box: photon hits over renders), no docs tables")
     ap.add_argument("--presets-only", action="store_true",
                     help="only the presets on the Figure 6 box: rewrite "
                          "engine/presets_measured.json, no docs (after a preset changes)")
     args = ap.parse_args(argv)
+    if args.ladder_only:
+        scene = cornell_box(args.width, args.height)
+        write_strip([paper_rung(scene, photons, r)[1:] for photons, r in PAPER_LADDER], None)
+        return
     if args.presets_only:
         scene = cornell_box(args.width, args.height)
         ref, _ = reference(scene, args.ref_samples)
@@ -183,6 +190,17 @@ def read_rows(path):
     return rows
 
 
+def paper_rung(scene, photons, r):
+    """One rung of the paper's ladder (fixed radius r in paper units, classic estimator, no
+    final gather, 16 spp): (seconds, label, photon-hit view, render)."""
+    st = RenderSettings(photons=photons, caustic_photons=photons // 2, radius=r * PAPER_SCALE,
+                        paper_mode=True, spp=16)
+    t0 = time.perf_counter()
+    film = render(scene, st)
+    return (time.perf_counter() - t0, f"{photons:,} / r={r * PAPER_SCALE:.2f}",
+            film.photon_hits, film.combined)
+
+
 def figure6(args):
     """The Figure 6 box (engine API) ladder; writes its strip and the presets' measured
     numbers; returns (rows, reference seconds)."""
@@ -206,14 +224,10 @@ def figure6(args):
 
     # The paper's ladder: fixed radius, paper estimator, no final gather (Fig. 6).
     for photons, r in (PAPER_LADDER[:2] if args.quick else PAPER_LADDER):
-        st = RenderSettings(photons=photons, caustic_photons=photons // 2, radius=r * PAPER_SCALE,
-                            paper_mode=True, spp=16)
-        t0 = time.perf_counter()
-        film = render(scene, st)
-        secs = time.perf_counter() - t0
-        measure("paper", f"{photons:,} photons, r={r * PAPER_SCALE:.2f} m", film.combined, secs,
+        secs, label, hits, img = paper_rung(scene, photons, r)
+        measure("paper", f"{photons:,} photons, r={r * PAPER_SCALE:.2f} m", img, secs,
                 "classic estimator, no final gather")
-        strip.append((f"{photons:,} / r={r * PAPER_SCALE:.2f}", film.photon_hits, film.combined))
+        strip.append((label, hits, img))
 
     measured = measure_presets(scene, ref, args, rows, write=False)
 

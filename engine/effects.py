@@ -962,9 +962,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  f"light paths up to {s.max_bounces} bounces: {s.diffuse_bounces} diffuse, "
                  f"{s.glossy_bounces} glossy, {s.transmission_bounces} transmission "
                  f"(Light Paths > Max Bounces, {origin}){cap}")
-    if s.clamp_direct > 0 or s.clamp_indirect > 0:
+    if (s.clamp_direct > 0 or s.clamp_indirect > 0) and emitting:
         # Clamping trades energy for calm fireflies: said, so a highlight or caustic
         # darker than the unclamped render points at it (Cycles' default Indirect is 10).
+        # Not where no light emits (a black image: newuser42 read the paragraph there).
         def limit(v):
             return f"{v:g} (R + G + B at most {3 * v:g} per sample)" if v > 0 else "off"
         # Light through panes and shades is indirect to Cycles (it arrives after a
@@ -982,7 +983,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           "samples): ours takes it by shadow rays, smoothly, and keeps it, "
                           "so Cycles renders such a room darker than ours; set Indirect to 0 "
                           "in both to compare them")
-        elif s.clamp_indirect > 0:
+        elif s.clamp_indirect > 0 and any(li.kind in (SUN, WORLD) for li in emitting):
             # Cycles clamps each path sample; a sunlit room's bounce light reaches its
             # paths in rare bright samples, which the clamp cuts, while our photon
             # estimates are smooth and seldom reach it (newuser40: a room lit through an

@@ -683,11 +683,21 @@ def test_report_says_when_clamping_is_on():
     text = effects(s.render(dataclasses.replace(base, clamp_indirect=10.0)))
     assert ("clamping: on - Light Paths > Clamping: direct light off, indirect light and "
             "photon estimates 10 (R + G + B at most 30 per sample)") in text
+    # The sunlit room's note is for scenes a sun or the world lights (newuser42 read it
+    # under a bulb and in a black image).
+    assert "sunlit room" not in text
+    text = effects(s.render(dataclasses.replace(base, clamp_direct=2.5)))
+    assert "direct light 2.5 (R + G + B at most 7.5 per sample)" in text
+    s.add_sun(direction=(0.3, 0.2, -1), strength=2.0, name="Sun")
+    text = effects(s.render(dataclasses.replace(base, clamp_indirect=10.0)))
     # Why a room reads brighter than Cycles at its default Indirect 10 (newuser40).
     assert "rare bright samples that the clamp cuts" in text
     assert "set Indirect to 0 in both" in text
-    text = effects(s.render(dataclasses.replace(base, clamp_direct=2.5)))
-    assert "direct light 2.5 (R + G + B at most 7.5 per sample)" in text
+    # No light at all: a black image, no clamping paragraph.
+    dark = PaperScene(width=16, height=16)
+    dark.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+    dark.set_camera((0, -5, 2), (0, 0, 0.5))
+    assert "clamping" not in effects(dark.render(dataclasses.replace(base, clamp_indirect=10.0)))
 
 
 def test_glass_inside_glass_is_named_in_the_specular_line():
