@@ -503,8 +503,11 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     if region is None or total <= 0 or not lights:
         # region None: the camera's gather rays end on no surface that stores photons
         # (an open scene, or only metal and glass where they end).
-        natural.report = ("no visual importance: the camera's final-gather rays reach no "
-                          "surface that stores photons, so there is nothing to aim at")
+        # (newuser42 read the old "reach no surface that stores photons" as wrong on a
+        # table that stores photons: the gather rays leave from it, they do not reach it)
+        natural.report = ("no visual importance: the final-gather rays from the surfaces "
+                          "in view leave the scene or end on metal and glass, never on a "
+                          "surface that stores photons, so there is no region to aim at")
         return natural
     rng = np.random.default_rng([ctx.settings.seed, 94])
     K = len(region.radii)

@@ -940,3 +940,17 @@ def test_a_scene_without_light_says_so_in_the_caustics_line():
               extra=(("glass", "Ball"),))
     s.lights.clear()
     assert _line(_plan(s), "caustics") == "caustics: off - no light emits power"
+
+
+def test_an_open_scene_says_why_photons_are_not_aimed():
+    """Under an open sky the final-gather rays leave from the ground in view and escape or
+    end on a mirror ball: the report says so (newuser42 read "the gather rays reach no
+    surface that stores photons" as wrong on a table that stores photons)."""
+    s = PaperScene(width=16, height=16)
+    s.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="ground")
+    s.add_sphere((0, 0, 1), 0.5, "mirror", name="ball")
+    s.add_sun(direction=(0.3, 0.2, -1), strength=2.0, name="Sun")
+    s.set_camera((0, -5, 2), (0, 0, 0.5))
+    text = effects(s.render(RenderSettings(photons=2000, spp=1)))
+    assert ("no visual importance: the final-gather rays from the surfaces in view leave the "
+            "scene or end on metal and glass") in text, text
