@@ -38,15 +38,18 @@ CYCLES_SAMPLES = 4096
 # The sun's disc (degrees): wide enough that Cycles' path tracing converges through the
 # water (its diffuse rays meet the refracted disc 1 time in ~16).
 SUN_ANGLE = 30.0
-# Flat-shaded glass and water ("flat") and the same with smooth sides ("smooth").
+# Flat-shaded glass and water ("flat") and the same with smooth sides ("smooth": caps and
+# rims flat, no sharp edges, so Blender's normals domain is POINT and both renderers shade
+# the sides with vertex normals averaged with the caps': tilted up to 47 degrees from the
+# faces at the rims, addon/normals.py).
 SHADINGS = ("flat", "smooth")
 
 
 def _cylinder(bpy, name, radius, depth, z, material, smooth_sides, open_top=False,
               shell=None):
     """A 48-sided cylinder (bottom at z); smooth_sides: its sides smooth-shaded, caps and
-    rims flat (Shade Auto Smooth's result), else every face flat; open_top drops the top
-    cap, shell (m) applies a Solidify of that thickness inwards."""
+    rims flat, else every face flat; open_top drops the top cap, shell (m) applies a
+    Solidify of that thickness inwards."""
     import bmesh
     bpy.ops.mesh.primitive_cylinder_add(vertices=48, radius=radius, depth=depth,
                                         location=(0.0, 0.0, z + depth / 2))
@@ -139,14 +142,14 @@ def test_table_under_a_glass_of_water_matches_cycles(fresh_scene, bpy_addon, tmp
     assert _ratio(bpy_addon, fresh_scene, tmp_path, "flat") == pytest.approx(1.0, abs=0.03)
 
 
-@pytest.mark.xfail(strict=True, reason="smooth-shaded glass sides lose caustic photons "
-                   "(docs/accuracy.md, water43): 0.65 of Cycles")
+@pytest.mark.xfail(strict=True, reason="glass sides shaded with strongly bent vertex "
+                   "normals lose caustic photons (docs/accuracy.md, water43): 0.65 of Cycles")
 def test_smooth_sided_glass_of_water_matches_cycles(fresh_scene, bpy_addon, tmp_path):
-    """The same glass and water with smooth sides (caps flat; their corner normals at most
-    3.75 degrees off the faces'): Cycles 1.009 (flat 0.928), ours 0.657. The camera's
-    path to the table crosses only the flat caps, so the loss is in the photons: 225k
-    caustic photons stored of 1M shot, 501k with flat sides. Known defect: strict, so
-    the fix turns this into a failure that asks for the marker's removal."""
+    """The same glass and water with smooth sides (SHADINGS): Cycles 1.009 (flat 0.928),
+    ours 0.657. The camera's path to the table crosses only the flat caps, so the loss is
+    in the photons (the empty glass at 1M caustic photons: 225k stored, 501k with flat
+    sides). Known defect: strict, so its fix turns this into a failure that asks for the
+    marker's removal."""
     assert _ratio(bpy_addon, fresh_scene, tmp_path, "smooth") == pytest.approx(1.0, abs=0.03)
 
 
