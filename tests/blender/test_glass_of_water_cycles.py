@@ -72,7 +72,8 @@ def _cylinder(bpy, name, radius, depth, z, material, smooth_sides, open_top=Fals
     return ob
 
 
-def _scene(bpy, scene, shading, sun_angle=SUN_ANGLE):
+def _scene(bpy, scene, shading, sun_angle=SUN_ANGLE, water=True):
+    """The glass of water (water False: the glass alone) with its shading (SHADINGS)."""
     from blender_helpers import black_world, glass_or_diffuse_material
     lift = 0.001
     smooth = shading == "smooth"
@@ -81,8 +82,9 @@ def _scene(bpy, scene, shading, sun_angle=SUN_ANGLE):
         glass_or_diffuse_material(bpy, "Table", "diffuse", (0.8,) * 3))
     _cylinder(bpy, "Glass", 0.4, 1.0, lift, glass_or_diffuse_material(
         bpy, "Glass", "glass", (1.0,) * 3, ior=1.5), smooth, open_top=True, shell=0.03)
-    _cylinder(bpy, "Water", 0.365, 0.65, lift + 0.031, glass_or_diffuse_material(
-        bpy, "Water", "glass", (1.0,) * 3, ior=1.33), smooth)
+    if water:
+        _cylinder(bpy, "Water", 0.365, 0.65, lift + 0.031, glass_or_diffuse_material(
+            bpy, "Water", "glass", (1.0,) * 3, ior=1.33), smooth)
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     sun.data.energy, sun.data.angle = 4.0, math.radians(sun_angle)
     sun.rotation_euler = (math.radians(20.0), 0.0, 0.0)
@@ -138,7 +140,8 @@ def _ratio(bpy, scene, tmp_path, shading):
 
 def test_table_under_a_glass_of_water_matches_cycles(fresh_scene, bpy_addon, tmp_path):
     """Flat-shaded glass and water: ours within 3 % of Cycles' 4096-spp mean (measured
-    1.015 / 0.999 / 1.006 at seeds 0 / 1 / 2, ~1.5 CPU s)."""
+    1.015 / 0.999 / 1.006 / 1.027 / 1.016 at seeds 0-4, ~1.5 CPU s; Cycles at 16384 spp
+    reads its 4096-spp mean to 0.03 %)."""
     assert _ratio(bpy_addon, fresh_scene, tmp_path, "flat") == pytest.approx(1.0, abs=0.03)
 
 
