@@ -74,7 +74,8 @@ def _cylinder(bpy, name, radius, depth, z, material, smooth_sides, open_top=Fals
 
 def _scene(bpy, scene, shading, sun_angle=SUN_ANGLE, water=True):
     """The glass of water (water False: the glass alone) with its shading (SHADINGS)."""
-    from blender_helpers import black_world, glass_or_diffuse_material
+    from blender_helpers import (black_world, glass_or_diffuse_material,
+                                 looking_down_camera, sun_light)
     lift = 0.001
     smooth = shading == "smooth"
     bpy.ops.mesh.primitive_plane_add(size=4.0)
@@ -85,15 +86,9 @@ def _scene(bpy, scene, shading, sun_angle=SUN_ANGLE, water=True):
     if water:
         _cylinder(bpy, "Water", 0.365, 0.65, lift + 0.031, glass_or_diffuse_material(
             bpy, "Water", "glass", (1.0,) * 3, ior=1.33), smooth)
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy, sun.data.angle = 4.0, math.radians(sun_angle)
-    sun.rotation_euler = (math.radians(20.0), 0.0, 0.0)
-    scene.collection.objects.link(sun)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 0.4
-    cam.location = (0.0, 0.0, 3.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    sun_light(bpy, scene, (math.radians(20.0), 0.0, 0.0), 4.0).data.angle = math.radians(
+        sun_angle)
+    looking_down_camera(bpy, scene, 3.0, ortho_scale=0.4)
     black_world(bpy, scene)
     scene.render.resolution_x = scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
