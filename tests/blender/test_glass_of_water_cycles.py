@@ -1,0 +1,169 @@
+"""A glass of water seen from above, the table under it lit by a sun through the water's
+top, against Cycles (issue 14, water43: newuser42's glass of water read 27 % brighter
+than Cycles seen through it).
+
+A clear glass (an open cylinder of radius 0.4 m and height 1 m, walls and bottom 3 cm
+thick: Solidify inwards; Glass BSDF, IOR 1.5) holds water (a closed cylinder of radius
+0.365 m, 0.65 m deep, 1 mm above the glass's bottom; Glass BSDF, IOR 1.33), both 1 mm
+above a diffuse table (0.8) so that no surface touches another (at exact contact Cycles'
+image is its rounding: docs/accuracy.md, contact30). A sun 20 degrees off the vertical,
+an orthographic camera straight down onto the water's top (it sees the table through
+the flat caps only), black world, 16 x 16 pixels.
+
+The table under the glass takes the sunlight only through the water and the glass
+(L S+ D: our caustic photons; shadow rays are blocked by glass in both renderers). Cycles
+finds it only where a diffuse bounce's ray, refracted out through the water's top, meets
+the sun's disc: with a 1-degree sun about 1 sample in 14,000, so at a few thousand
+samples its image is dark with fireflies (newuser42's 1-degree sun: the glass read
+brighter in ours); with a 30-degree disc about 1 in 16, and it converges. There ours
+matches it with flat-shaded glass; with smooth-shaded sides ours loses light (a known
+defect, the xfail below; docs/accuracy.md, water43).
+
+Cycles' image means (4096 spp, seed 0) are stored in
+tests/references/glass_of_water.json (this file run as a script writes them); the slow
+test_stored_cycles_means_are_cycles_now renders them again live.
+"""
+import json
+import math
+import os
+
+import pytest
+
+pytestmark = pytest.mark.blender
+
+REF_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                        "references", "glass_of_water.json")
+SIZE = 16
+CYCLES_SAMPLES = 4096
+# The sun's disc (degrees): wide enough that Cycles' path tracing converges through the
+# water (its diffuse rays meet the refracted disc 1 time in ~16).
+SUN_ANGLE = 30.0
+# Flat-shaded glass and water ("flat") and the same with smooth sides ("smooth": caps and
+# rims flat, no sharp edges, so Blender's normals domain is POINT and both renderers shade
+# the sides with vertex normals averaged with the caps': tilted up to 47 degrees from the
+# faces at the rims, addon/normals.py).
+SHADINGS = ("flat", "smooth")
+
+
+def _cylinder(bpy, name, radius, depth, z, material, smooth_sides, open_top=False,
+              shell=None):
+    """A 48-sided cylinder (bottom at z); smooth_sides: its sides smooth-shaded, caps and
+    rims flat, else every face flat; open_top drops the top cap, shell (m) applies a
+    Solidify of that thickness inwards."""
+    import bmesh
+    bpy.ops.mesh.primitive_cylinder_add(vertices=48, radius=radius, depth=depth,
+                                        location=(0.0, 0.0, z + depth / 2))
+    ob = bpy.context.object
+    ob.name = name
+    if open_top:
+        bm = bmesh.new()
+        bm.from_mesh(ob.data)
+        bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.normal.z > 0.9],
+                         context="FACES_ONLY")
+        bm.to_mesh(ob.data)
+        bm.free()
+    if shell is not None:
+        mod = ob.modifiers.new("Solidify", "SOLIDIFY")
+        mod.thickness, mod.offset = shell, -1.0
+        bpy.ops.object.modifier_apply(modifier=mod.name)
+    for p in ob.data.polygons:
+        p.use_smooth = smooth_sides and abs(p.normal.z) < 0.1
+    ob.data.materials.append(material)
+    return ob
+
+
+def _scene(bpy, scene, shading, sun_angle=SUN_ANGLE, water=True):
+    """The glass of water (water False: the glass alone) with its shading (SHADINGS)."""
+    from blender_helpers import (black_world, glass_or_diffuse_material,
+                                 looking_down_camera, sun_light)
+    lift = 0.001
+    smooth = shading == "smooth"
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    bpy.context.object.data.materials.append(
+        glass_or_diffuse_material(bpy, "Table", "diffuse", (0.8,) * 3))
+    _cylinder(bpy, "Glass", 0.4, 1.0, lift, glass_or_diffuse_material(
+        bpy, "Glass", "glass", (1.0,) * 3, ior=1.5), smooth, open_top=True, shell=0.03)
+    if water:
+        _cylinder(bpy, "Water", 0.365, 0.65, lift + 0.031, glass_or_diffuse_material(
+            bpy, "Water", "glass", (1.0,) * 3, ior=1.33), smooth)
+    sun_light(bpy, scene, (math.radians(20.0), 0.0, 0.0), 4.0).data.angle = math.radians(
+        sun_angle)
+    looking_down_camera(bpy, scene, 3.0, ortho_scale=0.4)
+    black_world(bpy, scene)
+    scene.render.resolution_x = scene.render.resolution_y = SIZE
+    scene.render.resolution_percentage = 100
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+
+
+def _mean(bpy, scene, path, engine):
+    from blender_helpers import read_rgba, render_exr
+    scene.render.engine = engine
+    return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
+
+
+def _cycles_means(bpy, tmp_path):
+    """Cycles' image mean per shading, rendered now: {shading: mean}."""
+    from blender_helpers import cycles_plain
+    out = {}
+    for shading in SHADINGS:
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = bpy.context.scene
+        _scene(bpy, scene, shading)
+        cycles_plain(scene, CYCLES_SAMPLES, 12)
+        out[shading] = _mean(bpy, scene, tmp_path / f"cycles_{shading}.exr", "CYCLES")
+    return out
+
+
+def _stored_means():
+    with open(REF_PATH) as f:
+        return json.load(f)["means"]
+
+
+def _ratio(bpy, scene, tmp_path, shading):
+    """ours / Cycles' stored mean, ours at 4 spp, 20k global and 100k caustic photons."""
+    from blender_helpers import cheap
+    _scene(bpy, scene, shading)
+    cheap(scene, spp=4, photons=20_000, caustic_photons=100_000)
+    scene.photonmap.seed = 0
+    ours = _mean(bpy, scene, tmp_path / f"ours_{shading}.exr", "PHOTONMAP")
+    want = _stored_means()[shading]
+    print(f"glass of water ({shading}), the table seen through the water: ours {ours:.4f}, "
+          f"Cycles {want:.4f}, ratio {ours / want:.4f}")
+    assert want > 0.5  # lit through the water
+    return ours / want
+
+
+def test_table_under_a_glass_of_water_matches_cycles(fresh_scene, bpy_addon, tmp_path):
+    """Flat-shaded glass and water: ours within 3 % of Cycles' 4096-spp mean (measured
+    1.015 / 0.999 / 1.006 / 1.027 / 1.016 at seeds 0-4, ~1.5 CPU s; Cycles at 16384 spp
+    reads its 4096-spp mean to 0.03 %)."""
+    assert _ratio(bpy_addon, fresh_scene, tmp_path, "flat") == pytest.approx(1.0, abs=0.03)
+
+
+@pytest.mark.xfail(strict=True, reason="glass sides shaded with strongly bent vertex "
+                   "normals lose caustic photons (docs/accuracy.md, water43): 0.65 of Cycles")
+def test_smooth_sided_glass_of_water_matches_cycles(fresh_scene, bpy_addon, tmp_path):
+    """The same glass and water with smooth sides (SHADINGS): Cycles 1.009 (flat 0.928),
+    ours 0.657. The camera's path to the table crosses only the flat caps, so the loss is
+    in the photons (the empty glass at 1M caustic photons: 225k stored, 501k with flat
+    sides). Known defect: strict, so its fix turns this into a failure that asks for the
+    marker's removal."""
+    assert _ratio(bpy_addon, fresh_scene, tmp_path, "smooth") == pytest.approx(1.0, abs=0.03)
+
+
+@pytest.mark.slow
+def test_stored_cycles_means_are_cycles_now(bpy_addon, tmp_path):
+    """The stored means are what this Blender's Cycles renders (2 renders at 4096 spp,
+    16 x 16, ~10 CPU s; seed 0: the same numbers up to float summation order)."""
+    stored, now = _stored_means(), _cycles_means(bpy_addon, tmp_path)
+    assert set(now) == set(stored)
+    for k, v in now.items():
+        assert abs(v / stored[k] - 1.0) < 1e-3, (k, v, stored[k])
+
+
+if __name__ == "__main__":  # write the stored means: .venv/bin/python <this file>
+    import sys
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _cycles_means, cycles_samples=CYCLES_SAMPLES, seed=0,
+                       sun_angle=SUN_ANGLE)
