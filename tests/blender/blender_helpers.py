@@ -424,6 +424,19 @@ def cycles_and_ours(bpy, scene, tmp_path, cycles_spp=256, ours_spp=32):
     return ours_luminance(bpy, scene, tmp_path, cycles_spp, ours_spp), ref
 
 
+def cycles_block_means(bpy, builds, tmp_path):
+    """{key: Cycles' 12 x 12 block means (luminance, flattened)} of each scene
+    builds[key]() at compare_settings, rendered now (the stored references of the hair,
+    particle hair and point cloud tests)."""
+    return {key: block_means(cycles_luminance(bpy, build(), tmp_path)).ravel().tolist()
+            for key, build in builds.items()}
+
+
+def stored_block_means(path, key, shape=(6, 8)):
+    """The stored cycles_block_means of `key` in the JSON at path, as (rows, columns)."""
+    return stored_cycles_means(path)[key].reshape(shape)
+
+
 def stored_cycles_means(path):
     """{key: float or (N,) float64 array} of a stored Cycles reference JSON
     (store_cycles_means wrote it)."""

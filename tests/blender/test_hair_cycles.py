@@ -22,9 +22,10 @@ import numpy as np
 import pytest
 
 from blender_helpers import (ROOT, assert_stored_means_are_now, block_means,
-                             cycles_luminance, cycles_plain, ours_luminance,
+                             cycles_block_means, cycles_plain, ours_luminance,
                              principled_material, read_rgba, render_exr,
-                             stored_cycles_means, sun_light, world_color)
+                             stored_block_means, stored_cycles_means, sun_light,
+                             world_color)
 
 pytestmark = pytest.mark.blender
 REF_PATH = os.path.join(ROOT, "tests", "references", "hair_cycles.json")
@@ -153,18 +154,14 @@ def test_curves_info_colours_the_strands_as_in_cycles(bpy_addon, tmp_path):
 
 
 def _cycles_blocks(bpy, tmp_path):
-    """Cycles' 12 x 12 block means (luminance, 6 x 8 flattened) of each case, rendered
-    now: {key: [48 means]}."""
-    builds = {"tuft RIBBONS": lambda: _tuft(bpy, "RIBBONS"),
-              "tuft THICK": lambda: _tuft(bpy, "THICK"),
-              "curves info": lambda: _curves_info(bpy)}
-    return {key: block_means(cycles_luminance(bpy, build(), tmp_path)).ravel().tolist()
-            for key, build in builds.items()}
+    """Cycles' block means of each case, rendered now: {key: [48 means]}."""
+    return cycles_block_means(bpy, {"tuft RIBBONS": lambda: _tuft(bpy, "RIBBONS"),
+                                    "tuft THICK": lambda: _tuft(bpy, "THICK"),
+                                    "curves info": lambda: _curves_info(bpy)}, tmp_path)
 
 
 def _stored_blocks(key):
-    """The stored Cycles block means of a case, (6, 8)."""
-    return stored_cycles_means(REF_PATH)[key].reshape(6, 8)
+    return stored_block_means(REF_PATH, key)
 
 
 @pytest.mark.slow

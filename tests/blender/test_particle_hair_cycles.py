@@ -21,8 +21,9 @@ import numpy as np
 import pytest
 
 from blender_helpers import (ROOT, assert_stored_means_are_now, block_means,
-                             cycles_luminance, ours_luminance, principled_material,
-                             stored_cycles_means, sun_light, world_color)
+                             cycles_block_means, ours_luminance, principled_material,
+                             stored_block_means, stored_cycles_means, sun_light,
+                             world_color)
 
 pytestmark = pytest.mark.blender
 REF_PATH = os.path.join(ROOT, "tests", "references", "particle_hair_cycles.json")
@@ -239,18 +240,15 @@ def test_generated_coordinates_colour_the_tuft_as_cycles(bpy_addon, tmp_path):
 
 
 def _cycles_blocks(bpy, tmp_path):
-    """Cycles' 12 x 12 block means (luminance, 6 x 8 flattened) of each scene, rendered
-    now: {key: [48 means]}."""
-    builds = {"checker NONE": lambda: _checker_scene(bpy, "NONE"),
+    """Cycles' block means of each scene, rendered now: {key: [48 means]}."""
+    return cycles_block_means(
+        bpy, {"checker NONE": lambda: _checker_scene(bpy, "NONE"),
               "checker INTERPOLATED": lambda: _checker_scene(bpy, "INTERPOLATED"),
-              "generated ramp": lambda: _generated_ramp_scene(bpy)[0]}
-    return {key: block_means(cycles_luminance(bpy, build(), tmp_path)).ravel().tolist()
-            for key, build in builds.items()}
+              "generated ramp": lambda: _generated_ramp_scene(bpy)[0]}, tmp_path)
 
 
 def _stored_blocks(key):
-    """The stored Cycles block means of a scene, (6, 8)."""
-    return stored_cycles_means(REF_PATH)[key].reshape(6, 8)
+    return stored_block_means(REF_PATH, key)
 
 
 @pytest.mark.slow
