@@ -23,6 +23,17 @@ def _cli(*args, **kwargs):
                           capture_output=True, text=True, timeout=300, **kwargs)
 
 
+def _main(capsys, monkeypatch, *args):
+    """engine.cli.main in this process (cwd = ROOT): (exit code, stderr); the path and
+    error handling of `python -m engine.cli` without a Python start and engine import
+    (~1.5 CPU s) per call (test_input.py runs the process's exit codes)."""
+    from engine import cli
+    monkeypatch.chdir(ROOT)
+    capsys.readouterr()
+    code = cli.main(list(args))
+    return code, capsys.readouterr().err
+
+
 def _leftovers(folder, keep):
     return sorted(n for n in os.listdir(folder) if n not in keep)
 
@@ -111,8 +122,21 @@ def test_a_writer_that_ignores_a_short_write_keeps_the_old_file(tmp_path, monkey
     assert _leftovers(tmp_path, {target.name}) == []
 
 
+SMALL_RENDER = ("render", SCENE, "--width", "64", "--height", "48", "--spp", "1",
+                "--photons", "2000", "--caustic-photons", "1000", "--quiet")
+
+
+@pytest.fixture(scope="module")
+def warm_cli(tmp_path_factory):
+    """The small render once without a file size limit, for the module: kernels the cache
+    lacks would be written under the limit too (and fail for that reason, not the
+    image's). One process for the three formats below (they ran one each)."""
+    warm = tmp_path_factory.mktemp("warm") / "w.npy"
+    assert _cli(*SMALL_RENDER, "-o", str(warm)).returncode == 0
+
+
 @pytest.mark.parametrize("ext", [".npy", ".ppm", ".exr"])
-def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path, ext):
+def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path, ext, warm_cli):
     """`ulimit -f`: the CLI's write fails (EFBIG, or a writer that ignores it and leaves a
     cut file); the old image stays, one-line error."""
     target = tmp_path / f"out{ext}"  # 64x48: npy 36 KB, ppm 9 KB, exr > 8 KB
@@ -122,15 +146,7 @@ def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path, ext):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
         resource.setrlimit(resource.RLIMIT_FSIZE, (8192, 8192))
 
-    args = ("render", SCENE, "--width", "64", "--height", "48", "--spp", "1", "--photons",
-            "2000", "--caustic-photons", "1000", "--quiet")
-    # The same render once without the limit: kernels the cache lacks would be written
-    # under the limit too (and fail for that reason, not the image's).
-    warm = tmp_path / "warm" / "w.npy"
-    assert _cli(*args, "-o", str(warm)).returncode == 0
-    warm.unlink()
-    warm.parent.rmdir()
-    res = _cli(*args, "-o", str(target), preexec_fn=limit)
+    res = _cli(*SMALL_RENDER, "-o", str(target), preexec_fn=limit)
     assert res.returncode == 1, res.stderr
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and target.name in lines[0] and "unchanged" in lines[0], res.stderr
@@ -154,22 +170,22 @@ def test_check_writable_refuses_before_anything_is_written(tmp_path):
     assert created == [str(ok.parent)]  # an existing folder is not announced
 
 
-def test_cli_checks_the_output_path_before_rendering(tmp_path):
+def test_cli_checks_the_output_path_before_rendering(tmp_path, capsys, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_bytes(b"x")
-    res = _cli("render", SCENE, "-o", str(blocker / "out.png"), "--spp", "64")
-    assert res.returncode == 1
-    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and str(blocker) in lines[0], res.stderr  # no progress bar first
+    code, err = _main(capsys, monkeypatch, "render", SCENE, "-o", str(blocker / "out.png"),
+                      "--spp", "64")
+    assert code == 1
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and str(blocker) in lines[0], err  # no progress bar first
 
 
-def test_a_folder_as_the_output_is_named_as_such(tmp_path):
+def test_a_folder_as_the_output_is_named_as_such(tmp_path, capsys, monkeypatch):
     for command in ("render", "compare"):
-        res = _cli(command, SCENE, "-o", str(tmp_path), "--spp", "1")
-        assert res.returncode == 1
-        assert res.stderr.strip() == (f"photonmap: error: --output '{tmp_path}' is a folder: "
-                                      f"give an image file, e.g. "
-                                      f"'{tmp_path / 'render.png'}'"), res.stderr
+        code, err = _main(capsys, monkeypatch, command, SCENE, "-o", str(tmp_path), "--spp", "1")
+        assert code == 1
+        assert err.strip() == (f"photonmap: error: --output '{tmp_path}' is a folder: "
+                               f"give an image file, e.g. '{tmp_path / 'render.png'}'"), err
     assert os.listdir(tmp_path) == []
 
 
@@ -251,7 +267,7 @@ def test_cli_ctrl_c_in_a_progressive_render_keeps_the_finished_passes(tmp_path):
     assert img.max() > 0  # the average of the finished passes, not a black frame
 
 
-def test_cli_writes_alpha_for_a_transparent_film_and_holdouts(tmp_path):
+def test_cli_writes_alpha_for_a_transparent_film_and_holdouts(tmp_path, capsys, monkeypatch):
     """photonmap render: film_transparent / holdout objects give an RGBA PNG and an EXR
     with an A channel, alpha 0 where the background or a holdout is seen."""
     from PIL import Image
@@ -288,10 +304,8 @@ power = 300
 """)
     for ext in (".png", ".exr"):
         out = tmp_path / f"o{ext}"
-        res = subprocess.run([sys.executable, "-m", "engine.cli", "render", str(scene), "-o",
-                              str(out), "--quiet"], capture_output=True, text=True, cwd=ROOT,
-                             timeout=300)
-        assert res.returncode == 0, res.stderr
+        code, err = _main(capsys, monkeypatch, "render", str(scene), "-o", str(out), "--quiet")
+        assert code == 0, err
         if ext == ".png":
             img = np.asarray(Image.open(out))
             assert img.shape == (16, 24, 4)
