@@ -414,7 +414,9 @@ def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
     importing): exit 130 and one line, never a KeyboardInterrupt traceback."""
     import time
     launcher = tmp_path / "photonmap"  # what pip's console script does, from this checkout
+    started = tmp_path / "started"  # (written once Python's start-up is over)
     launcher.write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
+                        f"open({str(started)!r}, 'w').close()\n"
                         "from engine.cli import main\nsys.exit(main())\n")
     target = tmp_path / "out.png"
     # A user's shell starts the command with Ctrl-C at its default; a background job of a
@@ -424,7 +426,14 @@ def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
                              "--width", "32", "--height", "24", "--spp", "1", "--quiet"],
                             cwd=ROOT, stderr=subprocess.PIPE, text=True,
                             preexec_fn=_default_sigint)
-    time.sleep(0.3)  # after Python's own start-up (site), while the engine imports
+    # After Python's own start-up (before it, SIGINT kills the process: no handler yet)
+    # and engine/__init__.py's first lines (its quiet handler), while numpy, numba and
+    # Embree import (a second or more). A fixed 0.3 s from the start came too early at
+    # load 20.
+    deadline = time.monotonic() + 60
+    while not started.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.005)
+    time.sleep(0.2)
     proc.send_signal(signal.SIGINT)
     err = proc.communicate(timeout=120)[1]
     assert proc.returncode == 130, err
