@@ -28,7 +28,7 @@ from .lights import packing as pk
 from .lights.packing import pack_lights
 from .mallocheap import render_heap
 from .edgeimages import edge_images
-from .guiding import AUTO_GAIN, GatherGuide
+from .guiding import AUTO_GAIN, GatherGuide, can_guide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
@@ -780,6 +780,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     stats["secondary_images"] = maps.pop("secondary_images", 0)
     if "time_gather_guide" in maps:
         stats["time_gather_guide"] = maps.pop("time_gather_guide")
+    pre_share = maps.pop("indirect_share", _NOT_MEASURED)
+    guide_skipped = maps.pop("guide_skipped", False)
     for name, value in maps.items():
         setattr(ctx, name, value)
     stats["caustic_photons"] = len(ctx.caustic_map) - images if ctx.caustic_map is not None \
@@ -795,14 +797,12 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         # the radius (issue 14: the CLI printed them only after the camera pass's bar).
         for w in warned if on_warning is not None else ():
             on_warning(w)
-    # (Emitters with unsampled sides (Emission Sampling) send direct light through the
-    # gather rays too, which the photons' indirect share does not count: every ray.)
-    # (Nor does it count the glow of emitting media, which only gather rays bring:
-    # engine/volumeemission.py.)
-    if ctx.gather_map is not None and s.gather_by_share and not any(
-            light.kind == "MESH" and light.tri_sides is not None
-            and (light.sides() != 3).any() for light in ctx.lights) and not glows(ctx):
-        share = indirect_share(ctx, shot, ctx.gather_short)
+    # (Where the share does not count all the gathered light: every ray, share_counts.)
+    if pre_share is _NOT_MEASURED and ctx.gather_map is not None and (
+            share_counts(ctx) or s.gather_guiding == "auto"):
+        pre_share = indirect_share(ctx, shot, ctx.gather_short)
+    if ctx.gather_map is not None and share_counts(ctx):
+        share = pre_share
         ctx.gather_rays = gather_count(s.gather_rays, share)
         stats["indirect_share"] = share
         stats["gather_rays_used"] = ctx.gather_rays
@@ -810,9 +810,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     if guide is not None:
         # Guided gather directions where the grids predict a fall of the pixels' relative
         # variance worth their cost: share^2 x the gather ray's (guiding.AUTO_GAIN).
-        share = stats.get("indirect_share")
-        if share is None:
-            share = indirect_share(ctx, shot, ctx.gather_short)
+        share = pre_share
         # (None: the camera sees nothing diffuse, or no photon: no evidence, cosine)
         gain = (share * share * guide.gain if share is not None and math.isfinite(share)
                 else None)
@@ -822,6 +820,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         stats["gather_guide_points"] = guide.points
         if not stats["gather_guided"]:
             ctx.gather_map.guide = None
+    elif guide_skipped:
+        # (auto at a share too small for any grid to pay: guiding.can_guide; not built)
+        stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_photon_hit_view), always filled.
@@ -848,6 +849,48 @@ def gather_count(most: int, share: float | None) -> int:
     if share is None or not math.isfinite(share):
         return most
     return int(min(most, max(1, math.ceil(most * share / GATHER_SHARE_FULL))))
+
+
+_NOT_MEASURED = object()  # (_photon_maps: the share not measured while the maps were built)
+
+
+def share_counts(ctx) -> bool:
+    """Whether the indirect share (visualimportance.indirect_share) counts all the light
+    the gather rays bring, so that their number and the gather map's points may follow it:
+    settings.gather_by_share, and no emitter with unsampled sides (Emission Sampling: they
+    send direct light through the gather rays too, which the photons' share does not
+    count) nor emitting media (their glow comes through gather rays alone:
+    engine/volumeemission.py)."""
+    return bool(ctx.settings.gather_by_share) and not any(
+        light.kind == "MESH" and light.tri_sides is not None
+        and (light.sides() != 3).any() for light in ctx.lights) and not glows(ctx)
+
+
+# The gather map's points (GatherMap's max_points) at an indirect share of
+# POINTS_SHARE_FULL and above (gather_count's GATHER_SHARE_FULL); below it, fewer in
+# proportion (gather_points; POINTS_SHARE_FULL 1e-9: always all, the A/B of worldfast43).
+GATHER_POINTS = 60_000
+POINTS_SHARE_FULL = GATHER_SHARE_FULL
+
+
+def gather_points(photons: int, share: float | None, k: int) -> int:
+    """GatherMap's max_points for a map of `photons` rows at indirect share `share`
+    (None: not known or not counted, GATHER_POINTS): GATHER_POINTS x share /
+    POINTS_SHARE_FULL, at least 4 x photons / k (a point per k / 4 photons at most: each
+    point's Voronoi cell, about k / 4 photon spacings across, stays inside its own
+    estimate's disc of k photons, so a lookup's blur is still the estimate's) and at most
+    GATHER_POINTS.
+
+    The points' irradiance costs ~13 us each (a k-NN estimate with its boundary and
+    surface tests): 0.73 CPU s for 57k points in a world-lit yard whose gather rays, one a
+    sample at a 3 % share, add a 3 % share of the pixel's light; a lookup's error there is
+    share x the map's. So the points follow the share as gather_count's rays do
+    (docs/performance.md "worldfast43")."""
+    if share is None or not math.isfinite(share) or share >= POINTS_SHARE_FULL:
+        return GATHER_POINTS
+    fewest = math.ceil(4 * photons / max(k, 1))
+    return int(min(GATHER_POINTS, max(fewest, math.ceil(GATHER_POINTS * share
+                                                        / POINTS_SHARE_FULL), 1)))
 
 
 # Gather lookups after a camera chain whose counts drop more than this share of the power
@@ -963,6 +1006,13 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         gather_map = None
         if final:
             check(flag)
+            # The indirect share (visualimportance.indirect_share, ~0.05 s) before the map:
+            # it sizes the map's points (gather_points) and tells whether the guide's grids
+            # could pay (guiding.can_guide); _photon_maps reads the same value.
+            share = None
+            if share_counts(ctx) or s.gather_guiding == "auto":
+                share = indirect_share(ctx, shot, s.radius or r_global)
+                out_deeper["indirect_share"] = share
             # Final gathering needs all light at the gathered point: every stored photon.
             # Photons that arrived straight from a caustic are left out: seen through a
             # few gather rays a bright caustic makes fireflies. Their light one bounce
@@ -1011,10 +1061,15 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             rows = np.flatnonzero(shot.kind != CAUSTIC)
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
+                                   max_points=gather_points(
+                                       len(rows), share if share_counts(ctx) else None, k),
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary)
-            if s.gather_guiding != "off" and gather_map.tree is not None:
+            guide_pays = s.gather_guiding == "on" or can_guide(share)
+            if s.gather_guiding != "off" and gather_map.tree is not None and not guide_pays:
+                out_deeper["guide_skipped"] = True  # auto: no grid could reach AUTO_GAIN
+            elif s.gather_guiding != "off" and gather_map.tree is not None:
                 # Photon-guided gather directions (engine/guiding.py): each gather point's
                 # grid of the flux coming in (its INDIRECT photons', or the photons' as
                 # emitters); the level-0 gather rays read their nearest facing point's.
