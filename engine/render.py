@@ -691,7 +691,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # shot, up to GLOW_SPLIT x the global one, parked the bar at the end of its photon
     # span with no estimate: newuser33).
     global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
-    emitters = counts = g_emitters = g_counts = None
+    emitters = counts = g_emitters = g_counts = pre_radius = None
     if global_shot:
         emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
         glow_from_global = split is not None or (plan.caustics and not use_caustic_shot)
@@ -713,7 +713,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             # that the global shot holds its caustic-kind photons (glow_split).
             # (The bar was planned with the largest shot: a smaller one only ends the
             # photon stage's span early.)
-            g_share = glow_share(ctx, shot, s.radius or 0.1 * geo.extent)
+            # Capped by the global radius (computed once, here, for the maps too): with
+            # 0.1 x the scene's extent (4 m in a 40 m yard) its two k-NN estimates searched
+            # thousands of photons a hit, 0.5 CPU s (docs/performance.md "worldfast43").
+            if s.radius is None:
+                pre_radius = global_search_radius(ctx, shot, _diffuse_area(ctx))
+            g_share = glow_share(ctx, shot, s.radius or (
+                0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else pre_radius[0]))
             g_split = glow_split(g_share)
             stats["glow_share"], stats["glow_split"] = g_share, g_split
             g_emitters, g_counts = glow_emitters(emitters, counts,
@@ -772,7 +778,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
     # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
     maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
-                                                    stop), should_cancel)
+                                                    stop, pre_radius), should_cancel)
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
@@ -957,7 +963,30 @@ def _counted_map(photons: Photons, workers: int, rows: np.ndarray) -> PhotonMap:
     return pm
 
 
-def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
+def _diffuse_area(ctx) -> float:
+    """The scene's diffuse surface area (m^2): the triangles whose material has a diffuse
+    lobe."""
+    geo = ctx.geo
+    return area_sum(geo, ctx.table.has_diffuse[geo.material] if geo.count
+                    else np.zeros(0, bool))
+
+
+def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
+    """(radius (m), photons it was measured on): the global search radius from the
+    global photons' own spacing (photonmap.auto_radius; local: not the spacing they would
+    have if spread over a huge ground plane they barely light). With an aimed shot (visual
+    importance), from the photons inside its region of interest, which holds
+    visualimportance.ROI_COVER of the camera's lookups: a sky lights a 40 m ground evenly,
+    and the spacing of the 60 % of photons that land beyond the objects (1.2 m against
+    0.21 m near them) made the gather map's discs 5x too wide (docs/performance.md,
+    "skynoise")."""
+    k = ctx.settings.k_nearest
+    positions = region_photons(shot.position, ctx.importance_region, k)
+    return (auto_radius(diffuse_area, len(positions), k, ctx.geo.extent, positions,
+                        workers=ctx.settings.threads), len(positions))
+
+
+def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
     global_photons. stop() is asked between the steps (raises Cancelled).
 
@@ -965,7 +994,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     then the gather map, which needs it; the caustic map and the secondary (or, without
     final gathering, the global) map beside them. Each map is gathered from the shot once,
     straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
-    what it computes alone, so the maps are the same for any thread count."""
+    what it computes alone, so the maps are the same for any thread count. pre_radius:
+    global_search_radius's answer for this shot where the photon pass has it, else None."""
     s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
     diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
     diffuse_area = area_sum(geo, diffuse_tris)
@@ -988,20 +1018,11 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     shot_radius = [0.0]  # the whole shot's spacing (gather_chain)
 
     def gather_chain(flag):
-        # The global radius from the global photons' own spacing (local: not the spacing
-        # they would have if spread over a huge ground plane they barely light).
-        # With an aimed shot (visual importance), from the photons inside its region of
-        # interest, which holds visualimportance.ROI_COVER of the camera's lookups: a sky
-        # lights a 40 m ground evenly, and the spacing of the 60 % of photons that land
-        # beyond the objects (1.2 m against 0.21 m near them) made the gather map's discs
-        # 5x too wide (docs/performance.md, "skynoise").
-        positions = region_photons(shot.position, ctx.importance_region, k)
-        r_global = auto_radius(diffuse_area, len(positions), k, geo.extent, positions,
-                               workers=workers)
+        r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area)
         # The caustic map's cap stays the whole shot's spacing (caustic_radius): a glow of
         # light through a rough metal ball under a low Multiple Scattering sun read 4x
         # noisier with the region's (0.24 m against 0.46 m).
-        shot_radius[0] = r_global if len(positions) == len(shot) else auto_radius(
+        shot_radius[0] = r_global if measured == len(shot) else auto_radius(
             diffuse_area, len(shot), k, geo.extent, shot.position, workers=workers)
         gather_map = None
         if final:
@@ -1388,6 +1409,7 @@ GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one 
 # sky, a world colour or an area light 0.02-0.03, where the 4x shot (2.0-2.4M photons to
 # store 1.5-7k) was 40 % of a 16-spp render's CPU (docs/performance.md, "exterior42").
 GLOW_SHARE_FULL = 0.08
+GLOW_SHARE_EXTENT_CAP = False  # True: glow_share capped at 0.1 x the extent, as before (A/B)
 
 
 def glow_split(share: float | None) -> float:
