@@ -542,6 +542,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             + (["translucent"] if translucent else []))
         reached = []
         aimed_spheres = None  # (spheres, owner ids) of the reached casters: _aim_spheres
+        # The aimed shot must cover every specular triangle of a caster object, its
+        # rough parts too: the other shots drop L S+ D paths whose first hit is on a
+        # caster object, by object (render.py), so a rough plate inside a metal ring
+        # outside the ring's spheres lost its glow (review43: -9 % of the caustic pass).
+        cast_tri = (sharp_tri | rough_tri) & np.isin(geo.object_id, ids)
+        if len(ids):
+            _, centers, radii, _ = _object_spheres(geo, cast_tri)
         roots = {int(oid): (c, r) for oid, c, r in zip(ids, centers, radii)}
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):
@@ -590,7 +597,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # A forest of 300 instanced glass leaves is named by its first few (the
             # line listed all 300 in a new user's outdoor scene).
             names_r = _quoted([n for _, _, _, n in reached], most=REPORT_NAMES_MAX)
-            aimed_spheres = _aim_spheres(geo, sharp_tri,
+            aimed_spheres = _aim_spheres(geo, cast_tri,
                                          np.array([oid for oid, _, _, _ in reached], np.int64),
                                          roots)
             if len(aimed_spheres[1]) > len(reached) and s.aim_caustics:
