@@ -883,8 +883,8 @@ def gather_points(photons: int, share: float | None, k: int) -> int:
     """GatherMap's max_points for a map of `photons` rows at indirect share `share`
     (None: not known or not counted, GATHER_POINTS): GATHER_POINTS x share /
     POINTS_SHARE_FULL, at least 4 x photons / k (a point per k / 4 photons at most: each
-    point's Voronoi cell, about k / 4 photon spacings across, stays inside its own
-    estimate's disc of k photons, so a lookup's blur is still the estimate's) and at most
+    point's Voronoi cell, holding about k / 4 photons (sqrt(k / 4) photon spacings
+    across), stays inside its own estimate's disc of k photons, so a lookup's blur is still the estimate's) and at most
     GATHER_POINTS.
 
     The points' irradiance costs ~13 us each (a k-NN estimate with its boundary and
