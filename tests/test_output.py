@@ -319,11 +319,12 @@ power = 300
         assert alpha[8, 12] == 0.0             # the holdout box in the middle: a hole
 
 
-def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatch, capsys):
-    """The first render on a machine compiles the kernels for about a minute, polling
-    nothing: a Ctrl-C then stops at once (nothing is finished to keep; the cache is
-    written only after a complete compile) instead of waiting out the compile silently.
-    The compile is simulated: a step that reports the compile stage and then runs."""
+def _ctrl_c_into_a_silent_step(monkeypatch, capsys, command, target, compiling):
+    """Run the CLI's `command` with the kernels' compile (compiling) or cached load
+    simulated by a 60 s step that polls nothing, and a Ctrl-C 0.3 s into it; returns
+    (exit status, seconds, stderr). Python's own Ctrl-C handler is installed, as an
+    interactive start has it (a CI job started in the background inherits SIGINT ignored;
+    the CLI then restores that instead), and put back after."""
     import importlib
     import threading
     import time
@@ -331,39 +332,43 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
     from engine import jit
     from engine.cli import main
     render_module = importlib.import_module("engine.render")
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
 
-    def compiling(progress=None):
-        progress("compile", 0.0, jit.COMPILE_MESSAGE)
-        timer.start()  # Ctrl-C 0.3 s into the compile
+    def silent_step(progress=None):
+        if compiling:
+            progress("compile", 0.0, jit.COMPILE_MESSAGE)
+        timer.start()
         end = time.monotonic() + 60
         while time.monotonic() < end:
             time.sleep(0.01)  # a signal handler's exception lands here
         return 60.0
 
-    monkeypatch.setattr(render_module, "ensure_compiled", compiling)
-    # Python's own Ctrl-C handler, as an interactive start has it (a CI job started in the
-    # background inherits SIGINT ignored; the CLI then restores that instead).
+    monkeypatch.setattr(render_module, "ensure_compiled", silent_step)
     started_with = signal.signal(signal.SIGINT, signal.default_int_handler)
+    target.write_bytes(OLD)
+    t0 = time.monotonic()
     try:
-        for command, said in (("render", "interrupted while compiling the render kernels"),
-                              ("compare", "interrupted")):
-            target = tmp_path / "out.png"
-            target.write_bytes(OLD)
-            timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-            t0 = time.monotonic()
-            try:
-                rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height",
-                           "24", "--spp", "1", "--photons", "2000"])
-            finally:
-                timer.cancel()
-            seconds = time.monotonic() - t0
-            err = capsys.readouterr().err
-            assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
-            assert said in err and "left untouched" in err and "Traceback" not in err, err
-            assert target.read_bytes() == OLD
-            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+        rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height", "24",
+                   "--spp", "1", "--photons", "2000"])
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
     finally:
+        timer.cancel()
         signal.signal(signal.SIGINT, started_with)
+    return rc, time.monotonic() - t0, capsys.readouterr().err
+
+
+def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatch, capsys):
+    """The first render on a machine compiles the kernels for about a minute, polling
+    nothing: a Ctrl-C then stops at once (nothing is finished to keep; the cache is
+    written only after a complete compile) instead of waiting out the compile silently."""
+    target = tmp_path / "out.png"
+    for command, said in (("render", "interrupted while compiling the render kernels"),
+                          ("compare", "interrupted")):
+        rc, seconds, err = _ctrl_c_into_a_silent_step(monkeypatch, capsys, command, target,
+                                                      compiling=True)
+        assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
+        assert said in err and "left untouched" in err and "Traceback" not in err, err
+        assert target.read_bytes() == OLD
 
 
 def test_cli_ctrl_c_while_the_cached_kernels_load_stops_at_once(tmp_path, monkeypatch,
@@ -371,35 +376,10 @@ def test_cli_ctrl_c_while_the_cached_kernels_load_stops_at_once(tmp_path, monkey
     """Loading the cached kernels reports no progress and polls nothing (2-3 s idle, 20 s
     on a loaded machine: newuser42's Ctrl-C took 20 s "while preparing"). Until the engine
     first polls should_cancel a Ctrl-C stops at once; after that it cancels as before
-    (test_cli_ctrl_c_leaves_the_target_untouched). The load is simulated: a step that runs 60 s."""
-    import importlib
-    import threading
-    import time
-
-    from engine.cli import main
-    render_module = importlib.import_module("engine.render")
-
-    def loading(progress=None):
-        timer.start()  # Ctrl-C 0.3 s into the load
-        end = time.monotonic() + 60
-        while time.monotonic() < end:
-            time.sleep(0.01)  # a signal handler's exception lands here
-        return 60.0
-
-    monkeypatch.setattr(render_module, "ensure_compiled", loading)
-    started_with = signal.signal(signal.SIGINT, signal.default_int_handler)
+    (test_cli_ctrl_c_leaves_the_target_untouched)."""
     target = tmp_path / "out.png"
-    target.write_bytes(OLD)
-    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-    t0 = time.monotonic()
-    try:
-        rc = main(["render", SCENE, "-o", str(target), "--width", "32", "--height", "24",
-                   "--spp", "1", "--photons", "2000"])
-    finally:
-        timer.cancel()
-        signal.signal(signal.SIGINT, started_with)
-    seconds = time.monotonic() - t0
-    err = capsys.readouterr().err
+    rc, seconds, err = _ctrl_c_into_a_silent_step(monkeypatch, capsys, "render", target,
+                                                  compiling=False)
     assert rc == 130 and seconds < 20, (rc, seconds, err[-1500:])
     assert "interrupted while preparing" in err and "left untouched" in err, err
     assert "Traceback" not in err and target.read_bytes() == OLD
