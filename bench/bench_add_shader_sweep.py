@@ -95,23 +95,46 @@ def _pairs():
 PAIRS = _pairs()
 
 
+def surface_material(bpy, name, build):
+    """A new material whose Surface is build(nodes, links) (-> the output socket)."""
+    from blender_helpers import node_material
+    m, nt, out = node_material(bpy, name)
+    nt.links.new(build(nt.nodes, nt.links), out.inputs["Surface"])
+    return m
+
+
+def join(nd, ln, a, b, fac=None):
+    """Add Shader of sockets a and b (fac None), else Mix Shader by the factor fac."""
+    node = nd.new("ShaderNodeAddShader" if fac is None else "ShaderNodeMixShader")
+    first = 0 if fac is None else 1
+    if fac is not None:
+        node.inputs[0].default_value = fac
+    ln.new(a, node.inputs[first])
+    ln.new(b, node.inputs[first + 1])
+    return node.outputs[0]
+
+
 def material(bpy, name, pair):
     op, fac, a, b = pair
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    nt = m.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    node = nt.nodes.new("ShaderNodeAddShader" if op == "add" else "ShaderNodeMixShader")
-    first = 0 if op == "add" else 1
-    if op == "mix":
-        node.inputs[0].default_value = fac
-    nt.links.new(CLOSURES[a](nt.nodes), node.inputs[first])
-    nt.links.new(CLOSURES[b](nt.nodes), node.inputs[first + 1])
-    nt.links.new(node.outputs[0], out.inputs["Surface"])
-    return m
+    return surface_material(bpy, name, lambda nd, ln: join(
+        nd, ln, CLOSURES[a](nd), CLOSURES[b](nd), None if op == "add" else fac))
+
+
+def sphere_scene(bpy, scene, mat, res):
+    """The sphere of the sweep on scene: radius 1, smooth, of material mat, filling an
+    orthographic res x res view, in a uniform world of 0.5."""
+    from blender_helpers import world_color
+    scene.render.resolution_x = scene.render.resolution_y = res
+    scene.render.resolution_percentage = 100
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=48, ring_count=24)
+    bpy.ops.object.shade_smooth()
+    bpy.context.object.data.materials.append(mat)
+    world_color(bpy, scene, (0.5, 0.5, 0.5))
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.2
+    cam.location, cam.rotation_euler = (0.0, -5.0, 0.0), (math.radians(90), 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
 
 
 def build(bpy, scene_kind, pair, res):
@@ -119,31 +142,28 @@ def build(bpy, scene_kind, pair, res):
     from blender_helpers import sun_light, world_color
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
+    mat = material(bpy, "Pair", pair)
+    if scene_kind == "sphere":
+        sphere_scene(bpy, scene, mat, res)
+        return scene
     scene.render.resolution_x = scene.render.resolution_y = res
     scene.render.resolution_percentage = 100
-    mat = material(bpy, "Pair", pair)
+    bpy.ops.mesh.primitive_plane_add(size=40)
+    bpy.context.object.data.materials.append(mat)
+    sun_light(bpy, scene, (0.0, math.radians(35.0), 0.0)).data.angle = 0.0
+    world_color(bpy, scene, None, 0.0)
     cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location = (-6.0, 0.0, 6.0)
+    cam.rotation_euler = (math.radians(45.0), 0.0, math.radians(-90.0))
     scene.collection.objects.link(cam)
     scene.camera = cam
-    if scene_kind == "sphere":
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=48, ring_count=24)
-        bpy.ops.object.shade_smooth()
-        world_color(bpy, scene, (0.5, 0.5, 0.5))
-        cam.data.type, cam.data.ortho_scale = "ORTHO", 1.2
-        cam.location, cam.rotation_euler = (0.0, -5.0, 0.0), (math.radians(90), 0.0, 0.0)
-    else:
-        bpy.ops.mesh.primitive_plane_add(size=40)
-        sun_light(bpy, scene, (0.0, math.radians(35.0), 0.0)).data.angle = 0.0
-        world_color(bpy, scene, None, 0.0)
-        cam.location = (-6.0, 0.0, 6.0)
-        cam.rotation_euler = (math.radians(45.0), 0.0, math.radians(-90.0))
-    bpy.context.object.data.materials.append(mat)
     return scene
 
 
-def render(bpy, scene, scene_kind, engine, spp, path, bounces=8):
+def render(bpy, scene, engine, spp, path, bounces, photon_mapping=True):
+    """(3,) the image mean of scene rendered by engine at spp samples, Light Paths
+    `bounces` of every kind (Transparent 8), Cycles plain with a 1 px box filter."""
     from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
-    bounces = bounces if scene_kind == "sphere" else 0
     c = cycles_plain(scene, spp, bounces)
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
     c.transparent_max_bounces = 8
@@ -152,7 +172,7 @@ def render(bpy, scene, scene_kind, engine, spp, path, bounces=8):
     scene.render.engine = engine
     if engine == "PHOTONMAP":
         cheap(scene, spp=spp, photons=50_000, caustic_photons=20_000)
-        scene.photonmap.photon_mapping = scene_kind == "sphere"
+        scene.photonmap.photon_mapping = photon_mapping
     return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].reshape(-1, 3).mean(axis=0)
 
 
@@ -178,10 +198,11 @@ def main():
     for kind in a.scene:
         for name in names:
             scene = build(bpy, kind, PAIRS[name], a.res)
-            ref = render(bpy, scene, kind, "CYCLES", a.cycles_spp, os.path.join(tmp, "c.exr"),
-                         a.bounces)
-            got = render(bpy, scene, kind, "PHOTONMAP", a.spp, os.path.join(tmp, "o.exr"),
-                         a.bounces)
+            bounces = a.bounces if kind == "sphere" else 0
+            ref = render(bpy, scene, "CYCLES", a.cycles_spp, os.path.join(tmp, "c.exr"),
+                         bounces)
+            got = render(bpy, scene, "PHOTONMAP", a.spp, os.path.join(tmp, "o.exr"),
+                         bounces, photon_mapping=kind == "sphere")
             ratio = got / np.maximum(ref, 1e-9)
             off = np.abs(got - ref) > np.maximum(0.02 * ref, 0.02 * ref.max())
             outside += bool(off.any())

@@ -15,106 +15,43 @@ in a uniform grey world; a sunlit floor under a card. 24 x 24, ours 16 spp again
 Cycles 128 (each case about a second).
 """
 import math
+import os
+import sys
 
 import numpy as np
 import pytest
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
+    os.path.abspath(__file__)))), "bench"))
+from bench_add_shader_sweep import CLOSURES, _node, join, sphere_scene  # noqa: E402
+from bench_add_shader_sweep import render as _render, surface_material  # noqa: E402
+from test_add_refraction_cycles import _check  # noqa: E402
+
 pytestmark = pytest.mark.blender
 
 
-def _node(nd, kind, **inputs):
-    n = nd.new(kind)
-    for k, v in inputs.items():
-        n.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
-    return n.outputs[0]
-
-
-def _diffuse(nd):
-    return _node(nd, "ShaderNodeBsdfDiffuse", Color=(0.8, 0.8, 0.8))
+_diffuse, _principled, _translucent = (CLOSURES[k] for k in ("diffuse", "principled",
+                                                              "translucent"))
 
 
 def _transparent(nd, rgb=(1.0, 1.0, 1.0)):
     return _node(nd, "ShaderNodeBsdfTransparent", Color=rgb)
 
 
-def _principled(nd):
-    return _node(nd, "ShaderNodeBsdfPrincipled",
-                 **{"Base Color": (0.1, 0.4, 0.8), "Roughness": 0.6})
-
-
-def _translucent(nd):
-    return _node(nd, "ShaderNodeBsdfTranslucent", Color=(0.8, 0.6, 0.3))
-
-
-def _glossy(nd, rgb=(0.9, 0.8, 0.3)):
-    return _node(nd, "ShaderNodeBsdfGlossy", Color=rgb, Roughness=0.25)
-
-
-def _join(nd, ln, kind, a, b, fac=None):
-    n = nd.new(kind)
-    first = 0 if kind == "ShaderNodeAddShader" else 1
-    if fac is not None:
-        n.inputs[0].default_value = fac
-    ln.new(a, n.inputs[first])
-    ln.new(b, n.inputs[first + 1])
-    return n.outputs[0]
+def _white_glossy(nd):
+    return _node(nd, "ShaderNodeBsdfGlossy", Color=(1.0, 1.0, 1.0), Roughness=0.25)
 
 
 def _add(nd, ln, a, b):
-    return _join(nd, ln, "ShaderNodeAddShader", a, b)
+    return join(nd, ln, a, b)
 
 
 def _mix(nd, ln, fac, a, b):
-    return _join(nd, ln, "ShaderNodeMixShader", a, b, fac)
-
-
-def _material(bpy, build):
-    m = bpy.data.materials.new("Pair")
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    nt = m.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(build(nt.nodes, nt.links), out.inputs["Surface"])
-    return m
-
-
-def _render(bpy, scene, path, engine, spp, bounces, photon_mapping=True):
-    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
-    c = cycles_plain(scene, spp, bounces)
-    c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
-    c.transparent_max_bounces = 8
-    c.pixel_filter_type, c.filter_width = "BOX", 1.0
-    scene.render.engine = engine
-    if engine == "PHOTONMAP":
-        cheap(scene, spp=spp, photons=50_000, caustic_photons=20_000)
-        scene.photonmap.photon_mapping = photon_mapping
-    return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].reshape(-1, 3).mean(axis=0)
-
-
-def _check(got, want, what):
-    """Image means within 2 % per channel (of the brightest channel for a faint one)."""
-    print(f"{what}: ours / Cycles {np.round(got / np.maximum(want, 1e-9), 4)}")
-    tol = np.maximum(0.02 * want, 0.02 * want.max())
-    assert np.all(np.abs(got - want) <= tol), (
-        f"{what}: ours {np.round(got, 4)} Cycles {np.round(want, 4)} "
-        f"(ratio {np.round(got / np.maximum(want, 1e-9), 4)})")
+    return join(nd, ln, a, b, fac)
 
 
 def _sphere_scene(bpy, scene, build):
-    from blender_helpers import world_color
-    scene.render.resolution_x = scene.render.resolution_y = 24
-    scene.render.resolution_percentage = 100
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=48, ring_count=24)
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(_material(bpy, build))
-    world_color(bpy, scene, (0.5, 0.5, 0.5))
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.2
-    cam.location, cam.rotation_euler = (0.0, -5.0, 0.0), (math.radians(90), 0.0, 0.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    sphere_scene(bpy, scene, surface_material(bpy, "Pair", build), 24)
 
 
 # (build, Light Paths bounces). Before s44: 0.366 / 0.327-0.395 / 0.38-0.52 / 0.86.
@@ -131,7 +68,7 @@ SPHERE_CASES = {
                             _diffuse(nd)), 8),
     # Past the bounce limit the glossy lobe's reflected ray still passes the near side.
     "mix 0.5 transparent+glossy, bounces 0": (
-        lambda nd, ln: _mix(nd, ln, 0.5, _transparent(nd), _glossy(nd, (1.0, 1.0, 1.0))), 0),
+        lambda nd, ln: _mix(nd, ln, 0.5, _transparent(nd), _white_glossy(nd)), 0),
 }
 
 
@@ -141,8 +78,8 @@ def test_transparent_sums_on_a_sphere_in_a_grey_world_match_cycles(fresh_scene, 
     bpy = bpy_addon
     build, bounces = SPHERE_CASES[case]
     _sphere_scene(bpy, fresh_scene, build)
-    ours = _render(bpy, fresh_scene, tmp_path / "ours.exr", "PHOTONMAP", 16, bounces)
-    ref = _render(bpy, fresh_scene, tmp_path / "cycles.exr", "CYCLES", 128, bounces)
+    ours = _render(bpy, fresh_scene, "PHOTONMAP", 16, tmp_path / "ours.exr", bounces)
+    ref = _render(bpy, fresh_scene, "CYCLES", 128, tmp_path / "cycles.exr", bounces)
     assert ref.mean() > 0.1
     _check(ours, ref, case)
 
@@ -159,17 +96,18 @@ def test_floor_under_a_summed_card_gets_the_whole_sun_as_in_cycles(fresh_scene, 
     scene.render.resolution_x = scene.render.resolution_y = 24
     scene.render.resolution_percentage = 100
     bpy.ops.mesh.primitive_plane_add(size=20)
-    bpy.context.object.data.materials.append(_material(
-        bpy, lambda nd, ln: _diffuse(nd)))
+    bpy.context.object.data.materials.append(surface_material(
+        bpy, "Pair", lambda nd, ln: _diffuse(nd)))
     bpy.ops.mesh.primitive_plane_add(size=6, location=(0.0, 0.0, 1.0))
-    bpy.context.object.data.materials.append(_material(
-        bpy, lambda nd, ln: _add(nd, ln, _transparent(nd, (0.9, 0.8, 0.5)),
+    bpy.context.object.data.materials.append(surface_material(
+        bpy, "Pair", lambda nd, ln: _add(nd, ln, _transparent(nd, (0.9, 0.8, 0.5)),
                                  _node(nd, "ShaderNodeBsdfDiffuse", Color=(0.3, 0.3, 0.3)))))
     sun_light(bpy, scene, (math.radians(20.0), 0.0, 0.0)).data.angle = 0.0
     world_color(bpy, scene, None, 0.0)
     looking_down_camera(bpy, scene, 5.0, ortho_scale=4.0)
-    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 4, 0, photon_mapping=False)
-    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 16, 0)
+    ours = _render(bpy, scene, "PHOTONMAP", 4, tmp_path / "ours.exr", 0,
+                   photon_mapping=False)
+    ref = _render(bpy, scene, "CYCLES", 16, tmp_path / "cycles.exr", 0)
     assert ref.mean() > 0.1
     _check(ours, ref, "floor under the card")
 
@@ -186,7 +124,7 @@ def test_add_with_transparent_exports_the_summed_pass(fresh_scene, bpy_addon):
     looking_down_camera(bpy, fresh_scene, 5.0, ortho_scale=4.0)
 
     def exported(build):
-        return convert_material(_material(bpy, build))
+        return convert_material(surface_material(bpy, "Pair", build))
 
     m = exported(lambda nd, ln: _add(nd, ln, _transparent(nd), _diffuse(nd)))
     np.testing.assert_allclose((1.0 - m.alpha) * m.transparent_tint, 1.0)
@@ -203,10 +141,10 @@ def test_add_with_transparent_exports_the_summed_pass(fresh_scene, bpy_addon):
                                      _transparent(nd, (0.2, 0.4, 0.6))))
     np.testing.assert_allclose((1.0 - m.alpha) * m.transparent_tint, (0.7, 0.9, 1.0))
     bpy.ops.mesh.primitive_plane_add(size=2)
-    bpy.context.object.data.materials.append(_material(
-        bpy, lambda nd, ln: _add(nd, ln, _transparent(nd), _transparent(nd))))
-    bpy.context.object.data.materials.append(_material(
-        bpy, lambda nd, ln: _add(nd, ln, _transparent(nd), _diffuse(nd))))
+    bpy.context.object.data.materials.append(surface_material(
+        bpy, "Pair", lambda nd, ln: _add(nd, ln, _transparent(nd), _transparent(nd))))
+    bpy.context.object.data.materials.append(surface_material(
+        bpy, "Pair", lambda nd, ln: _add(nd, ln, _transparent(nd), _diffuse(nd))))
     out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
                                  width=8, height=8)
     warnings = out.all_warnings()  # (the materials' own, from their validation)
