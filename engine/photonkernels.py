@@ -1089,7 +1089,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     ox, oy, oz = ox / ln, oy / ln, oz / ln
                 side = ox * gx + oy * gy + oz * gz
                 ok = ((side < 0.0) if transmitted else (side > 0.0)) and math.isfinite(ln)
-                if ok and lobe != pr.L_TRANSL and (glass or not transmitted):
+                if ok and not transmitted and not glass and lobe != pr.L_TRANSL:
                     # Shading normals are not symmetric: the camera side weighs light by
                     # its cosine to the shading normal, while photons arrive and leave a
                     # surface by its true (geometric) area, so a photon's reflection
@@ -1100,11 +1100,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     cs_in = -(dx * n0 + dy * n1 + dz * n2)
                     cg_in = -(dx * gx + dy * gy + dz * gz)
                     cs_out = ox * n0 + oy * n1 + oz * n2
-                    cg_out = side
-                    if transmitted:  # refracted through: both cosines on the far side
-                        cs_out, cg_out = -cs_out, -side
                     if cg_in > 0.0 and cs_out > 0.0:
-                        sh = (cs_in * cg_out) / (cg_in * cs_out)
+                        sh = (cs_in * side) / (cg_in * cs_out)
                         k0, k1, k2 = k0 * sh, k1 * sh, k2 * sh
                     else:
                         ok = False
