@@ -207,8 +207,17 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         gx, gy, gz = gx * sign, gy * sign, gz * sign
         sx, sy, sz = gx, gy, gz
         if smooth:
-            valid, nx, ny, nz = _interpolated_normal(corner_normals, t, b1, b2)
-            if valid:
+            b0 = 1.0 - b1 - b2
+            nx = (b0 * corner_normals[t, 0, 0] + b1 * corner_normals[t, 1, 0]
+                  + b2 * corner_normals[t, 2, 0])
+            ny = (b0 * corner_normals[t, 0, 1] + b1 * corner_normals[t, 1, 1]
+                  + b2 * corner_normals[t, 2, 1])
+            nz = (b0 * corner_normals[t, 0, 2] + b1 * corner_normals[t, 1, 2]
+                  + b2 * corner_normals[t, 2, 2])
+            nl = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
+            nx, ny, nz = nx / nl, ny / nl, nz / nl
+            s = abs(nx) + abs(ny) + abs(nz)
+            if math.isfinite(s) and s >= 0.5:
                 sx, sy, sz = nx * sign, ny * sign, nz * sign
         # Veach's guard: a shading normal that puts the viewer below the surface.
         if -(dx * sx + dy * sy + dz * sz) <= 1e-6:
@@ -225,47 +234,6 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
         ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
         offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz, tl)
-
-
-@kernel
-def _interpolated_normal(corner_normals, t, b1, b2):
-    """(valid, unit normal) of triangle row t's corner normals (T,3,3) interpolated at
-    barycentrics b1, b2, on its winding's side; valid False for a degenerate or
-    non-finite one (the geometric normal is used instead)."""
-    b0 = 1.0 - b1 - b2
-    nx = (b0 * corner_normals[t, 0, 0] + b1 * corner_normals[t, 1, 0]
-          + b2 * corner_normals[t, 2, 0])
-    ny = (b0 * corner_normals[t, 0, 1] + b1 * corner_normals[t, 1, 1]
-          + b2 * corner_normals[t, 2, 1])
-    nz = (b0 * corner_normals[t, 0, 2] + b1 * corner_normals[t, 1, 2]
-          + b2 * corner_normals[t, 2, 2])
-    nl = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
-    nx, ny, nz = nx / nl, ny / nl, nz / nl
-    s = abs(nx) + abs(ny) + abs(nz)
-    return math.isfinite(s) and s >= 0.5, nx, ny, nz
-
-
-@kernel
-def _glass_normal(corner_normals, t, b1, b2, front, gx, gy, gz, nx, ny, nz, dx, dy, dz):
-    """The normal a smooth glass hit reflects and refracts a photon about, as Cycles' glass
-    closure does for a path leaving along -d (svm_closure: maybe_ensure_valid_specular_
-    reflection on the shading normal): the shading normal n (the hit's, on the arrival
-    side g), or, where photon_surfaces' guard replaced it by g (the photon arrives below
-    it), the interpolated one again; then raised towards g (principled.
-    valid_reflection_normal) where the mirror direction of -d about it would not clear
-    the surface. Cycles has no such guard: its raise takes those arrivals too.
-    Returns the unit normal (3 floats)."""
-    if nx == gx and ny == gy and nz == gz and corner_normals.shape[0] > 0:
-        valid, sx, sy, sz = _interpolated_normal(corner_normals, t, b1, b2)
-        if valid:
-            sign = 1.0 if front else -1.0
-            nx, ny, nz = sx * sign, sy * sign, sz * sign
-    raised, p0, p1, p2 = pr.valid_reflection_normal(nx, ny, nz, gx, gy, gz, -dx, -dy, -dz)
-    if raised:
-        ln = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-        if ln > 0.0:
-            return p0 / ln, p1 / ln, p2 / ln
-    return nx, ny, nz
 
 
 @kernel
@@ -846,7 +814,6 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     sg = np.zeros((2 * params.shape[0], SG_N))  # row 2 x material + arrived outside
     sg_mu = 0.0
     sg_remap = -1.0
-    gn0 = gn1 = gn2 = 0.0  # a SMOOTH_GLASS hit's normal (_glass_normal)
     ns_ = 0
     nn = 0
     for b0 in range(0, nh, _BLOCK):
@@ -925,13 +892,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 sgr = 2 * mat_b[j] + (1 if front_b[j] else 0)
                 if sg[sgr, _SG_SET] == 0.0:
                     smooth_glass_consts(params, mat_b[j], front_b[j], sg, sgr)
-                t = tri[b0 + j]
-                gn0, gn1, gn2 = _glass_normal(corner_normals, t, np.float64(u[i]),
-                                              np.float64(v[i]), front_b[j], ng_b[j, 0],
-                                              ng_b[j, 1], ng_b[j, 2], ns_b[j, 0],
-                                              ns_b[j, 1], ns_b[j, 2], d[i, 0], d[i, 1],
-                                              d[i, 2])
-                cos_o = -(gn0 * d[i, 0] + gn1 * d[i, 1] + gn2 * d[i, 2])
+                cos_o = -(ns_b[j, 0] * d[i, 0] + ns_b[j, 1] * d[i, 1] + ns_b[j, 2] * d[i, 2])
                 sg_mu = min(max(cos_o, 0.0), 1.0)
                 sg_remap = smooth_glass_at(params, mat_b[j], alpha_b[j], base_b, j, cos_o,
                                            gprm, wj, sg, sgr)
@@ -1059,8 +1020,6 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 k2 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT + 2]
                 ok = max(k0, max(k1, k2)) > 0.0
             else:
-                if jc == -SMOOTH_GLASS:
-                    n0, n1, n2 = gn0, gn1, gn2  # _glass_normal
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
                 if jc == -SMOOTH_GLASS:
                     # The glass lobe's own sampler; smooth, it reads only its third number
