@@ -31,6 +31,7 @@ import numpy as np
 
 from .closures import principled as pr
 from .closures import ggx, tables
+from . import glassadjoint as ga
 from .closures.fresnel import F0_from_ior, schlick_remap
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .jit import kernel, register_warm_up
@@ -207,17 +208,8 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         gx, gy, gz = gx * sign, gy * sign, gz * sign
         sx, sy, sz = gx, gy, gz
         if smooth:
-            b0 = 1.0 - b1 - b2
-            nx = (b0 * corner_normals[t, 0, 0] + b1 * corner_normals[t, 1, 0]
-                  + b2 * corner_normals[t, 2, 0])
-            ny = (b0 * corner_normals[t, 0, 1] + b1 * corner_normals[t, 1, 1]
-                  + b2 * corner_normals[t, 2, 1])
-            nz = (b0 * corner_normals[t, 0, 2] + b1 * corner_normals[t, 1, 2]
-                  + b2 * corner_normals[t, 2, 2])
-            nl = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
-            nx, ny, nz = nx / nl, ny / nl, nz / nl
-            s = abs(nx) + abs(ny) + abs(nz)
-            if math.isfinite(s) and s >= 0.5:
+            valid, nx, ny, nz = _interpolated_normal(corner_normals, t, b1, b2)
+            if valid:
                 sx, sy, sz = nx * sign, ny * sign, nz * sign
         # Veach's guard: a shading normal that puts the viewer below the surface.
         if -(dx * sx + dy * sy + dz * sz) <= 1e-6:
@@ -234,6 +226,38 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
         ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
         offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz, tl)
+
+
+@kernel
+def _interpolated_normal(corner_normals, t, b1, b2):
+    """(valid, unit normal) of triangle row t's corner normals (T,3,3) interpolated at
+    barycentrics b1, b2, on its winding's side; valid False for a degenerate or
+    non-finite one (the geometric normal is used instead)."""
+    b0 = 1.0 - b1 - b2
+    nx = (b0 * corner_normals[t, 0, 0] + b1 * corner_normals[t, 1, 0]
+          + b2 * corner_normals[t, 2, 0])
+    ny = (b0 * corner_normals[t, 0, 1] + b1 * corner_normals[t, 1, 1]
+          + b2 * corner_normals[t, 2, 1])
+    nz = (b0 * corner_normals[t, 0, 2] + b1 * corner_normals[t, 1, 2]
+          + b2 * corner_normals[t, 2, 2])
+    nl = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
+    nx, ny, nz = nx / nl, ny / nl, nz / nl
+    s = abs(nx) + abs(ny) + abs(nz)
+    return math.isfinite(s) and s >= 0.5, nx, ny, nz
+
+
+@kernel
+def _glass_normal(corner_normals, t, b1, b2, front, gx, gy, gz, nx, ny, nz):
+    """The shading normal Cycles' glass closure starts from at a photon's hit (on the
+    arrival side g): the hit's n, or, where photon_surfaces' guard replaced it by g (the
+    photon arrives below it), the interpolated one again (Cycles has no such guard:
+    glassadjoint takes those arrivals). Returns the unit normal (3 floats)."""
+    if nx == gx and ny == gy and nz == gz and corner_normals.shape[0] > 0:
+        valid, sx, sy, sz = _interpolated_normal(corner_normals, t, b1, b2)
+        if valid:
+            sign = 1.0 if front else -1.0
+            return sx * sign, sy * sign, sz * sign
+    return nx, ny, nz
 
 
 @kernel
@@ -814,6 +838,11 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     sg = np.zeros((2 * params.shape[0], SG_N))  # row 2 x material + arrived outside
     sg_mu = 0.0
     sg_remap = -1.0
+    # glassadjoint's arguments and candidate rows at a bent smooth glass hit.
+    gd = np.empty(3)
+    gnn = np.empty(3)
+    gng = np.empty(3)
+    gcand = np.empty((ga.MAX_W, 7))
     ns_ = 0
     nn = 0
     for b0 in range(0, nh, _BLOCK):
@@ -1021,7 +1050,27 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 ok = max(k0, max(k1, k2)) > 0.0
             else:
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
-                if jc == -SMOOTH_GLASS:
+                bent = False
+                un0 = un1 = un2 = 0.0
+                if jc == -SMOOTH_GLASS and corner_normals.shape[0] > 0:
+                    t = tri[b0 + j]
+                    un0, un1, un2 = _glass_normal(corner_normals, t, np.float64(u[i]),
+                                                  np.float64(v[i]), front_b[j], gx, gy, gz,
+                                                  n0, n1, n2)
+                    # A bent shading normal: the adjoint of Cycles' glass there
+                    # (engine/glassadjoint.py), not a sample about n.
+                    bent = abs(un0 * gx + un1 * gy + un2 * gz) < _FLAT_NORMAL_COS
+                if bent:
+                    gd[0], gd[1], gd[2] = dx, dy, dz
+                    gnn[0], gnn[1], gnn[2] = un0, un1, un2
+                    gng[0], gng[1], gng[2] = gx, gy, gz
+                    nw = ga.candidates(gprm, gd, gnn, gng, gcand)
+                    okp, ox, oy, oz, k0, k1, k2, transmitted = ga.pick(
+                        gcand, nw, uniform(key, slot[i], bounce, 5))
+                    ix, iy, iz = pr.frame_local(n0, n1, n2, ox, oy, oz)
+                    if not okp:
+                        k0 = k1 = k2 = 0.0
+                elif jc == -SMOOTH_GLASS:
                     # The glass lobe's own sampler; smooth, it reads only its third number
                     # (reflect or refract): the first two are not drawn.
                     ix, iy, iz, k0, k1, k2, transmitted = _smooth_glass_sample(
@@ -1244,6 +1293,9 @@ def bounce_usable(counts: np.ndarray, limits, camera=(0, 0, 0, 0)) -> np.ndarray
         & (c[:, 3] + cam[3] <= lim[3])
     return ok
 
+
+# |n.g| below this: a smooth glass hit's shading normal is bent (glassadjoint), ~0.1 deg.
+_FLAT_NORMAL_COS = 1.0 - 1.5e-6
 
 # lobe_classes' codes: how scatter sets up a material's lobes.
 FULL, PLAIN, SMOOTH_GLASS = 0, 1, 2
