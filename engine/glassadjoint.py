@@ -36,8 +36,8 @@ from .closures import principled as pr
 from .closures.fresnel import schlick_remap
 from .jit import kernel
 
-_SCAN = 128       # phi samples between Ns and Ng looking for sign changes
-_BISECT = 64      # bisection steps of a root (to float64 resolution)
+_SCAN = 256       # phi samples over a right angle between Ns and Ng (sign changes)
+_BISECT = 56      # bisection steps of a root (to float64 resolution)
 _EPS = 1e-5       # arrival perturbation of the finite-difference Jacobian (radians)
 _BRACKET = 2e-3   # phi bracket around a root for the perturbed solves
 MAX_W = 6         # candidate directions per hit (mirror, refraction, turned refractions)
@@ -235,12 +235,15 @@ def candidates(gprm, d, n, g, out):
     phi_n = math.atan2(dot, nq[0] * xq[0] + nq[1] * xq[1] + nq[2] * xq[2])
     # Refractions about a turned normal: roots of the residual over (phi_n, pi / 2].
     # Samples denser towards Ng (the refraction is often total there but for a sliver).
+    # As many samples as the span between Ns and Ng needs (_SCAN over a right angle, at
+    # least 16): a finely tessellated ball's normals bend a degree or two.
     span = 0.5 * math.pi - phi_n
+    scan = max(16, int(_SCAN * span / (0.5 * math.pi)) + 1)
     prev_ok = False
     prev_e = 0.0
     prev_phi = 0.0
-    for i in range(1, _SCAN + 1):
-        q = 1.0 - i / _SCAN
+    for i in range(1, scan + 1):
+        q = 1.0 - i / scan
         phi = 0.5 * math.pi - span * q * q * q
         valid, e, w0, w1, w2 = _residual(d0, d1, d2, nq, gq, xq, phi_n, phi, r)
         if valid and not prev_ok and i > 1:
