@@ -12,8 +12,9 @@ rules are not changed): prints two Markdown tables.
    power (W, the mean of RGB), flat against smooth.
 2. Smooth sides only: the photon power (W, every shot) arriving at each side face, from
    the air or from inside the glass, and what scatter does with it in expectation (a
-   numpy replica of the smooth glass rule: Fresnel at the shading normal, which falls
-   back to the geometric one where the photon arrives below it ("guard"); refracted,
+   numpy replica of the smooth glass rule before engine/glassadjoint.py, for comparison:
+   Fresnel at the shading normal, which falls back to the geometric one where the photon
+   arrives below it ("guard"); refracted,
    reflected, dropped because the reflection leaves below Ng or the refraction above it).
 
 docs/accuracy.md, smoothglass43, gives the numbers measured.
