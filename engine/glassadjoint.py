@@ -169,6 +169,18 @@ def _fresnel_rgb(gprm, c, eta):
 
 
 @kernel
+def _put(out, k, w0, w1, w2, gprm, col, a0, a1, a2, f, transmitted):
+    """Writes candidate row k (direction w; weights: gprm's colour columns col.. times
+    a (Fresnel reflectance or transmittance per channel) times f): returns k + 1."""
+    out[k, 0], out[k, 1], out[k, 2] = w0, w1, w2
+    out[k, 3] = gprm[0, col] * a0 * f
+    out[k, 4] = gprm[0, col + 1] * a1 * f
+    out[k, 5] = gprm[0, col + 2] * a2 * f
+    out[k, 6] = transmitted
+    return k + 1
+
+
+@kernel
 def candidates(gprm, d, n, g, out):
     """Every direction Cycles' smooth glass sends to a photon's arrival (module doc).
 
@@ -205,13 +217,7 @@ def candidates(gprm, d, n, g, out):
             raised, p0, p1, p2 = pr.valid_reflection_normal(n[0], n[1], n[2], g[0], g[1],
                                                             g[2], w0, w1, w2)
             if not raised:
-                f = wg / sg
-                out[k, 0], out[k, 1], out[k, 2] = w0, w1, w2
-                out[k, 3] = gprm[0, pr.P_GLASS_RW] * F0 * f
-                out[k, 4] = gprm[0, pr.P_GLASS_RW + 1] * F1 * f
-                out[k, 5] = gprm[0, pr.P_GLASS_RW + 2] * F2 * f
-                out[k, 6] = 0.0
-                k += 1
+                k = _put(out, k, w0, w1, w2, gprm, pr.P_GLASS_RW, F0, F1, F2, wg / sg, 0.0)
         # The refraction about n, where Cycles keeps n for it.
         ok, w0, w1, w2 = refract_dir(d0, d1, d2, n[0], n[1], n[2], r)
         if ok:
@@ -222,12 +228,8 @@ def candidates(gprm, d, n, g, out):
                                                                 gq[1], gq[2], w0, w1, w2)
                 if not raised:
                     f = cs * wg / (sg * wn)  # J without (eta_s / eta_w)^2
-                    out[k, 0], out[k, 1], out[k, 2] = w0, w1, w2
-                    out[k, 3] = gprm[0, pr.P_GLASS_TW] * (1.0 - F0) * f
-                    out[k, 4] = gprm[0, pr.P_GLASS_TW + 1] * (1.0 - F1) * f
-                    out[k, 5] = gprm[0, pr.P_GLASS_TW + 2] * (1.0 - F2) * f
-                    out[k, 6] = 1.0
-                    k += 1
+                    k = _put(out, k, w0, w1, w2, gprm, pr.P_GLASS_TW, 1.0 - F0, 1.0 - F1,
+                             1.0 - F2, f, 1.0)
     if not lx > 1e-9:
         return k  # n == +-g: nothing to turn
     for c in range(3):
@@ -271,12 +273,8 @@ def candidates(gprm, d, n, g, out):
                     if J > 0.0 and c_in > 0.0:
                         F0, F1, F2 = _fresnel_rgb(gprm, min(c_in, 1.0), eta)
                         f = J * wg / (sg * r * r)
-                        out[k, 0], out[k, 1], out[k, 2] = w0, w1, w2
-                        out[k, 3] = gprm[0, pr.P_GLASS_TW] * (1.0 - F0) * f
-                        out[k, 4] = gprm[0, pr.P_GLASS_TW + 1] * (1.0 - F1) * f
-                        out[k, 5] = gprm[0, pr.P_GLASS_TW + 2] * (1.0 - F2) * f
-                        out[k, 6] = 1.0
-                        k += 1
+                        k = _put(out, k, w0, w1, w2, gprm, pr.P_GLASS_TW, 1.0 - F0,
+                                 1.0 - F1, 1.0 - F2, f, 1.0)
         prev_ok, prev_e, prev_phi = valid, e, phi
     return k
 
