@@ -11,8 +11,9 @@ In Blender's window the renders run on a thread of their own (TeachingJob) while
 operator keeps the UI live, moves the progress bar and cancels on Esc: a sweep takes
 minutes, and it froze Blender with no way out when it ran inside execute() (newuser42).
 The export before and the labels after (Blender's data and font) stay on the main
-thread. Scripts and background mode (`blender -b`, the batch command) run them inside
-execute(), as before.
+thread. That is how the menus and buttons start them (invoke); one runs at a time.
+Scripts (`bpy.ops.photonmap.compare_methods()`: execute) and background mode (`blender
+-b`, the batch command) render inside execute() and have the image when it returns.
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ import time
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, IntProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from . import export
 from .core import load_engine
@@ -296,10 +297,19 @@ class TeachingJob:
 
 
 def runs_modal(context) -> bool:
-    """Whether an operator started in `context` can run modal: a window to live in.
-    Background mode (`blender -b`, the batch command) and scripts without a window run
-    the renders inside execute()."""
+    """Whether an operator started from the UI in `context` can run modal: a window to
+    live in (not background mode: `blender -b`, the batch command)."""
     return not bpy.app.background and getattr(context, "window", None) is not None
+
+
+# The teaching render running on its thread (one at a time: a second would share the
+# cores and the progress bar, and Esc reaches only the newest modal handler).
+_running: TeachingJob | None = None
+
+
+def running_job() -> TeachingJob | None:
+    """The teaching job still rendering, if any."""
+    return _running if _running is not None and not _running.done else None
 
 
 # --- operators -----------------------------------------------------------------------
@@ -314,9 +324,20 @@ class _TeachingOperator:
     quality: EnumProperty(name="Quality", items=QUALITY_ITEMS, default="preview",
                           description="Settings of the renders")
 
+    # Set by invoke (the menus and buttons): execute then renders on a thread while the
+    # UI stays live. Hidden and not saved: scripts calling the operator get it False.
+    from_ui: BoolProperty(default=False, options={"HIDDEN", "SKIP_SAVE"})
+
     @classmethod
     def poll(cls, context):
+        if running_job() is not None:
+            cls.poll_message_set("A teaching render is running (Esc cancels it)")
+            return False
         return context.scene is not None and context.scene.camera is not None
+
+    def invoke(self, context, event):
+        self.from_ui = True
+        return self.execute(context)
 
     def _params(self):
         return {}, "none"
@@ -335,8 +356,9 @@ class _TeachingOperator:
             return {"CANCELLED"}
         wm = context.window_manager
         wm.progress_begin(0, 1000)
-        if runs_modal(context):
-            self._job = TeachingJob(work).start()
+        if self.from_ui and runs_modal(context):
+            global _running
+            self._job = _running = TeachingJob(work).start()
             self._timer = wm.event_timer_add(0.2, window=context.window)
             wm.modal_handler_add(self)
             context.workspace.status_text_set(f"{self.bl_label}: rendering (Esc cancels)")
@@ -368,10 +390,7 @@ class _TeachingOperator:
                 context.workspace.status_text_set(
                     f"{self.bl_label}: {job.text} (Esc cancels)")
             return {"RUNNING_MODAL"}
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        context.workspace.status_text_set(None)
+        self._end_modal(context)
         if isinstance(job.error, load_engine().parallel.Cancelled):
             self.report({"WARNING"}, f"Photon Mapping: {self.bl_label} cancelled")
             return {"CANCELLED"}
@@ -379,6 +398,22 @@ class _TeachingOperator:
             self.report({"ERROR"}, f"Photon Mapping: {job.error}")
             return {"CANCELLED"}
         return self._finish(context, *job.result)
+
+    def cancel(self, context):
+        """Blender ends the modal operator (a new or opened file, the window closed,
+        quitting): stop the renders too, and the bars."""
+        self._job.cancel()
+        self._end_modal(context)
+
+    def _end_modal(self, context):
+        global _running
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        if _running is self._job:
+            _running = None
 
     def _finish(self, context, tiles, columns):
         rgb8 = compose_teaching(tiles, columns)
@@ -435,6 +470,7 @@ class PHOTONMAP_OT_parameter_sweep(_TeachingOperator, bpy.types.Operator):
         return self.reference
 
     def invoke(self, context, event):
+        self.from_ui = True  # (kept through the dialog: execute renders on a thread)
         return context.window_manager.invoke_props_dialog(self)
 
     def draw(self, context):

@@ -62,6 +62,10 @@ _ONE_BELOW = np.nextafter(1.0, 0.0)
 # prediction overstates the measured fall ~3x (docs/accuracy.md "night42": the example
 # blends read 0.001-0.10 and stay cosine; the lamp-lit rooms 0.24 and 0.39).
 AUTO_GAIN = 0.2
+# GatherGuide.gain's bound: a point's cosine variance (its grid's concentration, CELLS x
+# sum f^2 - 1 for cell shares f summing to 1) is at most CELLS - 1 (all flux in one cell),
+# its guided one at least 0, so the mean over the points is at most this.
+MAX_GAIN = CELLS - 1.0
 # Grid points: at most one per cube of this many gather radii (thin_points).
 SPACING = 2.0
 # A hit reads the grid of the nearest agreeing point within this many gather radii (the
@@ -204,6 +208,16 @@ class GatherGuide:
         rp[~ok] = 1.0 / ROWS
         cp[~ok] = 1.0 / COLS
         return rp, cp
+
+
+def can_guide(share) -> bool:
+    """Whether "auto" could guide at indirect share `share` (visualimportance.indirect_share;
+    None or not finite: no evidence, never): share^2 x MAX_GAIN reaches AUTO_GAIN, i.e.
+    share >= 0.080. Below it no grid can pay (share^2 x gain < AUTO_GAIN for any photons),
+    so the grids are not built (their build was 0.07-0.3 CPU s of renders lit mostly
+    directly: docs/performance.md "worldfast43")."""
+    return (share is not None and bool(np.isfinite(share))
+            and share * share * MAX_GAIN >= AUTO_GAIN)
 
 
 def thin_points(position, normal, spacing):

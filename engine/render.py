@@ -28,7 +28,7 @@ from .lights import packing as pk
 from .lights.packing import pack_lights
 from .mallocheap import render_heap
 from .edgeimages import edge_images
-from .guiding import AUTO_GAIN, GatherGuide
+from .guiding import AUTO_GAIN, GatherGuide, can_guide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
@@ -691,7 +691,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # shot, up to GLOW_SPLIT x the global one, parked the bar at the end of its photon
     # span with no estimate: newuser33).
     global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
-    emitters = counts = g_emitters = g_counts = None
+    emitters = counts = g_emitters = g_counts = pre_radius = None
     if global_shot:
         emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
         glow_from_global = split is not None or (plan.caustics and not use_caustic_shot)
@@ -713,7 +713,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             # that the global shot holds its caustic-kind photons (glow_split).
             # (The bar was planned with the largest shot: a smaller one only ends the
             # photon stage's span early.)
-            g_share = glow_share(ctx, shot, s.radius or 0.1 * geo.extent)
+            # Capped by the global radius (computed once, here, for the maps too): with
+            # 0.1 x the scene's extent (4 m in a 40 m yard) its two k-NN estimates searched
+            # thousands of photons a hit, 0.5 CPU s (docs/performance.md "worldfast43").
+            if s.radius is None:
+                pre_radius = global_search_radius(ctx, shot, _diffuse_area(ctx))
+            g_share = glow_share(ctx, shot, s.radius or (
+                0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else pre_radius[0]))
             g_split = glow_split(g_share)
             stats["glow_share"], stats["glow_split"] = g_share, g_split
             g_emitters, g_counts = glow_emitters(emitters, counts,
@@ -772,7 +778,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
     # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
     maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
-                                                    stop), should_cancel)
+                                                    stop, pre_radius), should_cancel)
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
@@ -780,6 +786,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     stats["secondary_images"] = maps.pop("secondary_images", 0)
     if "time_gather_guide" in maps:
         stats["time_gather_guide"] = maps.pop("time_gather_guide")
+    pre_share = maps.pop("indirect_share", _NOT_MEASURED)
+    guide_skipped = maps.pop("guide_skipped", False)
     for name, value in maps.items():
         setattr(ctx, name, value)
     stats["caustic_photons"] = len(ctx.caustic_map) - images if ctx.caustic_map is not None \
@@ -795,14 +803,12 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         # the radius (issue 14: the CLI printed them only after the camera pass's bar).
         for w in warned if on_warning is not None else ():
             on_warning(w)
-    # (Emitters with unsampled sides (Emission Sampling) send direct light through the
-    # gather rays too, which the photons' indirect share does not count: every ray.)
-    # (Nor does it count the glow of emitting media, which only gather rays bring:
-    # engine/volumeemission.py.)
-    if ctx.gather_map is not None and s.gather_by_share and not any(
-            light.kind == "MESH" and light.tri_sides is not None
-            and (light.sides() != 3).any() for light in ctx.lights) and not glows(ctx):
-        share = indirect_share(ctx, shot, ctx.gather_short)
+    # (Where the share does not count all the gathered light: every ray, share_counts.)
+    if pre_share is _NOT_MEASURED and ctx.gather_map is not None and (
+            share_counts(ctx) or s.gather_guiding == "auto"):
+        pre_share = indirect_share(ctx, shot, ctx.gather_short)
+    if ctx.gather_map is not None and share_counts(ctx):
+        share = pre_share
         ctx.gather_rays = gather_count(s.gather_rays, share)
         stats["indirect_share"] = share
         stats["gather_rays_used"] = ctx.gather_rays
@@ -810,9 +816,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     if guide is not None:
         # Guided gather directions where the grids predict a fall of the pixels' relative
         # variance worth their cost: share^2 x the gather ray's (guiding.AUTO_GAIN).
-        share = stats.get("indirect_share")
-        if share is None:
-            share = indirect_share(ctx, shot, ctx.gather_short)
+        share = pre_share
         # (None: the camera sees nothing diffuse, or no photon: no evidence, cosine)
         gain = (share * share * guide.gain if share is not None and math.isfinite(share)
                 else None)
@@ -822,6 +826,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         stats["gather_guide_points"] = guide.points
         if not stats["gather_guided"]:
             ctx.gather_map.guide = None
+    elif guide_skipped:
+        # (auto at a share too small for any grid to pay: guiding.can_guide; not built)
+        stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_photon_hit_view), always filled.
@@ -848,6 +855,48 @@ def gather_count(most: int, share: float | None) -> int:
     if share is None or not math.isfinite(share):
         return most
     return int(min(most, max(1, math.ceil(most * share / GATHER_SHARE_FULL))))
+
+
+_NOT_MEASURED = object()  # (_photon_maps: the share not measured while the maps were built)
+
+
+def share_counts(ctx) -> bool:
+    """Whether the indirect share (visualimportance.indirect_share) counts all the light
+    the gather rays bring, so that their number and the gather map's points may follow it:
+    settings.gather_by_share, and no emitter with unsampled sides (Emission Sampling: they
+    send direct light through the gather rays too, which the photons' share does not
+    count) nor emitting media (their glow comes through gather rays alone:
+    engine/volumeemission.py)."""
+    return bool(ctx.settings.gather_by_share) and not any(
+        light.kind == "MESH" and light.tri_sides is not None
+        and (light.sides() != 3).any() for light in ctx.lights) and not glows(ctx)
+
+
+# The gather map's points (GatherMap's max_points) at an indirect share of
+# POINTS_SHARE_FULL and above (gather_count's GATHER_SHARE_FULL); below it, fewer in
+# proportion (gather_points; POINTS_SHARE_FULL 1e-9: always all, the A/B of worldfast43).
+GATHER_POINTS = 60_000
+POINTS_SHARE_FULL = GATHER_SHARE_FULL
+
+
+def gather_points(photons: int, share: float | None, k: int) -> int:
+    """GatherMap's max_points for a map of `photons` rows at indirect share `share`
+    (None: not known or not counted, GATHER_POINTS): GATHER_POINTS x share /
+    POINTS_SHARE_FULL, at least 4 x photons / k (a point per k / 4 photons at most: each
+    point's Voronoi cell, holding about k / 4 photons (sqrt(k / 4) photon spacings
+    across), stays inside its own estimate's disc of k photons, so a lookup's blur is
+    still the estimate's) and at most GATHER_POINTS.
+
+    The points' irradiance costs ~13 us each (a k-NN estimate with its boundary and
+    surface tests): 0.73 CPU s for 57k points in a world-lit yard whose gather rays, one a
+    sample at a 3 % share, add a 3 % share of the pixel's light; a lookup's error there is
+    share x the map's. So the points follow the share as gather_count's rays do
+    (docs/performance.md "worldfast43")."""
+    if share is None or not math.isfinite(share) or share >= POINTS_SHARE_FULL:
+        return GATHER_POINTS
+    fewest = math.ceil(4 * photons / max(k, 1))
+    return int(min(GATHER_POINTS, max(fewest, math.ceil(GATHER_POINTS * share
+                                                        / POINTS_SHARE_FULL), 1)))
 
 
 # Gather lookups after a camera chain whose counts drop more than this share of the power
@@ -914,7 +963,33 @@ def _counted_map(photons: Photons, workers: int, rows: np.ndarray) -> PhotonMap:
     return pm
 
 
-def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
+def _diffuse_tris(ctx) -> np.ndarray:
+    """(T,) bool: the triangles whose material has a diffuse lobe."""
+    geo = ctx.geo
+    return ctx.table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
+
+
+def _diffuse_area(ctx) -> float:
+    """The scene's diffuse surface area (m^2)."""
+    return area_sum(ctx.geo, _diffuse_tris(ctx))
+
+
+def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
+    """(radius (m), photons it was measured on): the global search radius from the
+    global photons' own spacing (photonmap.auto_radius; local: not the spacing they would
+    have if spread over a huge ground plane they barely light). With an aimed shot (visual
+    importance), from the photons inside its region of interest, which holds
+    visualimportance.ROI_COVER of the camera's lookups: a sky lights a 40 m ground evenly,
+    and the spacing of the 60 % of photons that land beyond the objects (1.2 m against
+    0.21 m near them) made the gather map's discs 5x too wide (docs/performance.md,
+    "skynoise")."""
+    k = ctx.settings.k_nearest
+    positions = region_photons(shot.position, ctx.importance_region, k)
+    return (auto_radius(diffuse_area, len(positions), k, ctx.geo.extent, positions,
+                        workers=ctx.settings.threads), len(positions))
+
+
+def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
     global_photons. stop() is asked between the steps (raises Cancelled).
 
@@ -922,9 +997,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     then the gather map, which needs it; the caustic map and the secondary (or, without
     final gathering, the global) map beside them. Each map is gathered from the shot once,
     straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
-    what it computes alone, so the maps are the same for any thread count."""
-    s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
-    diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
+    what it computes alone, so the maps are the same for any thread count. pre_radius:
+    global_search_radius's answer for this shot where the photon pass has it, else None."""
+    s, geo, plan = ctx.settings, ctx.geo, ctx.plan
+    diffuse_tris = _diffuse_tris(ctx)
     diffuse_area = area_sum(geo, diffuse_tris)
     k = s.k_nearest
     workers = s.threads
@@ -945,24 +1021,22 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     shot_radius = [0.0]  # the whole shot's spacing (gather_chain)
 
     def gather_chain(flag):
-        # The global radius from the global photons' own spacing (local: not the spacing
-        # they would have if spread over a huge ground plane they barely light).
-        # With an aimed shot (visual importance), from the photons inside its region of
-        # interest, which holds visualimportance.ROI_COVER of the camera's lookups: a sky
-        # lights a 40 m ground evenly, and the spacing of the 60 % of photons that land
-        # beyond the objects (1.2 m against 0.21 m near them) made the gather map's discs
-        # 5x too wide (docs/performance.md, "skynoise").
-        positions = region_photons(shot.position, ctx.importance_region, k)
-        r_global = auto_radius(diffuse_area, len(positions), k, geo.extent, positions,
-                               workers=workers)
+        r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area)
         # The caustic map's cap stays the whole shot's spacing (caustic_radius): a glow of
         # light through a rough metal ball under a low Multiple Scattering sun read 4x
         # noisier with the region's (0.24 m against 0.46 m).
-        shot_radius[0] = r_global if len(positions) == len(shot) else auto_radius(
+        shot_radius[0] = r_global if measured == len(shot) else auto_radius(
             diffuse_area, len(shot), k, geo.extent, shot.position, workers=workers)
         gather_map = None
         if final:
             check(flag)
+            # The indirect share (visualimportance.indirect_share, ~0.05 s) before the map:
+            # it sizes the map's points (gather_points) and tells whether the guide's grids
+            # could pay (guiding.can_guide); _photon_maps reads the same value.
+            share = None
+            if share_counts(ctx) or s.gather_guiding == "auto":
+                share = indirect_share(ctx, shot, s.radius or r_global)
+                out_deeper["indirect_share"] = share
             # Final gathering needs all light at the gathered point: every stored photon.
             # Photons that arrived straight from a caustic are left out: seen through a
             # few gather rays a bright caustic makes fireflies. Their light one bounce
@@ -1011,10 +1085,15 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             rows = np.flatnonzero(shot.kind != CAUSTIC)
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
+                                   max_points=gather_points(
+                                       len(rows), share if share_counts(ctx) else None, k),
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary)
-            if s.gather_guiding != "off" and gather_map.tree is not None:
+            guide_pays = s.gather_guiding == "on" or can_guide(share)
+            if s.gather_guiding != "off" and gather_map.tree is not None and not guide_pays:
+                out_deeper["guide_skipped"] = True  # auto: no grid could reach AUTO_GAIN
+            elif s.gather_guiding != "off" and gather_map.tree is not None:
                 # Photon-guided gather directions (engine/guiding.py): each gather point's
                 # grid of the flux coming in (its INDIRECT photons', or the photons' as
                 # emitters); the level-0 gather rays read their nearest facing point's.
@@ -1333,6 +1412,7 @@ GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one 
 # sky, a world colour or an area light 0.02-0.03, where the 4x shot (2.0-2.4M photons to
 # store 1.5-7k) was 40 % of a 16-spp render's CPU (docs/performance.md, "exterior42").
 GLOW_SHARE_FULL = 0.08
+GLOW_SHARE_EXTENT_CAP = False  # True: glow_share capped at 0.1 x the extent, as before (A/B)
 
 
 def glow_split(share: float | None) -> float:

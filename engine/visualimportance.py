@@ -500,7 +500,10 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     natural_counts are the photons per light without visual importance (returned when
     it does not pay)."""
     natural = ShotPlan(list(lights), list(natural_counts), "")
-    if region is None or total <= 0 or not lights:
+    if total <= 0 or not lights:
+        natural.report = "no visual importance: no photons to send"
+        return natural
+    if region is None:
         # region None: the camera's gather rays end on no surface that stores photons
         # (an open scene, or only metal and glass where they end).
         # (newuser42 read the old "reach no surface that stores photons" as wrong on a

@@ -63,16 +63,34 @@ def curved_sheet_mesh(center, radius=0.8, angle=2.0, height=0.6, n=32):
     return verts, np.array(faces)
 
 
-def ring_scene(res=32, thick=0.02):
+ROUGH_METAL = Material("rough_metal", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.5)
+
+
+def ring_scene(res=32, thick=0.02, plate=False):
     """newuser42's scene_ring: a 6 m table (roughness 0.5), the polished half ring, a
     4000 W point light of radius 0.05 at (0, -5, 1); the camera looks down at the
-    cardioid."""
+    cardioid. plate: the ring object also holds a 0.3 m plate of rough metal (roughness
+    0.5) inside the ring at (0, 0.5, 0.6), facing the lamp (review43: a caster object's
+    rough part outside its sharp part's spheres)."""
     s = PaperScene(width=res, height=res)
     s.add_material(POLISHED_METAL)
     s.add_material(TABLE)
     s.add_plane((0, 0, 0), (0, 0, 1), 6, "table", name="Table")
     v, f = half_ring_mesh(thick=thick)
-    s.add_triangles(v, f, "polished_metal", name="MetalRing")
+    if plate:
+        from engine.scene import Mesh
+        s.add_material(ROUGH_METAL)
+        c, u = np.array([0.0, 0.5, 0.6]), np.array([1.0, 0.0, 0.0])
+        w = np.array([0.0, 1.0, -1.0]) / math.sqrt(2.0)
+        corners = np.array([c - .15 * u - .15 * w, c + .15 * u - .15 * w,
+                            c + .15 * u + .15 * w, c - .15 * u + .15 * w])
+        faces = np.concatenate([f, np.array([[0, 1, 2], [0, 2, 3]]) + len(v)])
+        s.add_mesh(Mesh("MetalRing", np.concatenate([v, corners]), faces,
+                        materials=["polished_metal", "rough_metal"],
+                        material_ids=np.concatenate([np.zeros(len(f), int),
+                                                     np.ones(2, int)])))
+    else:
+        s.add_triangles(v, f, "polished_metal", name="MetalRing")
     s.add_point_light((0.0, -5.0, 1.0), power=4000, radius=0.05, name="Lamp")
     s.set_camera((0, -2.6, 3.2), (0, 0.35, 0), view_angle=54)
     return s
@@ -101,3 +119,4 @@ def sheet_scene(res=32):
     s.add_point_light((0.3, -3.0, 1.5), power=2000, name="Lamp")
     s.set_camera((0, -2.6, 3.2), (0, 0.3, 0), view_angle=50)
     return s
+

@@ -268,10 +268,11 @@ STOP_SECONDS = 0.2
 STOP_MARGIN = 4.0  # a loaded CI machine: 0.51 s seen for a 0.2 s poll interval
 
 
-def stop_inside(monkeypatch, module, name, scene, settings, delay=0.02):
-    """Start a Session; at the first call of module.name (on the session's thread) start a
-    thread that waits `delay` s (the stage is running then) and stops the session.
-    Returns (session, stop seconds, whether the hooked call had ended before the stop)."""
+def stop_inside(monkeypatch, module, name, scene, settings, delay=0.02, when=None):
+    """Start a Session; at the first call of module.name (on the session's thread) for
+    which when(*args) holds (default: any) start a thread that waits `delay` s (the stage
+    is running then) and stops the session. Returns (session, stop seconds, whether the
+    hooked call had ended before the stop)."""
     from engine.jit import ensure_compiled
     from engine.session import Session
     ensure_compiled()  # the warm-up calls the kernels: hook the session's calls only
@@ -290,7 +291,7 @@ def stop_inside(monkeypatch, module, name, scene, settings, delay=0.02):
         box["latency"] = box["session"].stop()
 
     def wrapper(*args, **kwargs):
-        if "thread" not in box:
+        if "thread" not in box and (when is None or when(*args)):
             box["thread"] = threading.Thread(target=stopper)
             box["thread"].start()
             fired.set()
@@ -322,11 +323,14 @@ SESSION = dict(spp=1, photons=400_000, caustic_photons=0, workers=1, seed=1)
 
 def test_session_stops_inside_the_gather_map_estimate(monkeypatch):
     """The gather map's precomputed irradiance: ~57k k-NN estimates in one kernel call
-    with one worker (seconds under load), which polls the stop flag every STOP_ROWS rows."""
+    with one worker (seconds under load), which polls the stop flag every STOP_ROWS rows.
+    The hook waits for that call (its rows, argument 13, are the points): since
+    worldfast43 a small k-NN estimate of the indirect share (a stride of ~1000 rows) comes
+    first and ended before the stop."""
     from engine import photonmap
     session, latency, running = stop_inside(
         monkeypatch, photonmap, "_irradiance_rows", cornell_box(16, 12),
-        RenderSettings(**SESSION), delay=0.05)
+        RenderSettings(**SESSION), delay=0.05, when=lambda *args: len(args[13]) > 10_000)
     check_stop(session, latency, running)
 
 

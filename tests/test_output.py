@@ -23,6 +23,17 @@ def _cli(*args, **kwargs):
                           capture_output=True, text=True, timeout=300, **kwargs)
 
 
+def _main(capsys, monkeypatch, *args):
+    """engine.cli.main in this process (cwd = ROOT): (exit code, stderr); the path and
+    error handling of `python -m engine.cli` without a Python start and engine import
+    (~1.5 CPU s) per call (test_input.py runs the process's exit codes)."""
+    from engine import cli
+    monkeypatch.chdir(ROOT)
+    capsys.readouterr()
+    code = cli.main(list(args))
+    return code, capsys.readouterr().err
+
+
 def _leftovers(folder, keep):
     return sorted(n for n in os.listdir(folder) if n not in keep)
 
@@ -111,8 +122,21 @@ def test_a_writer_that_ignores_a_short_write_keeps_the_old_file(tmp_path, monkey
     assert _leftovers(tmp_path, {target.name}) == []
 
 
+SMALL_RENDER = ("render", SCENE, "--width", "64", "--height", "48", "--spp", "1",
+                "--photons", "2000", "--caustic-photons", "1000", "--quiet")
+
+
+@pytest.fixture(scope="module")
+def warm_cli(tmp_path_factory):
+    """The small render once without a file size limit, for the module: kernels the cache
+    lacks would be written under the limit too (and fail for that reason, not the
+    image's). One process for the three formats below (they ran one each)."""
+    warm = tmp_path_factory.mktemp("warm") / "w.npy"
+    assert _cli(*SMALL_RENDER, "-o", str(warm)).returncode == 0
+
+
 @pytest.mark.parametrize("ext", [".npy", ".ppm", ".exr"])
-def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path, ext):
+def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path, ext, warm_cli):
     """`ulimit -f`: the CLI's write fails (EFBIG, or a writer that ignores it and leaves a
     cut file); the old image stays, one-line error."""
     target = tmp_path / f"out{ext}"  # 64x48: npy 36 KB, ppm 9 KB, exr > 8 KB
@@ -122,15 +146,7 @@ def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path, ext):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
         resource.setrlimit(resource.RLIMIT_FSIZE, (8192, 8192))
 
-    args = ("render", SCENE, "--width", "64", "--height", "48", "--spp", "1", "--photons",
-            "2000", "--caustic-photons", "1000", "--quiet")
-    # The same render once without the limit: kernels the cache lacks would be written
-    # under the limit too (and fail for that reason, not the image's).
-    warm = tmp_path / "warm" / "w.npy"
-    assert _cli(*args, "-o", str(warm)).returncode == 0
-    warm.unlink()
-    warm.parent.rmdir()
-    res = _cli(*args, "-o", str(target), preexec_fn=limit)
+    res = _cli(*SMALL_RENDER, "-o", str(target), preexec_fn=limit)
     assert res.returncode == 1, res.stderr
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and target.name in lines[0] and "unchanged" in lines[0], res.stderr
@@ -154,22 +170,22 @@ def test_check_writable_refuses_before_anything_is_written(tmp_path):
     assert created == [str(ok.parent)]  # an existing folder is not announced
 
 
-def test_cli_checks_the_output_path_before_rendering(tmp_path):
+def test_cli_checks_the_output_path_before_rendering(tmp_path, capsys, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_bytes(b"x")
-    res = _cli("render", SCENE, "-o", str(blocker / "out.png"), "--spp", "64")
-    assert res.returncode == 1
-    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and str(blocker) in lines[0], res.stderr  # no progress bar first
+    code, err = _main(capsys, monkeypatch, "render", SCENE, "-o", str(blocker / "out.png"),
+                      "--spp", "64")
+    assert code == 1
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and str(blocker) in lines[0], err  # no progress bar first
 
 
-def test_a_folder_as_the_output_is_named_as_such(tmp_path):
+def test_a_folder_as_the_output_is_named_as_such(tmp_path, capsys, monkeypatch):
     for command in ("render", "compare"):
-        res = _cli(command, SCENE, "-o", str(tmp_path), "--spp", "1")
-        assert res.returncode == 1
-        assert res.stderr.strip() == (f"photonmap: error: --output '{tmp_path}' is a folder: "
-                                      f"give an image file, e.g. "
-                                      f"'{tmp_path / 'render.png'}'"), res.stderr
+        code, err = _main(capsys, monkeypatch, command, SCENE, "-o", str(tmp_path), "--spp", "1")
+        assert code == 1
+        assert err.strip() == (f"photonmap: error: --output '{tmp_path}' is a folder: "
+                               f"give an image file, e.g. '{tmp_path / 'render.png'}'"), err
     assert os.listdir(tmp_path) == []
 
 
@@ -251,7 +267,7 @@ def test_cli_ctrl_c_in_a_progressive_render_keeps_the_finished_passes(tmp_path):
     assert img.max() > 0  # the average of the finished passes, not a black frame
 
 
-def test_cli_writes_alpha_for_a_transparent_film_and_holdouts(tmp_path):
+def test_cli_writes_alpha_for_a_transparent_film_and_holdouts(tmp_path, capsys, monkeypatch):
     """photonmap render: film_transparent / holdout objects give an RGBA PNG and an EXR
     with an A channel, alpha 0 where the background or a holdout is seen."""
     from PIL import Image
@@ -288,10 +304,8 @@ power = 300
 """)
     for ext in (".png", ".exr"):
         out = tmp_path / f"o{ext}"
-        res = subprocess.run([sys.executable, "-m", "engine.cli", "render", str(scene), "-o",
-                              str(out), "--quiet"], capture_output=True, text=True, cwd=ROOT,
-                             timeout=300)
-        assert res.returncode == 0, res.stderr
+        code, err = _main(capsys, monkeypatch, "render", str(scene), "-o", str(out), "--quiet")
+        assert code == 0, err
         if ext == ".png":
             img = np.asarray(Image.open(out))
             assert img.shape == (16, 24, 4)
@@ -305,11 +319,12 @@ power = 300
         assert alpha[8, 12] == 0.0             # the holdout box in the middle: a hole
 
 
-def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatch, capsys):
-    """The first render on a machine compiles the kernels for about a minute, polling
-    nothing: a Ctrl-C then stops at once (nothing is finished to keep; the cache is
-    written only after a complete compile) instead of waiting out the compile silently.
-    The compile is simulated: a step that reports the compile stage and then runs."""
+def _ctrl_c_into_a_silent_step(monkeypatch, capsys, command, target, compiling):
+    """Run the CLI's `command` with the kernels' compile (compiling) or cached load
+    simulated by a 60 s step that polls nothing, and a Ctrl-C 0.3 s into it; returns
+    (exit status, seconds, stderr). Python's own Ctrl-C handler is installed, as an
+    interactive start has it (a CI job started in the background inherits SIGINT ignored;
+    the CLI then restores that instead), and put back after."""
     import importlib
     import threading
     import time
@@ -317,39 +332,43 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
     from engine import jit
     from engine.cli import main
     render_module = importlib.import_module("engine.render")
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
 
-    def compiling(progress=None):
-        progress("compile", 0.0, jit.COMPILE_MESSAGE)
-        timer.start()  # Ctrl-C 0.3 s into the compile
+    def silent_step(progress=None):
+        if compiling:
+            progress("compile", 0.0, jit.COMPILE_MESSAGE)
+        timer.start()
         end = time.monotonic() + 60
         while time.monotonic() < end:
             time.sleep(0.01)  # a signal handler's exception lands here
         return 60.0
 
-    monkeypatch.setattr(render_module, "ensure_compiled", compiling)
-    # Python's own Ctrl-C handler, as an interactive start has it (a CI job started in the
-    # background inherits SIGINT ignored; the CLI then restores that instead).
+    monkeypatch.setattr(render_module, "ensure_compiled", silent_step)
     started_with = signal.signal(signal.SIGINT, signal.default_int_handler)
+    target.write_bytes(OLD)
+    t0 = time.monotonic()
     try:
-        for command, said in (("render", "interrupted while compiling the render kernels"),
-                              ("compare", "interrupted")):
-            target = tmp_path / "out.png"
-            target.write_bytes(OLD)
-            timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-            t0 = time.monotonic()
-            try:
-                rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height",
-                           "24", "--spp", "1", "--photons", "2000"])
-            finally:
-                timer.cancel()
-            seconds = time.monotonic() - t0
-            err = capsys.readouterr().err
-            assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
-            assert said in err and "left untouched" in err and "Traceback" not in err, err
-            assert target.read_bytes() == OLD
-            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+        rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height", "24",
+                   "--spp", "1", "--photons", "2000"])
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
     finally:
+        timer.cancel()
         signal.signal(signal.SIGINT, started_with)
+    return rc, time.monotonic() - t0, capsys.readouterr().err
+
+
+def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatch, capsys):
+    """The first render on a machine compiles the kernels for about a minute, polling
+    nothing: a Ctrl-C then stops at once (nothing is finished to keep; the cache is
+    written only after a complete compile) instead of waiting out the compile silently."""
+    target = tmp_path / "out.png"
+    for command, said in (("render", "interrupted while compiling the render kernels"),
+                          ("compare", "interrupted")):
+        rc, seconds, err = _ctrl_c_into_a_silent_step(monkeypatch, capsys, command, target,
+                                                      compiling=True)
+        assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
+        assert said in err and "left untouched" in err and "Traceback" not in err, err
+        assert target.read_bytes() == OLD
 
 
 def test_cli_ctrl_c_while_the_cached_kernels_load_stops_at_once(tmp_path, monkeypatch,
@@ -357,35 +376,10 @@ def test_cli_ctrl_c_while_the_cached_kernels_load_stops_at_once(tmp_path, monkey
     """Loading the cached kernels reports no progress and polls nothing (2-3 s idle, 20 s
     on a loaded machine: newuser42's Ctrl-C took 20 s "while preparing"). Until the engine
     first polls should_cancel a Ctrl-C stops at once; after that it cancels as before
-    (test_cli_ctrl_c_leaves_the_target_untouched). The load is simulated: a step that runs 60 s."""
-    import importlib
-    import threading
-    import time
-
-    from engine.cli import main
-    render_module = importlib.import_module("engine.render")
-
-    def loading(progress=None):
-        timer.start()  # Ctrl-C 0.3 s into the load
-        end = time.monotonic() + 60
-        while time.monotonic() < end:
-            time.sleep(0.01)  # a signal handler's exception lands here
-        return 60.0
-
-    monkeypatch.setattr(render_module, "ensure_compiled", loading)
-    started_with = signal.signal(signal.SIGINT, signal.default_int_handler)
+    (test_cli_ctrl_c_leaves_the_target_untouched)."""
     target = tmp_path / "out.png"
-    target.write_bytes(OLD)
-    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-    t0 = time.monotonic()
-    try:
-        rc = main(["render", SCENE, "-o", str(target), "--width", "32", "--height", "24",
-                   "--spp", "1", "--photons", "2000"])
-    finally:
-        timer.cancel()
-        signal.signal(signal.SIGINT, started_with)
-    seconds = time.monotonic() - t0
-    err = capsys.readouterr().err
+    rc, seconds, err = _ctrl_c_into_a_silent_step(monkeypatch, capsys, "render", target,
+                                                  compiling=False)
     assert rc == 130 and seconds < 20, (rc, seconds, err[-1500:])
     assert "interrupted while preparing" in err and "left untouched" in err, err
     assert "Traceback" not in err and target.read_bytes() == OLD
@@ -400,7 +394,9 @@ def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
     importing): exit 130 and one line, never a KeyboardInterrupt traceback."""
     import time
     launcher = tmp_path / "photonmap"  # what pip's console script does, from this checkout
+    started = tmp_path / "started"  # (written once Python's start-up is over)
     launcher.write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
+                        f"open({str(started)!r}, 'w').close()\n"
                         "from engine.cli import main\nsys.exit(main())\n")
     target = tmp_path / "out.png"
     # A user's shell starts the command with Ctrl-C at its default; a background job of a
@@ -410,7 +406,14 @@ def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
                              "--width", "32", "--height", "24", "--spp", "1", "--quiet"],
                             cwd=ROOT, stderr=subprocess.PIPE, text=True,
                             preexec_fn=_default_sigint)
-    time.sleep(0.3)  # after Python's own start-up (site), while the engine imports
+    # After Python's own start-up (before it, SIGINT kills the process: no handler yet)
+    # and engine/__init__.py's first lines (its quiet handler), while numpy, numba and
+    # Embree import (a second or more). A fixed 0.3 s from the start came too early at
+    # load 20.
+    deadline = time.monotonic() + 60
+    while not started.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.005)
+    time.sleep(0.2)
     proc.send_signal(signal.SIGINT)
     err = proc.communicate(timeout=120)[1]
     assert proc.returncode == 130, err

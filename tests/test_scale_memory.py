@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from engine import accel as accel_mod
-from engine import effects
+from engine import casterspheres, effects
 from engine.accel import Accel
 from engine.rayoffset import ulp32
 from engine.scene import Material, Mesh, Scene
@@ -90,7 +90,7 @@ def _spheres_at_once(geo, mask):
 
 @pytest.mark.parametrize("piece", [7, 1 << 16])
 def test_effect_analysis_in_pieces_matches_all_at_once(monkeypatch, piece):
-    monkeypatch.setattr(effects, "PIECE_TRIANGLES", piece)
+    monkeypatch.setattr(casterspheres, "PIECE_TRIANGLES", piece)
     V, F = _bumpy_grid(n=12)
     geo = _geometry(V, F)
     mask = np.ones(geo.count, bool)

@@ -394,13 +394,65 @@ def block_means(img, size=12):
         h // size, size, w // size, size).mean(axis=(1, 3))
 
 
+def compare_settings(scene, cycles_spp=256):
+    """The settings cycles_and_ours renders both engines with: Cycles plain at cycles_spp
+    (12 bounces) with its default indirect clamp 10, which ours reads too."""
+    cycles_plain(scene, cycles_spp, 12)
+    scene.cycles.sample_clamp_indirect = 10.0
+
+
+def cycles_luminance(bpy, scene, tmp_path, cycles_spp=256):
+    """Cycles' luminance image (H, W) of scene at compare_settings."""
+    scene.render.engine = "CYCLES"
+    compare_settings(scene, cycles_spp)
+    return render_luminance(bpy, scene, tmp_path / "cycles.exr")
+
+
+def ours_luminance(bpy, scene, tmp_path, cycles_spp=256, ours_spp=32):
+    """Our luminance image (H, W) of scene at compare_settings and ours_spp samples (the
+    same image whether or not Cycles rendered the scene first)."""
+    compare_settings(scene, cycles_spp)
+    scene.render.engine = "PHOTONMAP"
+    scene.photonmap.spp = ours_spp
+    return render_luminance(bpy, scene, tmp_path / "ours.exr")
+
+
 def cycles_and_ours(bpy, scene, tmp_path, cycles_spp=256, ours_spp=32):
     """(ours, Cycles) luminance images of scene: Cycles plain at cycles_spp (12 bounces,
     its default indirect clamp 10, which ours reads too), then ours at ours_spp."""
-    scene.render.engine = "CYCLES"
-    cycles_plain(scene, cycles_spp, 12)
-    scene.cycles.sample_clamp_indirect = 10.0
-    ref = render_luminance(bpy, scene, tmp_path / "cycles.exr")
-    scene.render.engine = "PHOTONMAP"
-    scene.photonmap.spp = ours_spp
-    return render_luminance(bpy, scene, tmp_path / "ours.exr"), ref
+    ref = cycles_luminance(bpy, scene, tmp_path, cycles_spp)
+    return ours_luminance(bpy, scene, tmp_path, cycles_spp, ours_spp), ref
+
+
+def cycles_block_means(bpy, builds, tmp_path):
+    """{key: Cycles' 12 x 12 block means (luminance, flattened)} of each scene
+    builds[key]() at compare_settings, rendered now (the stored references of the hair,
+    particle hair and point cloud tests)."""
+    return {key: block_means(cycles_luminance(bpy, build(), tmp_path)).ravel().tolist()
+            for key, build in builds.items()}
+
+
+def stored_block_means(path, key, shape=(6, 8)):
+    """The stored cycles_block_means of `key` in the JSON at path, as (rows, columns)."""
+    return stored_cycles_means(path)[key].reshape(shape)
+
+
+def stored_cycles_means(path):
+    """{key: float or (N,) float64 array} of a stored Cycles reference JSON
+    (store_cycles_means wrote it)."""
+    import json
+    with open(path) as f:
+        means = json.load(f)["means"]
+    return {k: np.asarray(v, np.float64) if isinstance(v, list) else v
+            for k, v in means.items()}
+
+
+def assert_stored_means_are_now(stored, now, rtol=1e-3):
+    """The slow re-checks of stored Cycles references: the same keys, every value within
+    rtol (seeded renders: the same numbers up to float summation order)."""
+    assert set(now) == set(stored), (sorted(now), sorted(stored))
+    for k, v in now.items():
+        np.testing.assert_allclose(np.asarray(v, np.float64), stored[k], rtol=rtol,
+                                   atol=1e-7, err_msg=k)
+
+

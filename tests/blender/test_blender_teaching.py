@@ -51,7 +51,6 @@ class _Window:
     def __init__(self):
         self.progress, self.status, self.timers = [], [], 1
         self.window_manager = self
-        self.workspace = self
 
     def progress_update(self, value):
         self.progress.append(value)
@@ -64,6 +63,10 @@ class _Window:
 
     def status_text_set(self, text):
         self.status.append(text)
+
+    @property
+    def workspace(self):
+        return self
 
 
 class _Event:
@@ -80,11 +83,13 @@ def _modal_operator(bpy, kind, label, work):
         bl_label = label
         _timer = object()
         modal = operators._TeachingOperator.modal
+        cancel = operators._TeachingOperator.cancel
+        _end_modal = operators._TeachingOperator._end_modal
         _finish = operators._TeachingOperator._finish
 
         def __init__(self):
             self.kind, self.reports = kind, []
-            self._job = operators.TeachingJob(work).start()
+            self._job = operators._running = operators.TeachingJob(work).start()
 
         def report(self, kinds, text):
             self.reports.append((set(kinds), text))
@@ -137,7 +142,17 @@ def test_teaching_renders_on_a_thread_while_blenders_window_stays_live(bpy_addon
     assert op._job.wait(10)
     assert op.modal(_Window(), _Event("TIMER")) == {"CANCELLED"}
     assert op.reports[0][0] == {"ERROR"} and "division by zero" in op.reports[0][1]
-    # Background mode and scripts without a window run inside execute(), as before.
+    # One at a time: while a job renders the operators cannot start (poll); Blender
+    # ending the modal operator (a new file, the window closed) stops the renders too.
+    op = _modal_operator(bpy, "sweep", "Parameter Sweep", endless)
+    assert operators.running_job() is op._job
+    assert not bpy.ops.photonmap.compare_methods.poll()
+    window = _Window()
+    op.cancel(window)
+    assert op._job.wait(10) and isinstance(op._job.error, load_engine().parallel.Cancelled)
+    assert operators.running_job() is None and bpy.ops.photonmap.compare_methods.poll()
+    assert window.timers == 0 and window.progress == ["end"] and window.status == [None]
+    # Background mode and scripts run inside execute(), as before.
     assert not operators.runs_modal(bpy.context)
 
 

@@ -6,7 +6,12 @@ A red ball (r 0.5) moving 3 m in x over two frames (linear keys), rendered at fr
 with Shutter 0.5 centred on it (it sweeps 0.75 m while the shutter is open), a sun, a grey
 floor, 96 x 48. Measured: the brightness profile across the streak (8 rows through the
 ball) within 0.014 of Cycles 256 spp at every column (mean 0.003), the whole image 1.007;
-the camera panning past a still ball the same way."""
+the camera panning past a still ball the same way.
+
+Cycles' side (its column profiles across the streak and the image means; 256 and 128 spp,
+seed 0: the same numbers every run) is stored in tests/references/motion_blur_cycles.json
+(this file run as a script writes it); the slow test_stored_motion_blur_profiles_are_cycles_now
+renders it again live."""
 import math
 import os
 import sys
@@ -14,13 +19,16 @@ import sys
 import numpy as np
 import pytest
 
-from blender_helpers import (ROOT, cycles_plain, render_luminance, render_exr, sun_light,
+from blender_helpers import (ROOT, assert_stored_means_are_now, cycles_plain,
+                             render_luminance, render_exr, stored_cycles_means, sun_light,
                              world_color)
 
 sys.path.insert(0, os.path.join(ROOT, "example_blends"))
 import make_blends as mb  # noqa: E402
 
 pytestmark = pytest.mark.blender
+REF_PATH = os.path.join(ROOT, "tests", "references", "motion_blur_cycles.json")
+BAND = slice(20, 28)  # 8 rows through the ball (96 x 48)
 
 
 def _material(bpy, name, rgb):
@@ -69,9 +77,9 @@ def _scene(bpy, move="ball"):
 def test_a_moving_ball_streaks_as_in_cycles(bpy_addon, tmp_path, move):
     bpy = bpy_addon
     sc = _scene(bpy, move)
-    sc.render.engine = "CYCLES"
-    cycles_plain(sc, 256, 12)
-    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
+    cycles_plain(sc, 256, 12)  # the add-on reads its Light Paths
+    stored = stored_cycles_means(REF_PATH)[move]
+    pc, ref_mean = stored[:-1], stored[-1]  # the band's column profile, the image's mean
     sc.render.engine = "PHOTONMAP"
     sc.photonmap.spp = 32
     sc.photonmap.motion_blur_steps = 8
@@ -83,13 +91,12 @@ def test_a_moving_ball_streaks_as_in_cycles(bpy_addon, tmp_path, move):
     assert sc.frame_current == 1 and sc.frame_subframe == 0.0  # the frame restored
     assert not [w for w in engine.last_render["warnings"] if "motion" in w]
     assert np.isfinite(ours).all()
-    band = slice(20, 28)
-    po, pc = ours[band].mean(0), ref[band].mean(0)
+    po = ours[BAND].mean(0)
     assert np.abs(po - pc).max() < 0.03, np.round(np.c_[po, pc][::4], 3)
-    assert 0.98 < ours.mean() / ref.mean() < 1.02
+    assert 0.98 < ours.mean() / ref_mean < 1.02
     # The streak is there: the still's ball is sharp, darker in its middle columns.
     sc.render.use_motion_blur = False
-    still = render_luminance(bpy, sc, tmp_path / "still.exr")[band].mean(0)
+    still = render_luminance(bpy, sc, tmp_path / "still.exr")[BAND].mean(0)
     assert np.abs(still - pc).max() > 0.08
 
 
@@ -150,19 +157,49 @@ def test_an_object_with_its_motion_blur_off_stays_at_the_frame(bpy_addon, tmp_pa
     both engines render it sharp at the frame's position; nothing else moves, so ours
     renders once."""
     bpy = bpy_addon
-    sc = _scene(bpy)
-    bpy.data.objects["Ball"].cycles.use_motion_blur = False
-    sc.render.resolution_x, sc.render.resolution_y = 48, 24
-    sc.render.engine = "CYCLES"
-    cycles_plain(sc, 128, 12)
-    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
+    sc = _ball_blur_off(bpy)
+    cycles_plain(sc, 128, 12)  # the add-on reads its Light Paths
+    pc = stored_cycles_means(REF_PATH)["ball's motion blur off"]  # rows 10:14's profile
     sc.render.engine = "PHOTONMAP"
     sc.photonmap.spp = 16
     from addon import engine
     ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert engine.last_render["stats"]["motion_blur_steps"] == 1
-    po, pc = ours[10:14].mean(0), ref[10:14].mean(0)
+    po = ours[10:14].mean(0)
     assert np.abs(po - pc).max() < 0.04, np.round(np.c_[po, pc], 3)
+
+
+def _ball_blur_off(bpy):
+    """_scene at 48 x 24 with the moving ball's Object > Motion Blur off."""
+    sc = _scene(bpy)
+    bpy.data.objects["Ball"].cycles.use_motion_blur = False
+    sc.render.resolution_x, sc.render.resolution_y = 48, 24
+    return sc
+
+
+def _cycles_profiles(bpy, tmp_path):
+    """Cycles' side, rendered now: per moving object the band's column profile (96) and
+    the image's mean after it; the still ball's rows 10:14 profile (48)."""
+    out = {}
+    for move in ("ball", "camera"):
+        sc = _scene(bpy, move)
+        sc.render.engine = "CYCLES"
+        cycles_plain(sc, 256, 12)
+        ref = render_luminance(bpy, sc, tmp_path / f"cycles_{move}.exr")
+        out[move] = [*ref[BAND].mean(0).tolist(), float(ref.mean())]
+    sc = _ball_blur_off(bpy)
+    sc.render.engine = "CYCLES"
+    cycles_plain(sc, 128, 12)
+    out["ball's motion blur off"] = render_luminance(
+        bpy, sc, tmp_path / "cycles_off.exr")[10:14].mean(0).tolist()
+    return out
+
+
+@pytest.mark.slow
+def test_stored_motion_blur_profiles_are_cycles_now(bpy_addon, tmp_path):
+    """The stored profiles are what this Blender's Cycles renders (3 renders)."""
+    assert_stored_means_are_now(stored_cycles_means(REF_PATH),
+                                _cycles_profiles(bpy_addon, tmp_path))
 
 
 def test_auto_steps_follow_the_streaks_length(bpy_addon, tmp_path):
@@ -186,3 +223,8 @@ def test_auto_steps_follow_the_streaks_length(bpy_addon, tmp_path):
     render_exr(bpy, sc, str(tmp_path / "auto2.exr"))
     assert 1.7 * n <= engine.last_render["stats"]["motion_blur_steps"] <= 2.3 * n + 1
     assert sc.frame_current == 1 and sc.frame_subframe == 0.0
+
+
+if __name__ == "__main__":  # write the stored profiles: .venv/bin/python <this file>
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _cycles_profiles, cycles_samples=[256, 128], seed=0)

@@ -9,16 +9,24 @@ Measured (s39, 96 x 72, Cycles 256 spp, ours 32 spp, default photons): 300 paren
 indirect light: test_hair_cycles.py); with Interpolated children (200 parents x 10):
 whole 1.002, blocks 0.978-1.054. The strands coloured by a Checker on the emitter's UV
 map: 400 parents whole 0.995, blocks 0.91-1.012 (before the roots' UVs: 0.879, blocks
-0.24); 100 parents x 10 children 0.997, blocks 0.953-1.013."""
+0.24); 100 parents x 10 children 0.997, blocks 0.953-1.013.
+
+Cycles' 12 x 12 block means (256 spp, seed 0: the same numbers every run) are stored in
+tests/references/particle_hair_cycles.json (this file run as a script writes them); the
+slow test_stored_particle_hair_blocks_are_cycles_now renders them again live."""
 import math
+import os
 
 import numpy as np
 import pytest
 
-from blender_helpers import (block_means, cycles_and_ours, principled_material, sun_light,
+from blender_helpers import (ROOT, assert_stored_means_are_now, block_means,
+                             cycles_block_means, ours_luminance, principled_material,
+                             stored_block_means, stored_cycles_means, sun_light,
                              world_color)
 
 pytestmark = pytest.mark.blender
+REF_PATH = os.path.join(ROOT, "tests", "references", "particle_hair_cycles.json")
 
 
 def _scene(bpy, count=300, children="NONE"):
@@ -146,12 +154,9 @@ def test_particle_hair_exports_with_its_emitter(bpy_addon):
     assert "Emitter/particle hair" not in [m.name for m in _export(bpy).meshes]
 
 
-@pytest.mark.parametrize("children", ["NONE", pytest.param("INTERPOLATED",
-                                                           marks=pytest.mark.slow)])
-def test_particle_hair_matches_cycles(bpy_addon, tmp_path, children):
-    bpy = bpy_addon
-    """The tuft against Cycles, its strands coloured by a Checker Texture on the emitter's
-    UV map (each strand takes the map at its root, as Cycles' curve_uv)."""
+def _checker_scene(bpy, children):
+    """_scene's tuft (400 parents, or 100 with 10 children each) coloured by a Checker
+    Texture on the emitter's UV map."""
     sc, _emitter, _mod = _scene(bpy, count=400 if children == "NONE" else 100,
                                 children=children)
     nt = bpy.data.materials["Hair"].node_tree
@@ -162,16 +167,26 @@ def test_particle_hair_matches_cycles(bpy_addon, tmp_path, children):
     uv_map = nt.nodes.new("ShaderNodeUVMap")
     nt.links.new(uv_map.outputs["UV"], checker.inputs["Vector"])
     nt.links.new(checker.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
-    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
+    return sc
+
+
+@pytest.mark.parametrize("children", ["NONE", pytest.param("INTERPOLATED",
+                                                           marks=pytest.mark.slow)])
+def test_particle_hair_matches_cycles(bpy_addon, tmp_path, children):
+    """The tuft against Cycles, its strands coloured by a Checker Texture on the emitter's
+    UV map (each strand takes the map at its root, as Cycles' curve_uv)."""
+    ours = ours_luminance(bpy_addon, _checker_scene(bpy_addon, children), tmp_path)
+    ref = _stored_blocks(f"checker {children}")
     from addon import engine
     assert not [w for w in engine.last_render["warnings"] if "hair" in w.lower()]
     assert np.isfinite(ours).all()
-    whole = ours.mean() / ref.mean()
-    ratio = block_means(ours) / block_means(ref)
+    whole = ours.mean() / ref.mean()  # 96 x 72: the blocks' mean is the image's
+    ratio = block_means(ours) / ref
     assert 0.985 < whole < 1.015, whole
     assert 0.88 < ratio.min() and ratio.max() < 1.07, np.round(ratio, 3)
-    # The hair is there: the tuft's blocks differ from the bare floor's.
-    tuft, floor = ref[24:48, 24:72].mean(), ref[60:, :12].mean()
+    # The hair is there: the tuft's blocks (pixels [24:48, 24:72]) differ from the bare
+    # floor's (pixels [60:, :12]).
+    tuft, floor = ref[2:4, 2:6].mean(), ref[5, 0]
     assert tuft < 0.8 * floor or tuft > 1.25 * floor, (tuft, floor)
 
 
@@ -216,10 +231,34 @@ def test_generated_coordinates_are_the_roots_in_the_emitters_texture_space(bpy_a
 def test_generated_coordinates_colour_the_tuft_as_cycles(bpy_addon, tmp_path):
     """A Color Ramp of Generated's x colours the tuft as in Cycles (s40: whole 1.00x,
     blocks within 0.88-1.08)."""
-    bpy = bpy_addon
-    sc, _emitter = _generated_ramp_scene(bpy)
-    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
+    ours = ours_luminance(bpy_addon, _generated_ramp_scene(bpy_addon)[0], tmp_path)
+    ref = _stored_blocks("generated ramp")
     whole = ours.mean() / ref.mean()
-    ratio = block_means(ours) / block_means(ref)
+    ratio = block_means(ours) / ref
     assert 0.985 < whole < 1.015, whole
     assert 0.88 < ratio.min() and ratio.max() < 1.08, np.round(ratio, 3)
+
+
+def _cycles_blocks(bpy, tmp_path):
+    """Cycles' block means of each scene, rendered now: {key: [48 means]}."""
+    return cycles_block_means(
+        bpy, {"checker NONE": lambda: _checker_scene(bpy, "NONE"),
+              "checker INTERPOLATED": lambda: _checker_scene(bpy, "INTERPOLATED"),
+              "generated ramp": lambda: _generated_ramp_scene(bpy)[0]}, tmp_path)
+
+
+def _stored_blocks(key):
+    return stored_block_means(REF_PATH, key)
+
+
+@pytest.mark.slow
+def test_stored_particle_hair_blocks_are_cycles_now(bpy_addon, tmp_path):
+    """The stored block means are what this Blender's Cycles renders (3 renders at
+    256 spp)."""
+    assert_stored_means_are_now(stored_cycles_means(REF_PATH),
+                                _cycles_blocks(bpy_addon, tmp_path))
+
+
+if __name__ == "__main__":  # write the stored block means: .venv/bin/python <this file>
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _cycles_blocks, cycles_samples=256, seed=0)

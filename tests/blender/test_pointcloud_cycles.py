@@ -4,16 +4,25 @@ is warned.
 
 Measured (s39, 96 x 72, Cycles 256 spp, ours 32 spp): the 42 vertices of an icosphere
 made points of radius 0.08 m (Mesh to Points, Set Material) over a grey floor under a sun:
-whole image 1.002 of Cycles, 8 x 6 blocks 0.995-1.008."""
+whole image 1.002 of Cycles, 8 x 6 blocks 0.995-1.008.
+
+Cycles' side (12 x 12 block means, and for the plain points the brightest pixel among
+the dots and the sky corner's mean; 256 spp, seed 0: the same numbers every run) is
+stored in tests/references/pointcloud_cycles.json (this file run as a script writes it);
+the slow test_stored_point_blocks_are_cycles_now renders it again live."""
 import math
+import os
 
 import numpy as np
 import pytest
 
-from blender_helpers import (block_means, cycles_and_ours, export_warnings,
-                             principled_material, sun_light, world_color)
+from blender_helpers import (ROOT, assert_stored_means_are_now, block_means,
+                             cycles_luminance, export_warnings, ours_luminance,
+                             principled_material, stored_cycles_means, sun_light,
+                             world_color)
 
 pytestmark = pytest.mark.blender
+REF_PATH = os.path.join(ROOT, "tests", "references", "pointcloud_cycles.json")
 
 
 def _points_modifier(bpy, obj, radius, material=None, drop_radius=False):
@@ -125,21 +134,22 @@ def test_a_volume_object_without_grids_is_warned_naming_it(bpy_addon):
 def test_points_match_cycles(bpy_addon, tmp_path):
     bpy = bpy_addon
     sc, _dots = _scene(bpy)
-    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
+    ours = ours_luminance(bpy, sc, tmp_path)
+    stored = stored_cycles_means(REF_PATH)
+    ref = stored["points"].reshape(6, 8)  # 12 x 12 block means
     assert np.isfinite(ours).all()
-    whole = ours.mean() / ref.mean()
-    ratio = block_means(ours) / block_means(ref)
+    whole = ours.mean() / ref.mean()  # 96 x 72: the blocks' mean is the image's
+    ratio = block_means(ours) / ref
     assert 0.99 < whole < 1.01, whole
     assert 0.97 < ratio.min() and ratio.max() < 1.03, np.round(ratio, 3)
     # the dots are there: the top rows (dots against the wall-less sky) differ from Cycles'
     # empty-scene look only if the spheres render; their blocks are bright red-lit spheres
-    assert ref[:24, 24:72].max() > 3 * ref[:8, :8].mean()
+    dots_max, sky = stored["points: dots max, sky corner mean"]
+    assert dots_max > 3 * sky
 
 
-def test_point_info_colours_the_points_as_in_cycles(bpy_addon, tmp_path):
-    """Point Info's Random (through a Color Ramp), Radius and Position (world z, the
-    object moved up 0.3 m) drive the points' colour, against Cycles."""
-    bpy = bpy_addon
+def _point_info_scene(bpy):
+    """_scene with the object moved up 0.3 m and its colour driven by Point Info."""
     sc, dots = _scene(bpy)
     dots.location.z += 0.3
     nt = bpy.data.materials["Red"].node_tree
@@ -164,9 +174,41 @@ def test_point_info_colours_the_points_as_in_cycles(bpy_addon, tmp_path):
     nt.links.new(ramp.outputs["Color"], mix.inputs[6])
     nt.links.new(size.outputs[0], mix.inputs[7])  # 0.8: grey
     nt.links.new(mix.outputs[2], nt.nodes["Principled BSDF"].inputs["Base Color"])
-    ours, ref = cycles_and_ours(bpy, sc, tmp_path)
+    return sc
+
+
+def test_point_info_colours_the_points_as_in_cycles(bpy_addon, tmp_path):
+    """Point Info's Random (through a Color Ramp), Radius and Position (world z, the
+    object moved up 0.3 m) drive the points' colour, against Cycles."""
+    ours = ours_luminance(bpy_addon, _point_info_scene(bpy_addon), tmp_path)
+    ref = stored_cycles_means(REF_PATH)["point info"].reshape(6, 8)
     from addon import engine
     assert not [w for w in engine.last_render["warnings"] if "Point Info" in w]
-    ratio = block_means(ours) / block_means(ref)
+    ratio = block_means(ours) / ref
     assert 0.99 < ours.mean() / ref.mean() < 1.01
     assert 0.96 < ratio.min() and ratio.max() < 1.04, np.round(ratio, 3)
+
+
+def _cycles_blocks(bpy, tmp_path):
+    """Cycles' side, rendered now: the 12 x 12 block means (6 x 8 flattened) of both
+    scenes, and the plain points' brightest pixel among the dots (rows :24, columns
+    24:72) and mean of the sky corner (rows and columns :8)."""
+    ref = cycles_luminance(bpy, _scene(bpy)[0], tmp_path)
+    out = {"points": block_means(ref).ravel().tolist(),
+           "points: dots max, sky corner mean": [float(ref[:24, 24:72].max()),
+                                                 float(ref[:8, :8].mean())]}
+    info = cycles_luminance(bpy, _point_info_scene(bpy), tmp_path)
+    out["point info"] = block_means(info).ravel().tolist()
+    return out
+
+
+@pytest.mark.slow
+def test_stored_point_blocks_are_cycles_now(bpy_addon, tmp_path):
+    """The stored numbers are what this Blender's Cycles renders (2 renders at 256 spp)."""
+    assert_stored_means_are_now(stored_cycles_means(REF_PATH),
+                                _cycles_blocks(bpy_addon, tmp_path))
+
+
+if __name__ == "__main__":  # write the stored numbers: .venv/bin/python <this file>
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _cycles_blocks, cycles_samples=256, seed=0)

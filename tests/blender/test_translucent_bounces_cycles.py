@@ -12,12 +12,24 @@ Scene: a 100 W point lamp between a white reflector (above) and a Translucent pa
 (below); the camera between the panel and a white floor looks down at the floor, whose
 light comes through the panel: the lamp's own (a light sample at the panel, counted at
 any Transmission) and the reflector's (a bounce at the panel that continues).
+
+Cycles' image means (seed 0: the same numbers every run) are stored in
+tests/references/translucent_bounces_cycles.json (this file run as a script writes
+them); the slow test_stored_bounce_means_are_cycles_now renders them again live.
 """
 import math
+import os
 
 import pytest
 
 pytestmark = pytest.mark.blender
+REF_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                        "references", "translucent_bounces_cycles.json")
+TRANSLUCENT_LIMITS = {(d, t): dict(diffuse_bounces=d, transmission_bounces=t)
+                      for d, t in ((4, 12), (4, 0), (1, 12))}
+SHEEN_LIMITS = {(d, g): dict(diffuse_bounces=d, glossy_bounces=g)
+                for d, g in ((4, 4), (4, 0), (1, 4))}
+VISIBILITY = {"diffuse off": (False, True), "transmission off": (True, False)}
 
 
 def _material(bpy, name, kind, rgb):
@@ -46,21 +58,32 @@ def _scene(bpy, scene):
     scene.render.resolution_percentage = 100
 
 
-def _means(bpy, scene, tmp_path, spp, limits):
-    """{name: (ours, Cycles)} image means for each Light Paths setting in limits
+def _engine_means(bpy, scene, tmp_path, spp, limits, engine):
+    """{name: image mean} of `engine` for each Light Paths setting in limits
     ({name: {property: value}} on scene.cycles, which the add-on reads too)."""
     from blender_helpers import cycles_plain, read_rgba, render_exr
     got = {}
     for name, values in limits.items():
-        pair = []
-        for engine in ("PHOTONMAP", "CYCLES"):
-            c = cycles_plain(scene, spp, 12)
-            for k, val in values.items():
-                setattr(c, k, val)
-            scene.render.engine = engine
-            path = tmp_path / f"{engine}_{name}.exr"
-            pair.append(float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean()))
-        got[name] = tuple(pair)
+        c = cycles_plain(scene, spp, 12)
+        for k, val in values.items():
+            setattr(c, k, val)
+        scene.render.engine = engine
+        path = tmp_path / f"{engine}_{name}.exr"
+        got[name] = float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
+    return got
+
+
+def _key(case, name):
+    return f"{case} {'/'.join(map(str, name)) if isinstance(name, tuple) else name}"
+
+
+def _means(bpy, scene, tmp_path, spp, limits, case):
+    """{name: (ours, Cycles)} image means for each Light Paths setting in limits: ours
+    rendered, Cycles' stored under _key(case, name)."""
+    from blender_helpers import stored_cycles_means
+    stored = stored_cycles_means(REF_PATH)
+    ours = _engine_means(bpy, scene, tmp_path, spp, limits, "PHOTONMAP")
+    got = {name: (o, stored[_key(case, name)]) for name, o in ours.items()}
     print({k: (round(o, 4), round(r, 4), round(o / r, 4) if r else None)
            for k, (o, r) in got.items()})
     return got
@@ -72,9 +95,7 @@ def test_translucent_bounce_is_a_transmission_bounce(fresh_scene, bpy_addon, tmp
     scene = fresh_scene
     default_photonmap(scene).spp = 16
     _scene(bpy, scene)
-    got = _means(bpy, scene, tmp_path, 256, {
-        (d, t): dict(diffuse_bounces=d, transmission_bounces=t)
-        for d, t in ((4, 12), (4, 0), (1, 12))})
+    got = _means(bpy, scene, tmp_path, 256, TRANSLUCENT_LIMITS, "translucent")
     for (d, t), (ours, ref) in got.items():
         assert ref > 0.5 and math.isfinite(ours)
         assert abs(ours / ref - 1.0) < 0.03, ((d, t), ours, ref)
@@ -98,10 +119,9 @@ def test_translucent_light_sample_follows_the_lamps_diffuse_visibility(fresh_sce
     _scene(bpy, scene)
     lamp = bpy.data.objects["Lamp"]
     got = {}
-    for name, (diffuse, transmission) in {"diffuse off": (False, True),
-                                          "transmission off": (True, False)}.items():
+    for name, (diffuse, transmission) in VISIBILITY.items():
         lamp.visible_diffuse, lamp.visible_transmission = diffuse, transmission
-        got.update(_means(bpy, scene, tmp_path, 256, {name: {}}))
+        got.update(_means(bpy, scene, tmp_path, 256, {name: {}}, "lamp visibility"))
     assert got["diffuse off"][1] == 0.0 and got["diffuse off"][0] < 1e-3, got
     ours, ref = got["transmission off"]
     assert ref > 0.5 and abs(ours / ref - 1.0) < 0.03, got
@@ -154,8 +174,7 @@ def test_sheen_bounce_is_a_diffuse_bounce(fresh_scene, bpy_addon, tmp_path):
     scene = fresh_scene
     default_photonmap(scene).spp = 16
     _sheen_room(bpy, scene)
-    got = _means(bpy, scene, tmp_path, 512, {
-        (d, g): dict(diffuse_bounces=d, glossy_bounces=g) for d, g in ((4, 4), (4, 0), (1, 4))})
+    got = _means(bpy, scene, tmp_path, 512, SHEEN_LIMITS, "sheen")
     for (d, g), (ours, ref) in got.items():
         assert ref > 0.01 and math.isfinite(ours)
         assert abs(ours / ref - 1.0) < 0.04, ((d, g), ours, ref)
@@ -163,3 +182,44 @@ def test_sheen_bounce_is_a_diffuse_bounce(fresh_scene, bpy_addon, tmp_path):
     # photons' glossy count read 0.988: the same photons, some dropped).
     full, g0 = got[4, 4], got[4, 0]
     assert abs(g0[0] / full[0] - g0[1] / full[1]) < 0.004, got
+
+
+def _cycles_means(bpy, tmp_path):
+    """Cycles' image means of the three tests, rendered now: {_key: mean}."""
+    def fresh(build):
+        bpy.ops.wm.read_homefile(use_empty=True)  # as the fresh_scene fixture
+        scene = bpy.context.scene
+        build(bpy, scene)
+        return scene
+
+    out = {}
+    scene = fresh(_scene)
+    for name, mean in _engine_means(bpy, scene, tmp_path, 256, TRANSLUCENT_LIMITS,
+                                    "CYCLES").items():
+        out[_key("translucent", name)] = mean
+    scene = fresh(_scene)
+    lamp = bpy.data.objects["Lamp"]
+    for name, (diffuse, transmission) in VISIBILITY.items():
+        lamp.visible_diffuse, lamp.visible_transmission = diffuse, transmission
+        out[_key("lamp visibility", name)] = _engine_means(
+            bpy, scene, tmp_path, 256, {name: {}}, "CYCLES")[name]
+    scene = fresh(_sheen_room)
+    for name, mean in _engine_means(bpy, scene, tmp_path, 512, SHEEN_LIMITS,
+                                    "CYCLES").items():
+        out[_key("sheen", name)] = mean
+    return out
+
+
+@pytest.mark.slow
+def test_stored_bounce_means_are_cycles_now(bpy_addon, tmp_path):
+    """The stored means are what this Blender's Cycles renders (8 renders at 256-512
+    spp)."""
+    from blender_helpers import assert_stored_means_are_now, stored_cycles_means
+    assert_stored_means_are_now(stored_cycles_means(REF_PATH),
+                                _cycles_means(bpy_addon, tmp_path))
+
+
+if __name__ == "__main__":  # write the stored means: .venv/bin/python <this file>
+    from blender_helpers import store_cycles_means
+    store_cycles_means(REF_PATH, _cycles_means, cycles_samples={
+        "translucent": 256, "lamp visibility": 256, "sheen": 512}, seed=0)
