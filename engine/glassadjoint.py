@@ -41,6 +41,45 @@ _BISECT = 56      # bisection steps of a root (to float64 resolution)
 _EPS = 1e-5       # arrival perturbation of the finite-difference Jacobian (radians)
 _BRACKET = 2e-3   # phi bracket around a root for the perturbed solves
 MAX_W = 6         # candidate directions per hit (mirror, refraction, turned refractions)
+_RISE = 0.01      # Cycles' height over the surface a mirror direction must keep (bsdf_util.h)
+_GUARD = 1e-6     # photon_surfaces' guard: an arrival this close to below n takes Ng
+_MARGIN = 1e-6    # radians kept from each bound below (rounding of the two rules)
+
+
+@kernel
+def turn_possible(d0, d1, d2, n0, n1, n2, g0, g1, g2, eta):
+    """False where Cycles keeps Ns for every direction its glass sends to this arrival,
+    so the adjoint (candidates) and photonkernels' own smooth glass rule agree on where
+    the photon may go (the mirror and the refraction about Ns; they differ only by the
+    adjoint's |w.Ng| / |s.Ng| factor): photonkernels then keeps its rule, bit for bit.
+
+    d: the photon's unit direction; n, g: unit (unguarded) shading and geometric
+    normals on the arrival side; eta = eta_to / eta_from. A cheap sufficient bound, no
+    root search: with beta the angle between n and g, every normal N' Cycles could turn to
+    lies on the arc from n to g, so (1) the mirror direction w of s = -d about n is never
+    turned where s.Ng >= 0.01 (its mirror about n is s); (2) if the arrival's angle to
+    every N' on the arc (>= max(angle(s, n), angle(s, g)) - beta) is past the critical
+    angle, nothing refracts; else (3) a refraction w about any N' leaves at most
+    theta_t = asin(sin(max(angle(s, n), angle(s, g))) / eta) from N' (the angle to a
+    point of a geodesic arc shorter than pi, both cosines positive, is largest at an end),
+    so w's mirror about Ns is at most theta_t + 3 beta from Ng and rises >= 0.01 over
+    the surface where theta_t + 3 beta <= acos(0.01): Cycles turns no such w.
+    True (the adjoint needed) otherwise, and for arrivals below n (photonkernels' guard)
+    or within 0.01 of grazing."""
+    sg = -(d0 * g0 + d1 * g1 + d2 * g2)
+    cs = -(d0 * n0 + d1 * n1 + d2 * n2)
+    if not (sg >= _RISE and cs > _GUARD):
+        return True
+    beta = math.acos(min(n0 * g0 + n1 * g1 + n2 * g2, 1.0))
+    widest = math.acos(min(min(sg, cs), 1.0))
+    r = 1.0 / eta
+    narrowest = max(widest - beta - _MARGIN, 0.0)
+    if r * math.sin(narrowest) >= 1.0:
+        return False  # total internal reflection about every N': the mirror alone
+    st = r * math.sin(widest)
+    if st >= 1.0:
+        return True
+    return math.asin(st) + 3.0 * beta + _MARGIN > math.acos(_RISE)
 
 
 @kernel
