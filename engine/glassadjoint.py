@@ -220,7 +220,7 @@ def _put(out, k, w0, w1, w2, gprm, col, a0, a1, a2, f, transmitted):
 
 
 @kernel
-def candidates(gprm, d, n, g, out):
+def candidates(gprm, d, n, g, out, turned):
     """Every direction Cycles' smooth glass sends to a photon's arrival (module doc).
 
     gprm (1, N_PACK): the hit's packed glass columns (photonkernels.smooth_glass_at);
@@ -228,7 +228,9 @@ def candidates(gprm, d, n, g, out):
     geometric normals on the arrival side (d.g < 0). Writes rows of out (MAX_W, 7): the
     leaving direction w (3), per-channel weights (3: weight / (eta_s / eta_w)^2 for a
     refraction, the factor photonkernels.scatter applies itself) and 1.0 for a refraction
-    (0.0: reflection). Returns the row count."""
+    (0.0: reflection). turned False: the mirror and the refraction about n only, no
+    root search (where turn_possible is False there is no turned-normal one to find).
+    Returns the row count."""
     eta = gprm[0, pr.P_GLASS_ETA]  # eta_to / eta_from (the arrival side's)
     r = 1.0 / eta
     d0, d1, d2 = d[0], d[1], d[2]
@@ -269,7 +271,7 @@ def candidates(gprm, d, n, g, out):
                     f = cs * wg / (sg * wn)  # J without (eta_s / eta_w)^2
                     k = _put(out, k, w0, w1, w2, gprm, pr.P_GLASS_TW, 1.0 - F0, 1.0 - F1,
                              1.0 - F2, f, 1.0)
-    if not lx > 1e-9:
+    if not (turned and lx > 1e-9):
         return k  # n == +-g: nothing to turn
     for c in range(3):
         xq[c] /= lx

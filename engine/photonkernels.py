@@ -453,19 +453,29 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
                 + args[_PLAIN_ARG + 1:])
+    if GLASS_ADJOINT_MODE == GLASS_ADJOINT_EVERY_BENT:
+        bend_cos = _FLAT_NORMAL_COS
+    else:
+        bend_cos = math.cos(math.radians(GLASS_ADJOINT_MIN_BEND_DEG))
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-                    GLASS_ADJOINT_MODE)
+                    GLASS_ADJOINT_MODE, bend_cos)
 
 
-# Where scatter sends photons at smooth glass with a bent shading normal through
-# engine/glassadjoint.py (the adjoint of Cycles' per-direction turned normal) instead of
-# the glass lobe's sample about the shading normal: GLASS_ADJOINT_WHERE_TURNED, only
-# where glassadjoint.turn_possible (elsewhere the two send the photon the same ways and
-# the sample keeps main's bits). The other two are diagnostics for A/B runs in one
-# process (bench/bench_accuracy_ab.py's @photonkernels.GLASS_ADJOINT_MODE=...; tests):
-# never, or at every bent hit (smoothglass43's rule).
+# How scatter sends photons at smooth glass with a bent shading normal.
+# GLASS_ADJOINT_WHERE_TURNED (the default): where the normal is bent more than
+# GLASS_ADJOINT_MIN_BEND_DEG from the face, by engine/glassadjoint.py (the adjoint of
+# Cycles' per-direction turned normal: its flux ratio |w.Ng| / |s.Ng|, and the root
+# search for turned-normal refractions only where glassadjoint.turn_possible); at
+# smaller bends by the glass lobe's own sample about the shading normal (main's bits:
+# there Cycles turns the normal only for arrivals within ~3 bends of grazing or of the
+# critical angle and the flux ratio is 1 + O(bend), no change an image shows:
+# docs/accuracy.md, smoothglass44; a UV sphere of 32 segments bends its normals up to
+# ~5.3 degrees). The other two are diagnostics for A/B runs in one process
+# (bench/bench_accuracy_ab.py's @photonkernels.GLASS_ADJOINT_MODE=...; tests): never, or
+# with the root search at every hit bent more than ~0.1 degree (smoothglass43's rule).
 GLASS_ADJOINT_NEVER, GLASS_ADJOINT_EVERY_BENT, GLASS_ADJOINT_WHERE_TURNED = 0, 1, 2
 GLASS_ADJOINT_MODE = GLASS_ADJOINT_WHERE_TURNED
+GLASS_ADJOINT_MIN_BEND_DEG = 6.0
 
 
 # smooth_glass's per-(material, side) constants (smooth_glass_consts), columns of a row:
@@ -744,7 +754,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-             adjoint_mode):
+             adjoint_mode, bend_cos):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -781,7 +791,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     surfaces some of their ray kinds do not see). Returns (stored, continued) counts.
     hit_rows (2, >= m) int64: scratch for the hits' rows and triangle rows (lent by the
     trace's buffer pool: fresh arrays per call cost page faults; contents ignored).
-    adjoint_mode: GLASS_ADJOINT_MODE's codes (the wrapper scatter passes the module's).
+    adjoint_mode: GLASS_ADJOINT_MODE's codes, bend_cos: the cosine between shading and
+    geometric normal below which a smooth glass hit takes glassadjoint (the wrapper
+    scatter passes the module's settings).
 
     Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
     what is left); the power is divided by that probability and multiplied by the sampled
@@ -1064,7 +1076,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 ok = max(k0, max(k1, k2)) > 0.0
             else:
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
-                bent = False
+                bent = turned = False
                 un0 = un1 = un2 = 0.0
                 if (jc == -SMOOTH_GLASS and corner_normals.shape[0] > 0
                         and adjoint_mode != GLASS_ADJOINT_NEVER):
@@ -1072,19 +1084,18 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     un0, un1, un2 = _glass_normal(corner_normals, t, np.float64(u[i]),
                                                   np.float64(v[i]), front_b[j], gx, gy, gz,
                                                   n0, n1, n2)
-                    # A bent shading normal where Cycles would turn it for some
-                    # direction sent to this arrival: the adjoint of Cycles' glass there
-                    # (engine/glassadjoint.py), not a sample about n; elsewhere the two
-                    # agree on the directions and the sample below is kept bit for bit.
-                    bent = (abs(un0 * gx + un1 * gy + un2 * gz) < _FLAT_NORMAL_COS
-                            and (adjoint_mode == GLASS_ADJOINT_EVERY_BENT
-                                 or ga.turn_possible(dx, dy, dz, un0, un1, un2, gx, gy,
-                                                     gz, gprm[0, pr.P_GLASS_ETA])))
+                    # A bent shading normal: the adjoint of Cycles' glass there
+                    # (engine/glassadjoint.py), not a sample about n; its root search
+                    # only where Cycles could turn n for a direction sent to this arrival.
+                    bent = abs(un0 * gx + un1 * gy + un2 * gz) < bend_cos
+                    turned = bent and (adjoint_mode == GLASS_ADJOINT_EVERY_BENT
+                                       or ga.turn_possible(dx, dy, dz, un0, un1, un2, gx,
+                                                           gy, gz, gprm[0, pr.P_GLASS_ETA]))
                 if bent:
                     gd[0], gd[1], gd[2] = dx, dy, dz
                     gnn[0], gnn[1], gnn[2] = un0, un1, un2
                     gng[0], gng[1], gng[2] = gx, gy, gz
-                    nw = ga.candidates(gprm, gd, gnn, gng, gcand)
+                    nw = ga.candidates(gprm, gd, gnn, gng, gcand, turned)
                     okp, ox, oy, oz, k0, k1, k2, transmitted = ga.pick(
                         gcand, nw, uniform(key, slot[i], bounce, 5))
                     ix, iy, iz = pr.frame_local(n0, n1, n2, ox, oy, oz)

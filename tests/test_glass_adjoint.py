@@ -2,6 +2,7 @@
 the directions Cycles' glass sends to their arrival, with the flux Cycles' camera paths
 see (docs/accuracy.md, smoothglass43)."""
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -58,7 +59,7 @@ def test_photon_finds_every_camera_direction_cycles_refracts_to_it():
             continue
         total += 1
         turned += raised
-        k = ga.candidates(_gprm(rq), -s, -nq, -gq, out)  # the photon travels along -s
+        k = ga.candidates(_gprm(rq), -s, -nq, -gq, out, True)  # the photon travels along -s
         err = min([np.linalg.norm(out[i, :3] - w) for i in range(k) if out[i, 6] > 0.5]
                   + [1.0])
         found += err < 1e-6
@@ -97,7 +98,7 @@ def test_photon_flux_matches_cycles_transmittance(q_in_air, tilt):
     for ui, ai in zip(u, a):  # cosine-distributed arrivals from side P: flux pi / n each
         r = math.sqrt(ui)
         d = np.array([-r * math.cos(ai), -r * math.sin(ai), math.sqrt(1.0 - ui)])
-        k = ga.candidates(gprm, d, -nq, -gq, out)
+        k = ga.candidates(gprm, d, -nq, -gq, out, True)
         for i in range(k):
             if out[i, 6] > 0.5:
                 photon += out[i, 3] * math.pi / n / (rq * rq)
@@ -135,8 +136,8 @@ def _main_directions(d, n, g, eta):
 
 @pytest.mark.parametrize("bend_deg", [0.5, 2.0, 10.0, 45.0])
 def test_where_no_turn_is_possible_the_adjoint_sends_photons_mains_ways(bend_deg):
-    """turn_possible False (photonkernels then keeps the glass lobe's sample about n) only
-    where the adjoint's candidates are exactly the sample's two directions: no
+    """turn_possible False (photonkernels then skips the root search) only where the
+    adjoint's candidates are exactly the glass lobe's two directions about n: no
     turned-normal refraction, the mirror and the refraction about n not turned away.
     Random arrivals from air and from glass at shading normals bent bend_deg from Ng."""
     rng = np.random.default_rng(3)
@@ -152,7 +153,7 @@ def test_where_no_turn_is_possible_the_adjoint_sends_photons_mains_ways(bend_deg
         z, a = rng.uniform(0.0, 1.0), rng.uniform(0.0, 2.0 * math.pi)
         s = np.array([math.sqrt(1 - z * z) * math.cos(a), math.sqrt(1 - z * z) * math.sin(a), z])
         d = -s
-        k = ga.candidates(_gprm(eta), d, n, g, out)
+        k = ga.candidates(_gprm(eta), d, n, g, out, True)
         if ga.turn_possible(*d, *n, *g, eta):
             guarded = n if -float(d @ n) > 1e-6 else g  # photon_surfaces' guard
             main = _main_directions(d, guarded, g, eta)
@@ -163,6 +164,9 @@ def test_where_no_turn_is_possible_the_adjoint_sends_photons_mains_ways(bend_deg
         kept += 1
         main = _main_directions(d, n, g, eta)
         assert k == len(main), (d, n, eta, k, main)
+        rows = out[:k].copy()  # the same rows without the root search
+        assert ga.candidates(_gprm(eta), d, n, g, out, False) == k
+        assert np.array_equal(out[:k], rows)
         for w, transmitted in main:
             j = int(np.argmin(np.linalg.norm(out[:k, :3] - w, axis=1)))
             assert np.linalg.norm(out[j, :3] - w) < 1e-12 and out[j, 6] == transmitted
@@ -172,6 +176,9 @@ def test_where_no_turn_is_possible_the_adjoint_sends_photons_mains_ways(bend_deg
         assert kept > 0.9 * 600, kept
     else:
         assert differs > 20, differs
+
+
+MAX_DEPTH = 8
 
 
 def _slab(bend_deg):
@@ -200,9 +207,10 @@ def _slab(bend_deg):
     return s
 
 
-def _photons(monkeypatch, bend_deg, mode):
+def _photons(monkeypatch, bend_deg, mode, min_bend=None):
     """The caustic shot's photons (stopped at their first diffuse hit: none comes back
-    up into the slab from the floor) as bytes, scatter's rule set to mode."""
+    up into the slab from the floor) as bytes, scatter's rule set to mode (and
+    GLASS_ADJOINT_MIN_BEND_DEG to min_bend, unless None)."""
     from engine import RenderSettings
     from engine import photonkernels as pk
     from engine.accel import Accel
@@ -211,8 +219,10 @@ def _photons(monkeypatch, bend_deg, mode):
     from engine.photons import trace_photons
     from engine.render import Context
     monkeypatch.setattr(pk, "GLASS_ADJOINT_MODE", mode)
+    if min_bend is not None:
+        monkeypatch.setattr(pk, "GLASS_ADJOINT_MIN_BEND_DEG", min_bend)
     scene = _slab(bend_deg)
-    settings = RenderSettings(photons=20_000, seed=4, max_photon_depth=8)
+    settings = RenderSettings(photons=20_000, seed=4, max_photon_depth=MAX_DEPTH)
     scene.validate()
     geo, table = prepare(scene)
     lights = prepare_lights(scene, geo, table)
@@ -222,16 +232,27 @@ def _photons(monkeypatch, bend_deg, mode):
     return np.concatenate([ph.position.ravel(), ph.power.ravel()]).tobytes()
 
 
-def test_mildly_smooth_glass_keeps_mains_photons_bit_for_bit(monkeypatch):
-    """A glass slab whose top face's shading normals lean 1.5 degrees (a ball's few
-    degrees), lit at 30 degrees: every photon meets it far from grazing and from the
-    critical angle, where Cycles turns no normal, so scatter keeps the glass lobe's own
-    sample: the photons are those of the rule without the adjoint (GLASS_ADJOINT_NEVER,
-    main's before smoothglass43), bit for bit; smoothglass43's rule (the adjoint at every
-    bent hit) moves them. At 40 degrees of lean the default rule moves them too."""
+def test_smooth_glass_photons_by_bend(monkeypatch):
+    """A glass slab whose top face's shading normals lean outwards, lit at 30 degrees.
+    1.5 degrees (under GLASS_ADJOINT_MIN_BEND_DEG, as a tessellated ball's): scatter
+    keeps the glass lobe's own sample, the photons are those of the rule without the
+    adjoint (GLASS_ADJOINT_NEVER, main's before smoothglass43) bit for bit, while
+    smoothglass43's rule (the adjoint at every bent hit) moves them. 10 degrees, the
+    adjoint at every hit bent > 0.1 degree, photons stopped at their third hit: each
+    meets the face far from grazing and from the critical angle, where Cycles turns no
+    normal, so skipping the root search there (turn_possible) gives the same photons as
+    searching at every hit (smoothglass43); the adjoint's flux ratio moves them from
+    main's. 40 degrees: the default rule moves them too."""
     from engine import photonkernels as pk
-    mild = _photons(monkeypatch, 1.5, pk.GLASS_ADJOINT_WHERE_TURNED)
-    assert mild == _photons(monkeypatch, 1.5, pk.GLASS_ADJOINT_NEVER)
-    assert mild != _photons(monkeypatch, 1.5, pk.GLASS_ADJOINT_EVERY_BENT)
-    assert (_photons(monkeypatch, 40.0, pk.GLASS_ADJOINT_WHERE_TURNED)
-            != _photons(monkeypatch, 40.0, pk.GLASS_ADJOINT_NEVER))
+    assert 1.5 < pk.GLASS_ADJOINT_MIN_BEND_DEG < 10.0
+    never, every, where = (pk.GLASS_ADJOINT_NEVER, pk.GLASS_ADJOINT_EVERY_BENT,
+                           pk.GLASS_ADJOINT_WHERE_TURNED)
+    mild = _photons(monkeypatch, 1.5, where)
+    assert mild == _photons(monkeypatch, 1.5, never)
+    assert mild != _photons(monkeypatch, 1.5, every)
+    monkeypatch.setattr(sys.modules[__name__], "MAX_DEPTH", 3)
+    flat_deg = math.degrees(math.acos(pk._FLAT_NORMAL_COS))
+    bent = _photons(monkeypatch, 10.0, where, min_bend=flat_deg)
+    assert bent == _photons(monkeypatch, 10.0, every)
+    assert bent != _photons(monkeypatch, 10.0, never)
+    assert _photons(monkeypatch, 40.0, where) != _photons(monkeypatch, 40.0, never)
