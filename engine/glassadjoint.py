@@ -48,10 +48,9 @@ _MARGIN = 1e-6    # radians kept from each bound below (rounding of the two rule
 
 @kernel
 def turn_possible(d0, d1, d2, n0, n1, n2, g0, g1, g2, eta):
-    """False where Cycles keeps Ns for every direction its glass sends to this arrival,
-    so the adjoint (candidates) and photonkernels' own smooth glass rule agree on where
-    the photon may go (the mirror and the refraction about Ns; they differ only by the
-    adjoint's |w.Ng| / |s.Ng| factor): photonkernels then keeps its rule, bit for bit.
+    """False where Cycles keeps Ns for every direction its glass sends to this arrival:
+    the adjoint's only candidates are then the mirror and the refraction about Ns, and
+    candidates needs no root search (turned=False gives the same rows).
 
     d: the photon's unit direction; n, g: unit (unguarded) shading and geometric
     normals on the arrival side; eta = eta_to / eta_from. A cheap sufficient bound, no
@@ -138,6 +137,10 @@ def _bisect(d0, d1, d2, nq, gq, xq, phi_n, lo, hi, e_lo, r):
     (ok, phi)."""
     for _ in range(_BISECT):
         mid = 0.5 * (lo + hi)
+        if mid == lo or mid == hi:
+            # lo and hi adjacent floats: every further step would evaluate one of them
+            # again and change nothing (the same result, fewer evaluations).
+            break
         valid, e, w0, w1, w2 = _residual(d0, d1, d2, nq, gq, xq, phi_n, mid, r)
         if not valid:
             return False, 0.0
