@@ -981,9 +981,51 @@ def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
     0.21 m near them) made the gather map's discs 5x too wide (docs/performance.md,
     "skynoise")."""
     k = ctx.settings.k_nearest
+    if RADIUS_FROM_LOOKUPS:
+        r = lookup_radius(ctx, shot, k)
+        if r is not None:
+            # measured 0: the caustic cap keeps the whole shot's spacing (_build_maps).
+            return r, 0
     positions = region_photons(shot.position, ctx.importance_region, k)
     return (auto_radius(diffuse_area, len(positions), k, ctx.geo.extent, positions,
                         workers=ctx.settings.threads), len(positions))
+
+
+# radius43 (prototype, docs/accuracy.md "radius43"): the global search radius from the
+# k-NN distance where the estimates are made (the pre-pass' gather-ray ends) instead of
+# at the stored photons. False: auto_radius over the photons (main's rule).
+RADIUS_FROM_LOOKUPS = True
+# The cap over the lookups' median k-NN distance (2: as auto_radius's over the photons').
+LOOKUP_RADIUS_SCALE = 2.0
+
+
+def lookup_radius(ctx, shot, k: int) -> float | None:
+    """Global search radius (m): LOOKUP_RADIUS_SCALE (2) x the median, over the pre-pass'
+    lookup points (visualimportance.lookup_points: where final gathering's rays end on a
+    surface that stores photons; a strided sample of at most photonmap.RADIUS_SAMPLE of
+    them), of the
+    distance to the k-th nearest stored photon of `shot` (any kind). The photons' own
+    k-NN spacing (auto_radius) weighs each place by its photon count, so a lamp in a
+    narrow gap, where most photons pile up, shrank the radius 5x for the whole room
+    (docs/accuracy.md "night43"); the lookups weigh each place by how often an estimate
+    is made there (a dark lookup far from every photon raises the median as any wide
+    one does). Never more than 0.1 x the scene's extent. None: no lookup point, or the
+    shot holds at most k photons (then auto_radius, as before). The lookups are traced
+    again here (seeded as visualimportance's: the same points where it ran)."""
+    from .mortontree import KthTree
+    from .photonmap import RADIUS_SAMPLE
+    from .visualimportance import lookup_points
+    if len(shot) <= k:
+        return None
+    points = lookup_points(ctx)
+    if len(points) == 0:
+        return None
+    points = points[::max(1, len(points) // RADIUS_SAMPLE)]
+    d = KthTree(shot.position).kth(points, k)
+    r = LOOKUP_RADIUS_SCALE * float(np.median(d))
+    if not (r > 0 and math.isfinite(r)):
+        return None
+    return float(min(r, 0.1 * ctx.geo.extent))
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> dict:
