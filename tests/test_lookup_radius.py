@@ -1,0 +1,60 @@
+"""radius43's prototype global search radius (engine/render.py lookup_radius): the k-NN
+distance measured where the estimates are made (the pre-pass' lookup points), not at
+the stored photons, so a crowd of photons away from the lookups (a lamp in a narrow gap,
+docs/accuracy.md "night43") does not shrink it."""
+import importlib
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+# The module (engine.render is also the package's render function).
+R = importlib.import_module("engine.render")
+VI = importlib.import_module("engine.visualimportance")
+
+
+class Shot(SimpleNamespace):
+    """The part of a photons.Photons shot lookup_radius reads: position (N,3), len()."""
+
+    def __len__(self):
+        return len(self.position)
+
+
+def _grid(n: int, size: float) -> np.ndarray:
+    """(n*n, 3) points on an even n x n grid over [0, size]^2 at z = 0 (cell centres)."""
+    c = (np.arange(n) + 0.5) * size / n
+    x, y = np.meshgrid(c, c)
+    return np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], axis=1)
+
+
+def test_crowd_away_from_the_lookups_leaves_the_radius(monkeypatch):
+    """Photons spread evenly over a 2 m square (density rho = 2,500 / m^2) plus 40,000
+    piled into a 5 cm corner patch: over the photons the median k-NN distance is the
+    pile's (auto_radius, main's rule, shrinks ~10x); at lookups spread over the square it
+    is the even photons' sqrt(k / (pi rho)), so the radius is twice that (within 10 %)."""
+    k = 32
+    even = _grid(100, 2.0)
+    rng = np.random.default_rng(1)
+    pile = np.concatenate([rng.random((40_000, 2)) * 0.05, np.zeros((40_000, 1))], axis=1)
+    shot = Shot(position=np.concatenate([even, pile]).astype(np.float32))
+    lookups = _grid(40, 2.0)
+    monkeypatch.setattr(VI, "lookup_points", lambda ctx: lookups)
+    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0))
+    want = 2.0 * math.sqrt(k / (math.pi * len(even) / 4.0))
+    got = R.lookup_radius(ctx, shot, k)
+    assert abs(got / want - 1) < 0.10, (got, want)
+    photons = R.auto_radius(4.0, len(shot), k, 100.0, shot.position)
+    assert photons < 0.2 * got, (photons, got)
+
+
+def test_no_lookups_or_too_few_photons_fall_back(monkeypatch):
+    """None (global_search_radius then takes auto_radius) without lookups or with at most
+    k photons; never more than 0.1 x the scene's extent."""
+    shot = Shot(position=_grid(20, 1.0).astype(np.float32))
+    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0))
+    monkeypatch.setattr(VI, "lookup_points", lambda ctx: np.zeros((0, 3)))
+    assert R.lookup_radius(ctx, shot, 8) is None
+    monkeypatch.setattr(VI, "lookup_points", lambda ctx: _grid(4, 1.0))
+    assert R.lookup_radius(ctx, shot, len(shot)) is None
+    small = SimpleNamespace(geo=SimpleNamespace(extent=0.5))
+    assert R.lookup_radius(small, shot, 300) == 0.05
