@@ -524,7 +524,14 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         sharp_tri = ((sharp_specular(table)[mat] if has_tris else np.zeros(0, bool))
                      & focus_tri & ~window_tri)
         rough_tri = focus_tri & ~sharp_tri & ~window_tri
-        ids, centers, radii, names = _object_spheres(geo, sharp_tri) if sharp_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
+        ids = np.unique(geo.object_id[sharp_tri]) if sharp_tri.any() else []
+        # The aimed shot must cover every specular triangle of a caster object, its
+        # rough parts too: the other shots drop L S+ D paths whose first hit is on a
+        # caster object, by object (render.py), so a rough plate inside a metal ring
+        # outside the ring's spheres lost its glow (review43: -9 % of the caustic pass).
+        cast_tri = (sharp_tri | rough_tri) & np.isin(geo.object_id, ids)
+        ids, centers, radii, names = (_object_spheres(geo, cast_tri) if len(ids)
+                                      else ([], np.zeros((0, 3)), np.zeros(0), []))
         rough_ids = np.setdiff1d(np.unique(geo.object_id[rough_tri]), ids) if rough_tri.any() else []
         plan.rough_specular = [geo.object_names[i] for i in rough_ids]
         # Translucent objects (a lamp shade of Translucent BSDF) are said apart: they
@@ -542,13 +549,6 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             + (["translucent"] if translucent else []))
         reached = []
         aimed_spheres = None  # (spheres, owner ids) of the reached casters: _aim_spheres
-        # The aimed shot must cover every specular triangle of a caster object, its
-        # rough parts too: the other shots drop L S+ D paths whose first hit is on a
-        # caster object, by object (render.py), so a rough plate inside a metal ring
-        # outside the ring's spheres lost its glow (review43: -9 % of the caustic pass).
-        cast_tri = (sharp_tri | rough_tri) & np.isin(geo.object_id, ids)
-        if len(ids):
-            _, centers, radii, _ = _object_spheres(geo, cast_tri)
         roots = {int(oid): (c, r) for oid, c, r in zip(ids, centers, radii)}
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):
@@ -716,7 +716,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # engine/casterspheres.py); a ball keeps its one sphere.
             plan.caster_spheres, plan.caster_sphere_ids = (
                 aimed_spheres if reached and aimed_spheres is not None
-                else _aim_spheres(geo, sharp_tri, plan.caster_ids, roots))
+                else _aim_spheres(geo, cast_tri, plan.caster_ids, roots))
         if plan.caustics and s.cycles_filter_glossy > 0:
             # Only strong reflectors: a dielectric specular layer (a Principled wall's
             # ~4 %) throws too little light for the blur to show.

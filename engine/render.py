@@ -884,8 +884,8 @@ def gather_points(photons: int, share: float | None, k: int) -> int:
     (None: not known or not counted, GATHER_POINTS): GATHER_POINTS x share /
     POINTS_SHARE_FULL, at least 4 x photons / k (a point per k / 4 photons at most: each
     point's Voronoi cell, holding about k / 4 photons (sqrt(k / 4) photon spacings
-    across), stays inside its own estimate's disc of k photons, so a lookup's blur is still the estimate's) and at most
-    GATHER_POINTS.
+    across), stays inside its own estimate's disc of k photons, so a lookup's blur is
+    still the estimate's) and at most GATHER_POINTS.
 
     The points' irradiance costs ~13 us each (a k-NN estimate with its boundary and
     surface tests): 0.73 CPU s for 57k points in a world-lit yard whose gather rays, one a
@@ -963,12 +963,15 @@ def _counted_map(photons: Photons, workers: int, rows: np.ndarray) -> PhotonMap:
     return pm
 
 
-def _diffuse_area(ctx) -> float:
-    """The scene's diffuse surface area (m^2): the triangles whose material has a diffuse
-    lobe."""
+def _diffuse_tris(ctx) -> np.ndarray:
+    """(T,) bool: the triangles whose material has a diffuse lobe."""
     geo = ctx.geo
-    return area_sum(geo, ctx.table.has_diffuse[geo.material] if geo.count
-                    else np.zeros(0, bool))
+    return ctx.table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
+
+
+def _diffuse_area(ctx) -> float:
+    """The scene's diffuse surface area (m^2)."""
+    return area_sum(ctx.geo, _diffuse_tris(ctx))
 
 
 def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
@@ -1038,8 +1041,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
     what it computes alone, so the maps are the same for any thread count. pre_radius:
     global_search_radius's answer for this shot where the photon pass has it, else None."""
-    s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
-    diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
+    s, geo, plan = ctx.settings, ctx.geo, ctx.plan
+    diffuse_tris = _diffuse_tris(ctx)
     diffuse_area = area_sum(geo, diffuse_tris)
     k = s.k_nearest
     workers = s.threads
