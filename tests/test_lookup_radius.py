@@ -1,7 +1,8 @@
-"""radius43's prototype global search radius (engine/render.py lookup_radius): the k-NN
-distance measured where the estimates are made (the pre-pass' lookup points), not at
-the stored photons, so a crowd of photons away from the lookups (a lamp in a narrow gap,
-docs/accuracy.md "night43") does not shrink it."""
+"""The global search radius (engine/render.py lookup_radius, camera_radius, kth_radius):
+the k-NN distance measured where the estimates are made (the pre-pass' lookup points; the
+camera's diffuse hits without final gathering), not at the stored photons, so a crowd of
+photons away from the lookups (a lamp in a narrow gap, docs/accuracy.md "night43") does
+not shrink it."""
 import importlib
 import math
 from types import SimpleNamespace
@@ -39,7 +40,7 @@ def test_crowd_away_from_the_lookups_leaves_the_radius(monkeypatch):
     shot = Shot(position=np.concatenate([even, pile]).astype(np.float32))
     lookups = _grid(40, 2.0)
     monkeypatch.setattr(VI, "lookup_points", lambda ctx: lookups)
-    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0))
+    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0), lookups=None)
     want = 2.0 * math.sqrt(k / (math.pi * len(even) / 4.0))
     got = R.lookup_radius(ctx, shot, k)
     assert abs(got / want - 1) < 0.10, (got, want)
@@ -51,10 +52,44 @@ def test_no_lookups_or_too_few_photons_fall_back(monkeypatch):
     """None (global_search_radius then takes auto_radius) without lookups or with at most
     k photons; never more than 0.1 x the scene's extent."""
     shot = Shot(position=_grid(20, 1.0).astype(np.float32))
-    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0))
+    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0), lookups=None)
     monkeypatch.setattr(VI, "lookup_points", lambda ctx: np.zeros((0, 3)))
     assert R.lookup_radius(ctx, shot, 8) is None
     monkeypatch.setattr(VI, "lookup_points", lambda ctx: _grid(4, 1.0))
     assert R.lookup_radius(ctx, shot, len(shot)) is None
-    small = SimpleNamespace(geo=SimpleNamespace(extent=0.5))
+    small = SimpleNamespace(geo=SimpleNamespace(extent=0.5), lookups=None)
     assert R.lookup_radius(small, shot, 300) == 0.05
+
+
+def test_visual_importances_lookups_are_read_not_traced_again(monkeypatch):
+    """ctx.lookups (visual importance's pre-pass points, global_emitters) are the points
+    measured at; nothing is traced then. An empty set falls back (None)."""
+    k = 16
+    even = _grid(60, 1.0)
+    shot = Shot(position=even.astype(np.float32))
+
+    def traced(ctx):
+        raise AssertionError("lookup_points traced again")
+    monkeypatch.setattr(VI, "lookup_points", traced)
+    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0), lookups=_grid(10, 1.0))
+    want = 2.0 * math.sqrt(k / (math.pi * len(even)))
+    assert abs(R.lookup_radius(ctx, shot, k) / want - 1) < 0.1
+    ctx.lookups = np.zeros((0, 3))
+    assert R.lookup_radius(ctx, shot, k) is None
+
+
+def test_the_radius_follows_the_lookups_density_not_the_photons():
+    """kth_radius: points over a sparse half of a square (density 900 / m^2 against
+    8,100 on the other half) give that half's 2 sqrt(k / (pi rho)); points on the dense
+    half that half's; the median over both halves' points lies between."""
+    k = 24
+    sparse = _grid(30, 1.0)
+    dense = _grid(90, 1.0) + [1.0, 0.0, 0.0]
+    photons = np.concatenate([sparse, dense])
+    inner = _grid(8, 0.6) + [0.2, 0.2, 0.0]  # away from the halves' border
+    for points, rho in ((inner, 900.0), (inner + [1.0, 0.0, 0.0], 8100.0)):
+        got = R.kth_radius(points, photons, k, 100.0)
+        assert abs(got / (2.0 * math.sqrt(k / (math.pi * rho))) - 1) < 0.1, (got, rho)
+    both = R.kth_radius(np.concatenate([inner, inner + [1.0, 0.0, 0.0]]), photons, k, 100.0)
+    assert 2.0 * math.sqrt(k / (math.pi * 8100.0)) < both < 2.0 * math.sqrt(k / (math.pi * 900.0))
+    assert R.kth_radius(np.zeros((0, 3)), photons, k, 100.0) is None
