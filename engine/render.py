@@ -979,8 +979,10 @@ def _diffuse_area(ctx) -> float:
 
 
 def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
-    """(radius (m), photons it was measured on): the global search radius from the
-    global photons' own spacing (photonmap.auto_radius; local: not the spacing they would
+    """(radius (m), photons it was measured on; 0: measured at the lookups): the global
+    search radius where the estimates are made (lookup_radius, docs/design.md, Photon
+    mapping model); without lookups from the global photons' own spacing
+    (photonmap.auto_radius; local: not the spacing they would
     have if spread over a huge ground plane they barely light). With an aimed shot (visual
     importance), from the photons inside its region of interest, which holds
     visualimportance.ROI_COVER of the camera's lookups: a sky lights a 40 m ground evenly,
@@ -1066,7 +1068,14 @@ def guide_radius(gather_radius: float, shot_radius: float) -> float:
     blurred the patch's direction over 8x fewer grids, and the guided gather's noise rose
     from 0.62 to 0.71 of the cosine gather's (tests/test_gather_guiding_auto.py; with this
     0.65; docs/accuracy.md "radius44")."""
-    return min(gather_radius, shot_radius) if shot_radius > 0 else gather_radius
+    if not GUIDE_FROM_PHOTONS or not shot_radius > 0:
+        return gather_radius
+    return min(gather_radius, shot_radius)
+
+
+# guide_radius: False spaces the guide's grids by the gather map's radius (radius43's
+# prototype; an A/B switch, docs/accuracy.md "radius44").
+GUIDE_FROM_PHOTONS = True
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> dict:

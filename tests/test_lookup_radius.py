@@ -93,3 +93,47 @@ def test_the_radius_follows_the_lookups_density_not_the_photons():
     both = R.kth_radius(np.concatenate([inner, inner + [1.0, 0.0, 0.0]]), photons, k, 100.0)
     assert 2.0 * math.sqrt(k / (math.pi * 8100.0)) < both < 2.0 * math.sqrt(k / (math.pi * 900.0))
     assert R.kth_radius(np.zeros((0, 3)), photons, k, 100.0) is None
+
+
+def test_without_final_gathering_the_radius_is_measured_at_the_camera_hits(monkeypatch):
+    """camera_radius: the k-NN distance at the pre-pass' diffuse camera hits
+    (visualimportance.diffuse_camera_hits), not at the photons: a pile of photons away
+    from the hits leaves it at the even photons' 2 sqrt(k / (pi rho))."""
+    k = 32
+    even = _grid(100, 2.0)
+    rng = np.random.default_rng(2)
+    pile = np.concatenate([rng.random((40_000, 2)) * 0.05, np.zeros((40_000, 1))], axis=1)
+    positions = np.concatenate([even, pile]).astype(np.float32)
+    hits = _grid(40, 2.0)
+    monkeypatch.setattr(VI, "diffuse_camera_hits",
+                        lambda ctx, rays, rng: (hits, np.tile([0.0, 0.0, 1.0], (len(hits), 1)),
+                                                np.zeros(len(hits))))
+    ctx = SimpleNamespace(geo=SimpleNamespace(extent=100.0), settings=SimpleNamespace(seed=0))
+    want = 2.0 * math.sqrt(k / (math.pi * len(even) / 4.0))
+    assert abs(R.camera_radius(ctx, positions, k) / want - 1) < 0.10
+    assert R.camera_radius(ctx, positions[:k], k) is None
+
+
+def test_a_render_without_final_gathering_reads_the_global_map_at_the_camera_radius(
+        monkeypatch):
+    """The global map's radius (Film.stats radius_global) is camera_radius's answer when
+    final gathering is off (below the 0.1 x extent cap: measured, not capped)."""
+    from engine import RenderSettings
+    from engine.api import PaperScene, box_mesh
+    from engine.scene import Material
+    s = PaperScene(width=4, height=4)
+    s.add_material(Material("wall", (0.6,) * 3))
+    v, f = box_mesh((0, 0, 0), 2.0)
+    s.add_triangles(v, f, "wall", name="room")
+    s.add_point_light((0.0, 0.0, 0.5), power=100.0)
+    s.set_camera((0, -0.9, -0.2), (0, 1, 0.3), view_angle=70)
+    plain, asked = R.camera_radius, []
+
+    def spy(ctx, positions, k):
+        asked.append(plain(ctx, positions, k))
+        return asked[-1]
+    monkeypatch.setattr(R, "camera_radius", spy)
+    film = s.render(RenderSettings(photons=20_000, caustic_photons=0, spp=1, seed=1,
+                                   workers=1, final_gather=False, k_nearest=16))
+    assert len(asked) == 1 and 0 < asked[0] < 0.1 * 2.0 * math.sqrt(3.0)
+    assert film.stats["radius_global"] == asked[0]
