@@ -1059,25 +1059,6 @@ def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
     return float(min(r, 0.1 * extent))
 
 
-def guide_radius(gather_radius: float, shot_radius: float) -> float:
-    """The radius (m) the gather guide's grids are spaced and filled by
-    (guiding.GatherGuide): the gather map's, or the whole shot's photon spacing
-    (auto_radius) where that is finer. The grids are the photons' directions, so their
-    resolution follows the photons: spaced by the estimates' wider radius (the lookups',
-    in a room lit by a spot's floor patch 0.29 m against the photons' 0.15 m) they
-    blurred the patch's direction over 8x fewer grids, and the guided gather's noise rose
-    from 0.62 to 0.71 of the cosine gather's (tests/test_gather_guiding_auto.py; with this
-    0.65; docs/accuracy.md "radius44")."""
-    if not GUIDE_FROM_PHOTONS or not shot_radius > 0:
-        return gather_radius
-    return min(gather_radius, shot_radius)
-
-
-# guide_radius: False spaces the guide's grids by the gather map's radius (radius43's
-# prototype; an A/B switch, docs/accuracy.md "radius44").
-GUIDE_FROM_PHOTONS = True
-
-
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
     global_photons. stop() is asked between the steps (raises Cancelled).
@@ -1189,8 +1170,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
                 # ("auto": kept or dropped once the indirect share is known, _photon_maps)
                 t_guide = time.perf_counter()
                 gather_map.guide = GatherGuide(gather_map.position, gather_map.normal, shot,
-                                               guide_radius(gather_map.radius, shot_radius[0]),
-                                               k, s.gather_guide_share,
+                                               gather_map.radius, k, s.gather_guide_share,
                                                s.gather_guide_source)
                 out_deeper["time_gather_guide"] = time.perf_counter() - t_guide
             out_deeper["regather_maps"] = level_maps(gather_map, level_of, secondary_of)
