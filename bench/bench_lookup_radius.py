@@ -1,9 +1,9 @@
-"""The global search radius from the photons' spacing (main's rule: auto_radius over the
-stored photons) against the radius from the lookups' (radius43's prototype:
-render.lookup_radius, the k-NN distance at the pre-pass' gather-ray ends), on the
+"""The global search radius from the photons' spacing (the rule before radius44: auto_radius
+over the stored photons) against the radius from the lookups' (render.lookup_radius, the
+k-NN distance at the pre-pass' gather-ray ends; x 2 as rendered, and x 1), on the
 example scenes of tools/accuracy_scenes.py: per scene and rule the radius (m), the image
 mean against the stored Cycles reference's and the HDR-FLIP, one worker, seeds given.
-docs/accuracy.md "radius43 (prototype, not merged)" quotes its runs.
+docs/accuracy.md "radius43 (prototype, not merged)" and "radius44" quote its runs.
 
     .venv/bin/python bench/bench_lookup_radius.py figure6_box,figure3_sphere --seeds 0,1
 """
@@ -26,7 +26,9 @@ import accuracy_scenes as A  # noqa: E402  (needs the bpy wheel)
 from bench_accuracy_ab import render_ours  # noqa: E402
 
 RULES = {"photons": {("render", "RADIUS_FROM_LOOKUPS"): False},
-         "lookups": {("render", "RADIUS_FROM_LOOKUPS"): True}}
+         "lookups": {("render", "RADIUS_FROM_LOOKUPS"): True},
+         "lookups x 1": {("render", "RADIUS_FROM_LOOKUPS"): True,
+                         ("render", "LOOKUP_RADIUS_SCALE"): 1.0}}
 
 
 def main(argv=None):
