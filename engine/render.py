@@ -1035,7 +1035,8 @@ def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
     from .visualimportance import ROI_RAYS, diffuse_camera_hits
     if len(positions) <= k:
         return None
-    points = diffuse_camera_hits(ctx, ROI_RAYS, np.random.default_rng([ctx.settings.seed, 95]))[0]
+    rng = np.random.default_rng([ctx.settings.seed, 95])
+    points = diffuse_camera_hits(ctx, ROI_RAYS, rng)[0]
     return kth_radius(points, positions, k, ctx.geo.extent)
 
 
