@@ -252,7 +252,9 @@ def _summed_transparency(a: Closure, b: Closure, ea: float, eb: float, out: Clos
     the average transmitted 1/2, 0.38-0.84 x Cycles on a sphere in a grey world).
     With an alpha texture alpha_out varies per hit: exact where both sides have one
     closure weight and one tint (or one side is opaque), T / (1 - alpha_out) being the
-    tint x (ea + eb) then; None otherwise (the caller warns and keeps the average)."""
+    tint x (ea + eb) then (above 1 the caller clamps it to 1, as the engine's Material
+    does with an alpha texture, and warns); None otherwise (the caller warns and keeps
+    the average)."""
     if a.alpha_texture is None and b.alpha_texture is None:
         if out.alpha >= 1.0:
             return out.transparent_tint
@@ -1620,6 +1622,16 @@ class MaterialConverter:
                            "with a transparent share, an alpha texture on one and another "
                            "colour or closure weight on the other: the surfaces add up, "
                            "their transparent shares are averaged")
+            elif out.alpha_texture is not None and np.any(tint > 1.0):
+                # An alpha texture lowers alpha per hit and the engine keeps such a tint
+                # within 1 (Material: (1 - alpha) x tint must not pass 1 at any hit);
+                # clamped here, warned as what it is (not as energy the scene creates).
+                out.transparent_tint = np.minimum(tint, 1.0)
+                self._warn(f"material '{self._mat.name}': "
+                           f"{node.type.replace('_', ' ').title()} '{node.name}' of surfaces "
+                           "with a transparent share and an alpha texture: their summed "
+                           "transparent colour is kept within 1 (less light passes than "
+                           "in Cycles)")
             else:
                 out.transparent_tint = tint
         return out

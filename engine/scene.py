@@ -352,8 +352,11 @@ class Material:
         top = 1.0 / (1.0 - a) if self.alpha_texture is None and a < 1.0 else 1.0
         if np.any(tint > top * (1.0 + 1e-12)):
             # A pass that lets more light through than arrives would create energy.
-            self.warnings.append(f"{who}: transparent tint {tint.round(3).tolist()} x (1 - "
-                                 f"alpha) above 1 clamped to 1 (it would create energy)")
+            self.warnings.append(
+                f"{who}: transparent tint {tint.round(3).tolist()} x (1 - alpha) above 1 "
+                "clamped to 1 (it would create energy)" if self.alpha_texture is None else
+                f"{who}: transparent tint {tint.round(3).tolist()} above 1 with an alpha "
+                "texture (alpha varies per hit) clamped to 1 (it could create energy)")
         self.transparent_tint = np.minimum(tint, top)
         self.ior = _finite(self.ior, f"{who} ior")
         if self.ior <= 0:

@@ -150,3 +150,24 @@ def test_add_with_transparent_exports_the_summed_pass(fresh_scene, bpy_addon):
     warnings = out.all_warnings()  # (the materials' own, from their validation)
     assert any("clamped" in w and "Pair" in w for w in warnings), warnings
     assert not any("averaged" in w for w in warnings), warnings
+
+
+def test_add_with_an_alpha_texture_keeps_the_summed_tint_within_one(fresh_scene, bpy_addon):
+    """Add of a Principled whose Alpha is a texture (alpha varies per hit) and a Diffuse
+    BSDF: the summed transparent colour would be 2 x the Principled's (tint 2 over the
+    blend's (1 - alpha) = (1 - texture) / 2), which the engine's Material keeps within 1
+    where an alpha texture is set. The export clamps it itself and says why, naming the
+    material, instead of the Material's "it would create energy" (review44)."""
+    from blender_helpers import convert_material
+
+    def build(nd, ln):
+        p = nd.new("ShaderNodeBsdfPrincipled")
+        p.inputs["Base Color"].default_value = (0.1, 0.4, 0.8, 1.0)
+        ln.new(nd.new("ShaderNodeTexChecker").outputs["Fac"], p.inputs["Alpha"])
+        return _add(nd, ln, p.outputs[0], _diffuse(nd))
+
+    m = convert_material(surface_material(bpy_addon, "CutPair", build))
+    assert m.alpha_texture is not None
+    np.testing.assert_allclose(m.transparent_tint, 1.0)
+    assert any("CutPair" in w and "kept within 1" in w for w in m.warnings), m.warnings
+    assert not any("create energy" in w for w in m.warnings), m.warnings
