@@ -787,6 +787,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
     images = maps.pop("caustic_images", 0)
+    spacing = maps.pop("radius_spacing", 0.0)
+    if spacing:
+        stats["radius_spacing"] = spacing
     stats["secondary_images"] = maps.pop("secondary_images", 0)
     if "time_gather_guide" in maps:
         stats["time_gather_guide"] = maps.pop("time_gather_guide")
@@ -1262,6 +1265,9 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     # are sparse.
     out["caustic_radius"] = s.radius or caustic_radius(shot_radius[0], len(shot), len(caustic), k,
                                                        diffuse_area, geo.extent)
+    # What that cap comes from, for the report (_caustic_radius_words): the global
+    # radius is measured at the lookups, the cap from the shot's own spacing.
+    out["radius_spacing"] = shot_radius[0]
     if "caustic_source" in out:
         # Images across the open edges the caustic photons lie near (engine/edgeimages.py):
         # a disc hanging over a surface's edge keeps the light its photons brought. They
@@ -1366,12 +1372,22 @@ def _caustic_radius_words(settings: RenderSettings, stats: dict, held: str) -> s
     (a ball lens's focus: mm) and the search radius only caps it where they are sparse;
     "the same search radius 0.52 m" read as a 0.52 m blur of the focus (new-user trial
     s16). The cap is the global one unless the caustic map holds more photons
-    (photonmap.caustic_radius): then printed, else said once."""
+    (photonmap.caustic_radius): then printed, else said once. Where the global radius
+    was measured at the lookups (render.lookup_radius) the cap still comes from the
+    global photons' spacing (stats["radius_spacing"]), and is printed as such."""
     rc, rg = stats["radius_caustic"], stats.get("radius_global")
     same = bool(stats.get("global_photons") and rg and abs(rc - rg) <= 1e-9 * rg)
+    rs = stats.get("radius_spacing")
+    # The cap's base is the photons' spacing, not the (lookup-measured) global radius.
+    apart = bool(rs and rg and abs(rs - rg) > 1e-9 * rg)
     if settings.radius is not None:
         cap = ("the same search radius (set in the settings)" if same
                else f"search radius {rc:.4g} m (set in the settings)")
+    elif apart and stats.get("global_photons") and abs(rc - rs) <= 1e-9 * rs:
+        cap = f"{rc:.4g} m (the global photons' spacing)"
+    elif apart and stats.get("global_photons") and rc < rs:
+        cap = (f"{rc:.4g} m (the global photons' spacing, scaled down to their greater "
+               "number)")
     elif same:
         cap = "the global search radius (from the global photons' spacing)"
     elif stats.get("global_photons") and rg and rc < rg:

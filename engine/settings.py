@@ -102,8 +102,10 @@ class RenderSettings:
     # Radiance estimate
     estimator: str = "knn_simpson"  # knn_simpson | knn_cone | classic (paper) | radius
     radius: float | None = None     # max search radius (m): a k-NN estimate's cap; None = auto
-    # from the global photons' spacing (photonmap.auto_radius; the caustic map's cap:
-    # photonmap.caustic_radius, its k-NN radius follows the caustic photons' density)
+    # from the k-NN distance where the estimates are made (render.lookup_radius, camera_radius;
+    # without lookups the global photons' spacing: photonmap.auto_radius; the caustic map's
+    # cap: photonmap.caustic_radius of that spacing, its k-NN radius follows the caustic
+    # photons' density)
     min_photons: int = 8            # fewer photons found -> no estimate (paper)
     k_nearest: int = 64             # photons per k-NN estimate
     # The caustic map's k-NN lookups: "knn" (each lookup its own k-NN estimate) or

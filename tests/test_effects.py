@@ -495,6 +495,19 @@ def test_photon_map_line_says_the_caustic_radius_once_with_why():
                                       radius_caustic=0.05))[0]
     assert "500 caustic photons stored, each estimate from its 64 nearest" in alone, alone
     assert "at most 0.05 m (from their number over the diffuse area)" in alone, alone
+    # The global radius measured at the lookups (render.lookup_radius): the caustic cap
+    # still comes from the global photons' spacing, and says so (review44: it read "from
+    # their number over the diffuse area" or "the global radius, scaled down").
+    apart = photon_map_report(s, dict(global_photons=222_001, radius_global=0.18,
+                                      radius_spacing=0.0925, caustic_photons=116_301,
+                                      radius_caustic=0.0925))[0]
+    assert "search radius 0.18 m" in apart and "at most 0.0925 m (the global photons' " \
+        "spacing) where they are sparse" in apart, apart
+    scaled = photon_map_report(s, dict(global_photons=10_000, radius_global=0.3,
+                                       radius_spacing=0.2, caustic_photons=40_000,
+                                       radius_caustic=0.1))[0]
+    assert "at most 0.1 m (the global photons' spacing, scaled down to their greater " \
+        "number)" in scaled, scaled
     fixed = photon_map_report(RenderSettings(radius=0.3), dict(
         global_photons=100, radius_global=0.3, caustic_photons=50, radius_caustic=0.3))[0]
     assert "at most the same search radius (set in the settings)" in fixed, fixed
