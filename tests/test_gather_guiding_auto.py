@@ -104,7 +104,8 @@ def test_auto_lowers_the_patch_rooms_gather_noise_with_the_same_mean():
     pass's mean within 3 standard errors and its per-pixel spread over seeds below 0.8 of
     the cosine gather's (16 x 16, 8 spp, 5 seeds). Measured with the global search radius
     taken at the gather rays' ends (docs/accuracy.md "radius44": 0.29 m, twice the
-    photons' spacing here, so the guide's grids, one per 2-radius cube, are 8x fewer), seeds
+    photons' spacing here, so the guide's grids, one per 2-radius cube of the walls, are
+    3x fewer: 294 -> 96), seeds
     1-5 / 6-10 / 11-15 / 16-20: 0.72 / 0.68 / 0.73 / 0.71 (0.58 / 0.80 of the mean at
     seeds 1-5; the paired means 1.6 / 0.3 / 1.2 / 0.7 standard errors apart, of both
     signs); with the photons' spacing (the rule before) 0.62 / 0.61 / 0.66 / 0.59. Grids
