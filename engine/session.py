@@ -71,7 +71,8 @@ _MAP_FIELDS = ("global_map", "caustic_map", "gather_map", "secondary_map",
                "regather_maps", "regather_secondary", "gather_counts",
                "global_radius", "secondary_radius", "caustic_radius", "gather_short")
 _PHOTON_STATS = ("photons_emitted", "caustic_photons_emitted", "global_photons",
-                 "caustic_photons", "radius_global", "radius_caustic", "photon_bytes")
+                 "caustic_photons", "radius_global", "radius_caustic", "radius_spacing",
+                 "photon_bytes")
 
 
 @dataclass(frozen=True)
