@@ -959,8 +959,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # it 0.85-0.89: docs/accuracy.md volemit38).
     second_glow = glow is not None and level == 0 and not glow_only
     # Smooth glass whose turned-normal reflections the photons cannot carry
-    # (engine/turnedlight.py; None: none in this scene): chains that took one add the
-    # suns they escape into. turned_h: per hit row, whether its ray's chain took one.
+    # (engine/turnedlight.py; None: none in this scene): the chains cross it by Cycles'
+    # rule (no guard) and those that took one add the suns they escape into. turned_h:
+    # per hit row, whether its ray's chain took one.
     turned_refl = None if glow_only else TurnedReflections.for_context(ctx)
     if turned_refl is not None:
         turned_h = np.zeros(n, bool)
@@ -1026,7 +1027,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             bvh = _closest_bvh(ctx.accel, ray_cls)
             meet = coincident is not None and bool(near.any())
             esc = None
-            if turned_refl is not None and depth > 0:
+            if turned_refl is not None and depth > 0 and turned_refl.suns:
                 # The rays whose chain took a turned reflection, before the hits are
                 # compacted in place: those missing after it escaped.
                 tsel = np.nonzero(turned_h[idx])[0]
@@ -1118,7 +1119,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                                g_uv)
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
-            y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            y = surface_hit(ctx.geo, ctx.table, prim, u, v, d, unguarded=(
+                None if turned_refl is None else turned_refl.unguarded(ctx.geo, prim, u, v)))
             if level > 0 and depth == 0 and not glow_only:
                 Le = _linked_emission(ctx, y.emission, prim, hit.prim, idx)
                 if np.any(Le > 0):
@@ -1202,7 +1204,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
                     go_u=go_u[full])
                 keep = full[keep]
-            if turned_refl is not None:
+            if turned_refl is not None and turned_refl.suns:
                 turned_h[idx[keep]] = (turned_h[idx[keep]]
                                        | turned_refl.turned(y, keep, d_in[keep], d))
             if coincident is not None:

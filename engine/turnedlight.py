@@ -23,9 +23,17 @@ map as before: the turn is on the camera side of that lookup). Not served yet: t
 world's light and emitting surfaces or lamps met after a turned reflection (left out, as
 before); mirrors and rough glass (their photons are not the adjoint either).
 
+For the split to be exact the gather chains must cross such glass by Cycles' rule, the
+one the photons take the adjoint of: at those hits (bent more than the threshold) the
+shading normal keeps no guard (camerakernels.face_shading_normals replaces a normal that
+puts the viewer below it by Ng; Cycles turns it, and so does principled.glossy_normals
+when it is kept: unguarded). With the guard, a gather ray from a table meeting a glass's
+inner side from below (its normals lean up) reflected and refracted about the flat face:
+light that neither Cycles nor the photons have.
+
 Scenes without such glass (no SMOOTH_GLASS triangle whose corner normals bend more than
-the threshold, or no sun with a disc) get None from for_context: no work and the same
-bits as without this module.
+the threshold) get None from for_context: no work and the same bits as without this
+module; without a sun with a disc the chains are unguarded but add nothing.
 """
 from __future__ import annotations
 
@@ -48,16 +56,18 @@ class TurnedReflections:
     """The scene's smooth glass where gather chains may take turned reflections, and the
     suns they may then see. Built once per prepared geometry (for_context)."""
 
-    def __init__(self, glass_mat: np.ndarray, bend_cos: float, suns: list):
+    def __init__(self, glass_mat: np.ndarray, bend_cos: float, suns: list,
+                 glass_tri: np.ndarray = None):
         self.glass_mat = glass_mat  # (M,) bool: SMOOTH_GLASS material rows
         self.bend_cos = bend_cos    # cos of GLASS_ADJOINT_MIN_BEND_DEG
-        self.suns = suns            # [(light, ray_kinds)] suns with a disc (angle > 0)
+        self.suns = suns            # suns with a disc (angle > 0)
+        self.glass_tri = glass_tri  # (T,) bool: SMOOTH_GLASS triangles bent past it
 
     @classmethod
     def for_context(cls, ctx) -> "TurnedReflections | None":
-        """None unless ENABLED, a sun has a disc and some SMOOTH_GLASS triangle's corner
-        normals bend more than photonkernels.GLASS_ADJOINT_MIN_BEND_DEG from its face
-        (an interpolated normal bends no more than its corners)."""
+        """None unless ENABLED and some SMOOTH_GLASS triangle's corner normals bend
+        more than photonkernels.GLASS_ADJOINT_MIN_BEND_DEG from its face (an
+        interpolated normal bends no more than its corners)."""
         if not ENABLED:
             return None
         geo = ctx.geo
@@ -78,7 +88,7 @@ class TurnedReflections:
                 if hasattr(light, "seen_at_infinity") and getattr(light, "has_size", False)
                 and getattr(light, "cos_half_angle", 1.0) < 1.0]
         cn = np.asarray(getattr(ctx.geo, "corner_normals", np.zeros((0, 3, 3))))
-        if not suns or not len(cn) or getattr(ctx.geo, "instances", None) is not None:
+        if not len(cn) or getattr(ctx.geo, "instances", None) is not None:
             return None
         glass_mat = lobe_classes(np.asarray(ctx.table.closure_params)) == SMOOTH_GLASS
         tri = np.nonzero(glass_mat[np.asarray(ctx.geo.material)])[0]
@@ -89,9 +99,25 @@ class TurnedReflections:
         g = np.cross(e1, e2)
         g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
         c = np.abs(np.einsum("tkj,tj->tk", cn[tri].astype(np.float64), g))
-        if not (c < bend_cos).any():
+        bent = (c < bend_cos).any(axis=1)
+        if not bent.any():
             return None
-        return cls(glass_mat, bend_cos, suns)
+        glass_tri = np.zeros(len(cn), bool)
+        glass_tri[tri[bent]] = True
+        return cls(glass_mat, bend_cos, suns, glass_tri)
+
+    def unguarded(self, geo, prim, u, v) -> np.ndarray:
+        """(N,) bool: hits (triangles prim (N,), barycentrics u, v) on SMOOTH_GLASS whose
+        interpolated shading normal bends more than the threshold from the face (where the
+        photons take glassadjoint's rule): bsdf.surface_hit's unguarded rows."""
+        prim = np.asarray(prim, np.int64)
+        out = self.glass_tri[prim]
+        rows = np.flatnonzero(out)
+        if len(rows):
+            n = geo.shading_normals(prim[rows], np.asarray(u)[rows], np.asarray(v)[rows])
+            g = np.asarray(geo.ng[prim[rows]], np.float64)
+            out[rows] = np.abs(np.einsum("ij,ij->i", n, g)) < self.bend_cos
+        return out
 
     def turned(self, y, rows, d_in, d_out) -> np.ndarray:
         """(K,) bool: the continued rays (hits rows (K,) of SurfaceHit y, arriving along

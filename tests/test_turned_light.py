@@ -143,11 +143,30 @@ def _slab_context(bend_deg, sun_angle_deg=10.0):
 @pytest.mark.parametrize("bend_deg,expect", [(1.5, False), (5.0, False), (20.0, True)])
 def test_only_glass_bent_past_the_threshold_takes_part(bend_deg, expect, monkeypatch):
     """for_context is None (no work, the same bits) for glass bent no more than
-    GLASS_ADJOINT_MIN_BEND_DEG (a tessellated ball's few degrees), for a sun without a
-    disc, and with the module switched off."""
-    assert (turnedlight.TurnedReflections.for_context(_slab_context(bend_deg))
-            is not None) == expect
+    GLASS_ADJOINT_MIN_BEND_DEG (a tessellated ball's few degrees) and with the module
+    switched off; a sun without a disc is not among the suns escapes see. Hits on the
+    slab's bent top face are unguarded where their own normal bends past the threshold,
+    its flat faces never."""
+    ctx = _slab_context(bend_deg)
+    tr = turnedlight.TurnedReflections.for_context(ctx)
+    assert (tr is not None) == expect
     if expect:
-        assert turnedlight.TurnedReflections.for_context(_slab_context(bend_deg, 0.0)) is None
+        assert len(tr.suns) == 1
+        top = np.flatnonzero(tr.glass_tri)
+        assert len(top) == 2  # the top face's two triangles
+        prim = np.repeat(top, 50)
+        rng = np.random.default_rng(3)
+        u, v = rng.random((2, len(prim)))
+        flip = u + v > 1.0
+        u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+        n = ctx.geo.shading_normals(prim, u, v)
+        g = np.asarray(ctx.geo.ng[prim])
+        want = np.abs(np.einsum("ij,ij->i", n, g)) < tr.bend_cos
+        assert want.any() and not want.all()  # the pillow flattens towards its middle
+        np.testing.assert_array_equal(tr.unguarded(ctx.geo, prim, u, v), want)
+        flat = np.flatnonzero(~tr.glass_tri)[:4]
+        assert not tr.unguarded(ctx.geo, flat, u[:4], v[:4]).any()
+        no_disc = turnedlight.TurnedReflections.for_context(_slab_context(bend_deg, 0.0))
+        assert no_disc is not None and no_disc.suns == []
         monkeypatch.setattr(turnedlight, "ENABLED", False)
         assert turnedlight.TurnedReflections.for_context(_slab_context(bend_deg)) is None
