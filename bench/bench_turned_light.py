@@ -1,6 +1,7 @@
 """The sunlight final-gather chains find through Cycles' turned-normal glass reflections
 (engine/turnedlight.py, turnednormal44), on tests/blender/test_glass_of_water_cycles.py's
-scene: ours with the turned chains' light off (as before) and on, against Cycles.
+scene: ours with engine/turnedlight.py off (as before), each of its two parts alone and
+both (on), against Cycles.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_turned_light.py [--spp 4]
         [--photons 20000] [--caustic-photons 100000] [--seed 0] [--cycles-spp 1024]
@@ -28,6 +29,13 @@ addon.register()
 from engine import turnedlight  # noqa: E402
 from blender_helpers import cheap, cycles_plain  # noqa: E402
 from test_glass_of_water_cycles import _mean, _scene, _stored_means  # noqa: E402
+
+
+# turnedlight's switches (ENABLED, UNGUARD, ESCAPES) by column: off (as before), the
+# turned normal at the bent glass alone (escapes add nothing), the escapes alone (the
+# guard kept), both (the default).
+MODES = {"off": (False, True, True), "unguarded only": (True, True, False),
+         "escapes only": (True, False, True), "on": (True, True, True)}
 
 
 def _render(engine, shading, water, args, tmp, name):
@@ -66,31 +74,34 @@ def main():
             water = content == "water"
             for shading in args.shadings.split(","):
                 got = {}
-                for on in (False, True):
+                for mode, (on, unguard, escapes) in MODES.items():
                     turnedlight.ENABLED = on
+                    turnedlight.UNGUARD, turnedlight.ESCAPES = unguard, escapes
                     try:
-                        got[on] = _render("PHOTONMAP", shading, water, args, tmp,
-                                          f"{content}_{shading}_{int(on)}")
+                        got[mode] = _render("PHOTONMAP", shading, water, args, tmp,
+                                            f"{content}_{shading}_{mode}")
                     finally:
-                        turnedlight.ENABLED = True
+                        turnedlight.ENABLED = turnedlight.UNGUARD = True
+                        turnedlight.ESCAPES = True
                 if water and args.glossy == 4:
                     cyc = stored[shading]
                 else:
                     cyc = _render("CYCLES", shading, water, args, tmp,
                                   f"cycles_{content}_{shading}")[0]
-                rows.append((content, shading, got[False], got[True], cyc))
+                rows.append((content, shading, got, cyc))
     print(f"\nours {args.spp} spp, {args.photons} / {args.caustic_photons} photons, seed "
           f"{args.seed}, one thread; Cycles {args.cycles_spp} spp (stored 4096 for the "
           f"glass of water), Glossy {args.glossy}; load {os.getloadavg()[0]:.1f}\n")
-    print("| content | shading | off | on | Cycles | off / Cycles | on / Cycles | "
-          "share of the gap | CPU s off / on |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
-    for content, shading, off, on, cyc in rows:
+    print("| content | shading | Cycles | " + " | ".join(f"{m} / Cycles" for m in MODES)
+          + " | share of the gap (on) | CPU s off / on |")
+    print("|---|---|---:|" + "---:|" * (len(MODES) + 2))
+    for content, shading, got, cyc in rows:
+        off, on = got["off"], got["on"]
         gap = cyc - off[0]
         share = (on[0] - off[0]) / gap if abs(gap) > 1e-9 else float("nan")
         print(f"| {'glass of water' if content == 'water' else 'empty glass'} | {shading} | "
-              f"{off[0]:.4f} | {on[0]:.4f} | {cyc:.4f} | {off[0] / cyc:.4f} | "
-              f"{on[0] / cyc:.4f} | {share:.2f} | {off[1]:.1f} / {on[1]:.1f} |")
+              f"{cyc:.4f} | " + " | ".join(f"{got[m][0] / cyc:.4f}" for m in MODES)
+              + f" | {share:.2f} | {off[1]:.1f} / {on[1]:.1f} |")
 
 
 if __name__ == "__main__":

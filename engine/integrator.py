@@ -1027,7 +1027,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             bvh = _closest_bvh(ctx.accel, ray_cls)
             meet = coincident is not None and bool(near.any())
             esc = None
-            if turned_refl is not None and depth > 0 and turned_refl.suns:
+            if turned_refl is not None and depth > 0 and turned_refl.escapes:
                 # The rays whose chain took a turned reflection, before the hits are
                 # compacted in place: those missing after it escaped.
                 tsel = np.nonzero(turned_h[idx])[0]
@@ -1204,7 +1204,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
                     go_u=go_u[full])
                 keep = full[keep]
-            if turned_refl is not None and turned_refl.suns:
+            if turned_refl is not None and turned_refl.escapes:
                 turned_h[idx[keep]] = (turned_h[idx[keep]]
                                        | turned_refl.turned(y, keep, d_in[keep], d))
             if coincident is not None:

@@ -47,9 +47,13 @@ from .photonkernels import SMOOTH_GLASS, lobe_classes
 
 _LOCK = threading.Lock()
 _RISE = 0.01  # Cycles' height over the surface a mirror direction must keep (bsdf_util.h)
-# False: the gather chains add nothing at their escapes (as before; A/B runs:
-# bench/bench_turned_light.py).
+# False: neither part (the gather chains keep the guard and add nothing at their
+# escapes, as before). The two parts alone, for A/B runs (bench/bench_turned_light.py):
+# UNGUARD (Cycles' turned normal at the bent glass's hits) and ESCAPES (the suns the
+# turned chains escape into).
 ENABLED = True
+UNGUARD = True
+ESCAPES = True
 
 
 class TurnedReflections:
@@ -111,13 +115,18 @@ class TurnedReflections:
         interpolated shading normal bends more than the threshold from the face (where the
         photons take glassadjoint's rule): bsdf.surface_hit's unguarded rows."""
         prim = np.asarray(prim, np.int64)
-        out = self.glass_tri[prim]
+        out = self.glass_tri[prim] & UNGUARD
         rows = np.flatnonzero(out)
         if len(rows):
             n = geo.shading_normals(prim[rows], np.asarray(u)[rows], np.asarray(v)[rows])
             g = np.asarray(geo.ng[prim[rows]], np.float64)
             out[rows] = np.abs(np.einsum("ij,ij->i", n, g)) < self.bend_cos
         return out
+
+    @property
+    def escapes(self) -> bool:
+        """Whether the chains' escapes can see a sun here (ESCAPES and a sun's disc)."""
+        return ESCAPES and bool(self.suns)
 
     def turned(self, y, rows, d_in, d_out) -> np.ndarray:
         """(K,) bool: the continued rays (hits rows (K,) of SurfaceHit y, arriving along
