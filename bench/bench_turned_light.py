@@ -5,14 +5,15 @@ both (on), against Cycles.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_turned_light.py [--spp 4]
         [--photons 20000] [--caustic-photons 100000] [--seed 0] [--cycles-spp 1024]
-        [--glossy 4] [--shadings smooth,flat] [--contents water,empty]
+        [--glossy 4] [--angle 30] [--shadings smooth,flat] [--contents water,empty]
 
 Ours at the test's settings by default (4 spp, 20k / 100k photons, one thread), the
 image mean and CPU seconds of each render in one process; Cycles: the stored 4096-spp
 mean where the test stores one (the glass of water, Glossy 4: tests/references/
-glass_of_water.json), else rendered here at --cycles-spp (no clamp, no glossy blur, 12
-bounces, Glossy --glossy). "share of the gap" = (on - off) / (Cycles - off). Prints a
-Markdown table; docs/accuracy.md, turnednormal44, gives the numbers measured.
+glass_of_water.json; a 30-degree sun), else rendered here at --cycles-spp (no clamp, no
+glossy blur, 12 bounces, Glossy --glossy); --angle: the sun's disc (degrees). "share of
+the gap" = (on - off) / (Cycles - off). Prints a Markdown table; docs/accuracy.md,
+turnednormal44, gives the numbers measured.
 """
 import argparse
 import os
@@ -41,7 +42,7 @@ MODES = {"off": (False, True, True), "unguarded only": (True, True, False),
 def _render(engine, shading, water, args, tmp, name):
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
-    _scene(bpy, scene, shading, water=water)
+    _scene(bpy, scene, shading, sun_angle=args.angle, water=water)
     if engine == "CYCLES":
         cycles_plain(scene, args.cycles_spp, 12)
     else:
@@ -63,6 +64,7 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--cycles-spp", type=int, default=1024)
     ap.add_argument("--glossy", type=int, default=4)
+    ap.add_argument("--angle", type=float, default=30.0)
     ap.add_argument("--shadings", default="smooth,flat")
     ap.add_argument("--contents", default="water,empty")
     args = ap.parse_args()
@@ -83,7 +85,7 @@ def main():
                     finally:
                         turnedlight.ENABLED = turnedlight.UNGUARD = True
                         turnedlight.ESCAPES = True
-                if water and args.glossy == 4:
+                if water and args.glossy == 4 and args.angle == 30.0:
                     cyc = stored[shading]
                 else:
                     cyc = _render("CYCLES", shading, water, args, tmp,
