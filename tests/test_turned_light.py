@@ -11,19 +11,7 @@ from engine import glassadjoint as ga
 from engine import photonkernels as pk
 from engine import turnedlight
 from engine.closures import principled as pr
-
-IOR = 1.5
-F0 = ((IOR - 1.0) / (IOR + 1.0)) ** 2
-
-
-def _gprm(eta):
-    """A white smooth glass hit's packed columns, eta = eta_to / eta_from of the photon."""
-    g = np.zeros((1, pr.N_PACK))
-    g[0, pr.P_GLASS_ETA] = eta
-    g[0, pr.P_GLASS_RW:pr.P_GLASS_RW + 3] = 1.0
-    g[0, pr.P_GLASS_TW:pr.P_GLASS_TW + 3] = 1.0
-    g[0, pr.P_GLASS_F0:pr.P_GLASS_F0 + 3] = F0
-    return g
+from test_glass_adjoint import IOR, _gprm
 
 
 def _unit(rng, z_lo, z_hi):
