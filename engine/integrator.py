@@ -1078,8 +1078,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 missed = np.flatnonzero(~np.isin(esc[0], idx))
                 if len(missed):
                     rows = esc[0][missed]
+                    bent = cnt[rows] if cnt is not None else np.zeros((len(rows), 4),
+                                                                      np.int64)
                     within = chaincounts.within(chaincounts.camera_counts(
-                        cnt[rows], (level + 1, level + 1, 0, 0)), lim)
+                        bent, (level + 1, level + 1, 0, 0)), lim)
                     rows, missed = rows[within], missed[within]
                     Lt = turned_refl.escaped(esc[1][missed], esc[3][missed])
                     np.add.at(E, rows, esc[2][missed] * (math.pi / G) * Lt)

@@ -21,7 +21,9 @@ every other escaping chain adds nothing, as before (the photons carry its light)
 chain's lookup ends are untouched (a diffuse surface after a turned reflection reads the
 map as before: the turn is on the camera side of that lookup). Not served yet: the
 world's light and emitting surfaces or lamps met after a turned reflection (left out, as
-before); mirrors and rough glass (their photons are not the adjoint either).
+before); mirrors and rough glass (their photons are not the adjoint either); a world
+volume's attenuation of the escaping ray and light linking of the sun (the sun's disc
+is added as seen).
 
 For the split to be exact the gather chains must cross such glass by Cycles' rule, the
 one the photons take the adjoint of: at those hits (bent more than the threshold) the
