@@ -157,13 +157,15 @@ def _offset_floor(geo: Geometry, prim, p, ng, offset):
 
 
 def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
-                material=None) -> SurfaceHit:
+                material=None, unguarded=None) -> SurfaceHit:
     """Surface data at N ray hits: triangles prim (N,), barycentrics u, v (N,) of corners
     1 and 2, ray directions d (N,3). Positions, normals, material, base colour and the
     ray-origin offset come from one compiled pass (camerakernels.hit_geometry); normal
     maps, colour textures and alpha textures are applied after it, per material.
     material (N,): each hit's material row where it is not its triangle's (the ray
-    class's Light Path variant: engine/raymaterials.path_materials); None: the triangles'."""
+    class's Light Path variant: engine/raymaterials.path_materials); None: the triangles'.
+    unguarded (N,) bool: rows whose shading normal is kept where it puts the viewer below
+    the surface (no guard; engine/turnedlight.py: smooth glass Cycles turns); None: none."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
     p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
@@ -191,7 +193,10 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
     # Shading normals turned to the ray's side; the geometric normal where they would put
     # the viewer below the surface, except normals a Normal Map / Bump node bent: Cycles
     # keeps those (its bump shadowing term, engine/normalmap.py, handles the light side).
-    face_shading_normals(ns, ng, front, d, bent if bent is not None else np.zeros(n, np.bool_))
+    exempt = bent if bent is not None else np.zeros(n, np.bool_)
+    if unguarded is not None:
+        exempt = exempt | unguarded
+    face_shading_normals(ns, ng, front, d, exempt)
     if bent is not None:
         sign = np.where(front, 1.0, -1.0)[:, None]
         n_smooth = np.where(bent[:, None], n_smooth * sign, ns)

@@ -43,6 +43,7 @@ from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embr
 from .anisotropy import anisotropic_materials, set_hit_tangents
 from .closures import principled as pr
 from .coincident import CoincidentSurfaces
+from .turnedlight import TurnedReflections
 from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -957,6 +958,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # without it a box glowing in a white corner left the walls at 0.64 of Cycles, with
     # it 0.85-0.89: docs/accuracy.md volemit38).
     second_glow = glow is not None and level == 0 and not glow_only
+    # Smooth glass whose turned-normal reflections the photons cannot carry
+    # (engine/turnedlight.py; None: none in this scene): the chains cross it by Cycles'
+    # rule (no guard) and those that took one add the suns they escape into. turned_h:
+    # per hit row, whether its ray's chain took one.
+    turned_refl = None if glow_only else TurnedReflections.for_context(ctx)
+    if turned_refl is not None:
+        turned_h = np.zeros(n, bool)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -989,6 +997,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
             buf.tp_ones = 0
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
+        if turned_refl is not None:
+            turned_h[:] = False
         if medium_h is not None:
             # From the gathering surface: the medium its camera path was in (a floor
             # inside a fog cube; not its own medium's surface), else not known.
@@ -1016,6 +1026,14 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             tp = c(tp, np.float64)
             bvh = _closest_bvh(ctx.accel, ray_cls)
             meet = coincident is not None and bool(near.any())
+            esc = None
+            if turned_refl is not None and depth > 0 and turned_refl.escapes:
+                # The rays whose chain took a turned reflection, before the hits are
+                # compacted in place: those missing after it escaped.
+                tsel = np.nonzero(turned_h[idx])[0]
+                if len(tsel):
+                    esc = (idx[tsel], np.take(d, tsel, axis=0), np.take(tp, tsel, axis=0),
+                           np.take(np.broadcast_to(ray_cls, (len(idx),)), tsel))
             glass_from = coincident is not None and not meet and bool(inside.any())
             if glass_from:
                 # (idx is compacted in place below: the rays' origins by hit row)
@@ -1053,6 +1071,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 o, d, tp, idx, prim, u, v, t = (a[:m] for a in (o, d, tp, idx, prim, u, v, t))
                 if per_ray:
                     ray_cls = cls[:m]
+            if esc is not None:
+                # (the rays missing from the compacted hits escaped; a turned reflection
+                # was bent, so cnt holds their chains' counts: those past a Light Paths
+                # limit see nothing, as their lookups would read nothing)
+                missed = np.flatnonzero(~np.isin(esc[0], idx))
+                if len(missed):
+                    rows = esc[0][missed]
+                    bent = cnt[rows] if cnt is not None else np.zeros((len(rows), 4),
+                                                                      np.int64)
+                    within = chaincounts.within(chaincounts.camera_counts(
+                        bent, (level + 1, level + 1, 0, 0)), lim)
+                    rows, missed = rows[within], missed[within]
+                    Lt = turned_refl.escaped(esc[1][missed], esc[3][missed])
+                    np.add.at(E, rows, esc[2][missed] * (math.pi / G) * Lt)
             if m == 0:
                 break
             if glass_from:
@@ -1089,7 +1121,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                                g_uv)
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
-            y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            y = surface_hit(ctx.geo, ctx.table, prim, u, v, d, unguarded=(
+                None if turned_refl is None else turned_refl.unguarded(ctx.geo, prim, u, v)))
             if level > 0 and depth == 0 and not glow_only:
                 Le = _linked_emission(ctx, y.emission, prim, hit.prim, idx)
                 if np.any(Le > 0):
@@ -1173,6 +1206,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
                     go_u=go_u[full])
                 keep = full[keep]
+            if turned_refl is not None and turned_refl.escapes:
+                turned_h[idx[keep]] = (turned_h[idx[keep]]
+                                       | turned_refl.turned(y, keep, d_in[keep], d))
             if coincident is not None:
                 org_p = np.take(y.p, keep, axis=0)
                 org_prim = np.take(prim, keep)
