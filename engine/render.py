@@ -19,7 +19,7 @@ from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_view
 from . import integrator as _integrator
-from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
+from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons, smooth_per_pixel
 from .jit import ensure_compiled
 from .lightlinking import links_for
 from .lights import allocate_photons, prepare_lights
@@ -43,7 +43,7 @@ from .stagespans import StageSpans
 from .heterogeneous import HeterogeneousMedia
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
-from .visualimportance import glow_share, indirect_share
+from .visualimportance import glow_share, indirect_share, secondary_share
 from .volumeemission import glows
 
 
@@ -82,6 +82,10 @@ class Context:
     # Final-gather rays per camera sample of the camera pass (0: settings.gather_rays),
     # chosen after the photon pass (gather_count)
     gather_rays: int = 0
+    # Samples a pixel taking the glow-only caustic map's and the secondary map's estimates
+    # (0: integrator's constants), chosen after the photon pass (smooth_counts)
+    glow_per_pixel: int = 0
+    secondary_per_pixel: int = 0
     packed_lights: tuple | None = None  # lights as the direct-light kernels read them
     shadow: ShadowTransmittance | None = None  # transparent shadows (None: none in the scene)
     # Light trees for many lights (engine/lights/selection.py selector_for), built on use.
@@ -266,7 +270,7 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     ctx.regather_maps = ctx.regather_secondary = ()
     ctx.gather_counts = None
-    ctx.gather_rays = 0
+    ctx.gather_rays = ctx.glow_per_pixel = ctx.secondary_per_pixel = 0
     s = ctx.settings
     shot = ()
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
@@ -829,6 +833,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     elif guide_skipped:
         # (auto at a share too small for any grid to pay: guiding.can_guide; not built)
         stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
+    smooth_counts(ctx, shot, stats)
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_photon_hit_view), always filled.
@@ -858,6 +863,27 @@ def gather_count(most: int, share: float | None) -> int:
 
 
 _NOT_MEASURED = object()  # (_photon_maps: the share not measured while the maps were built)
+
+
+def smooth_counts(ctx, shot, stats) -> None:
+    """Samples a pixel for the smooth estimates of a glow-only caustic map and of the
+    secondary map, from their rms shares of the light the camera sees
+    (integrator.smooth_per_pixel; visualimportance.glow_share, the glow shot's if it was
+    measured, and secondary_share, ~0.02 s each, on this thread: the same for any
+    worker count): ctx.glow_per_pixel, ctx.secondary_per_pixel and their stats."""
+    from .integrator import GLOW_SAMPLES_PER_PIXEL, SECONDARY_SAMPLES_PER_PIXEL
+    radius = ctx.settings.radius or ctx.global_radius
+    if not (len(shot) and radius > 0):
+        return
+    if ctx.plan.caustics_glow_only and ctx.caustic_map is not None and len(ctx.caustic_map):
+        if "glow_share" not in stats:
+            stats["glow_share"] = glow_share(ctx, shot, radius)
+        ctx.glow_per_pixel = smooth_per_pixel(GLOW_SAMPLES_PER_PIXEL, stats["glow_share"])
+        stats["glow_per_pixel"] = ctx.glow_per_pixel
+    if ctx.secondary_map is not None and len(ctx.secondary_map):
+        stats["secondary_share"] = share = secondary_share(ctx, shot, radius)
+        ctx.secondary_per_pixel = smooth_per_pixel(SECONDARY_SAMPLES_PER_PIXEL, share)
+        stats["secondary_per_pixel"] = ctx.secondary_per_pixel
 
 
 def share_counts(ctx) -> bool:
