@@ -698,9 +698,10 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     emitters = counts = g_emitters = g_counts = pre_radius = None
     if global_shot:
         # (n: settings.photons, fewer where a pilot finds the indirect share small)
-        n = global_photon_count(ctx, stats, should_cancel)
+        memo = {}  # (the pilot's region of interest: the same camera pre-pass)
+        n = global_photon_count(ctx, stats, should_cancel, memo)
         sctx = ctx if n == s.photons else replace(ctx, settings=replace(s, photons=n))
-        emitters, counts = global_emitters(sctx, photon_counts(ctx, n), stats)
+        emitters, counts = global_emitters(sctx, photon_counts(ctx, n), stats, memo)
         ctx.importance_region = sctx.importance_region
         glow_from_global = split is not None or (plan.caustics and not use_caustic_shot)
         if GLOW_SHOT and glow_from_global and _importance_aimed(emitters):
@@ -1350,10 +1351,14 @@ def _caustic_radius_words(settings: RenderSettings, stats: dict, held: str) -> s
 # noise is most of it: a world-lit yard at 2.9 % read relMSE 0.0019 with 400k and 200k
 # photons (its indirect pass 8 -> 9 % of the seeds' variance) in 30 % less CPU. The
 # floor bounds the estimates' blur (the radius grows as 1 / sqrt(photons): 1.41x at
-# half); PHOTONS_SHARE_FULL 0: always settings.photons, no pilot (A/B benches).
+# half); PHOTONS_SHARE_FULL 0: always settings.photons, no pilot (A/B benches). Only
+# with a light at infinity (a world, a sun: open scenes, whose direct light is most of
+# what the camera sees): the pilot costs 0.1-0.15 CPU s (its region of interest, radius
+# and share), which rooms lit by lamps alone (the example boxes: shares 13-41 %) would
+# pay for nothing.
 PHOTONS_SHARE_FULL = GATHER_SHARE_FULL
 PHOTONS_LEAST = 0.5
-PILOT_FRACTION = 1.0 / 16.0
+PILOT_FRACTION = 1.0 / 32.0
 PILOT_STREAM = 4  # trace_photons' random stream of the pilot (global 1, caustic 2, glow 3)
 
 
@@ -1368,19 +1373,23 @@ def photons_for_share(most: int, share: float | None) -> int:
                              math.ceil(most * share / PHOTONS_SHARE_FULL))))
 
 
-def global_photon_count(ctx: Context, stats: dict, should_cancel=None) -> int:
+def global_photon_count(ctx: Context, stats: dict, should_cancel=None,
+                        memo: dict | None = None) -> int:
     """The global shot's photon total: settings.photons, or photons_for_share of a pilot
     shot's indirect share where the share decides the gather rays (final gathering,
     share_counts) and the photons are the renderer's to size (not the paper's method,
-    no photons per light); stats get pilot_photons and pilot_share."""
+    no photons per light), in a scene with a light at infinity (PHOTONS_SHARE_FULL's
+    comment); stats get pilot_photons and pilot_share; memo: global_emitters' (the
+    pilot's region of interest, for the shot's)."""
     s = ctx.settings
     if not (PHOTONS_SHARE_FULL > 0 and s.photons > 0 and ctx.plan.indirect
+            and any(isinstance(light, InfiniteLight) for light in ctx.lights)
             and s.final_gather and not s.paper_mode
             and not getattr(ctx.scene, "photons_per_light", None) and share_counts(ctx)):
         return s.photons
     n = max(1, int(s.photons * PILOT_FRACTION))
     sub = replace(ctx, settings=replace(s, photons=n))
-    emitters, counts = global_emitters(sub, photon_counts(sub, n), {})
+    emitters, counts = global_emitters(sub, photon_counts(sub, n), {}, memo)
     pilot = trace_photons(sub, emitters, counts, caustic_only=False, stream=PILOT_STREAM,
                           should_cancel=should_cancel)
     if not len(pilot):
@@ -1405,7 +1414,7 @@ def photon_counts(ctx: Context, total: int) -> list[int]:
     return [fixed[li.name] if o else next(shared) for li, o in zip(ctx.lights, own)]
 
 
-def global_emitters(ctx: Context, counts: list[int], stats: dict):
+def global_emitters(ctx: Context, counts: list[int], stats: dict, memo: dict | None = None):
     """The global shot's emitters and photon counts: with visual importance
     (engine/visualimportance.py) the photons go where the camera's gather rays end; else
     ctx.lights with `counts`. Off for the paper's method (its photons are the paper's:
@@ -1413,7 +1422,9 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
     where the global map serves no indirect light, and without final gathering (the map
     is then read at camera hits, where its light has mostly bounced in from elsewhere:
     aiming the photons' first hits there starves it). stats gets the decision
-    (photon_importance: one line)."""
+    (photon_importance: one line). memo: a dict that keeps the region of interest
+    (visualimportance.region_of_interest: a camera pre-pass) for the next call of the
+    same pass (global_photon_count's pilot, then the shot), or None."""
     s = ctx.settings
     if not (s.photon_importance and ctx.plan.indirect and s.final_gather
             and not s.paper_mode and not getattr(ctx.scene, "photons_per_light", None)):
@@ -1427,7 +1438,11 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
             return emitters, counts
         return ctx.lights, counts
     from .visualimportance import plan_global_shot, region_of_interest
-    region = region_of_interest(ctx)
+    if memo is None or "region" not in memo:
+        region = region_of_interest(ctx)
+        if memo is not None:
+            memo["region"] = region
+    region = memo["region"] if memo is not None else region
     shot = plan_global_shot(ctx, ctx.lights, s.photons, counts, region)
     stats["photon_importance"] = shot.report
     # Photons from infinity (a world, a sun) fall evenly on every open surface to its far

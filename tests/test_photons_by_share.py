@@ -4,7 +4,8 @@ render.PHOTONS_SHARE_FULL the shot is settings.photons x share / PHOTONS_SHARE_F
 never under PHOTONS_LEAST of it (render.photons_for_share). Checked: the count's bounds
 and monotony; a sunlit lawn (share ~1-2 %) shoots PHOTONS_LEAST of its photons and keeps
 its Indirect pass's mean; a wall lit by its ground (share ~20 %) keeps every photon and
-its film bit for bit (the pilot's own random stream touches nothing else)."""
+its film bit for bit (the pilot's own random stream touches nothing else); a lamp-lit
+scene runs no pilot."""
 import importlib
 import math
 
@@ -68,3 +69,20 @@ def test_a_large_share_keeps_every_photon_and_the_film(monkeypatch):
     assert "pilot_share" not in plain.stats
     for k in ("direct", "indirect", "caustic", "specular"):
         np.testing.assert_array_equal(getattr(piloted, k), getattr(plain, k))
+
+
+def test_no_pilot_without_a_light_at_infinity():
+    """A lamp-lit scene (no world, no sun) shoots settings.photons without a pilot (the
+    pilot's cost is spared where rooms lit by lamps have large shares)."""
+    from engine.api import PaperScene
+    from engine.scene import Material
+    s = PaperScene(width=16, height=12, background=(0.0, 0.0, 0.0))
+    s.add_material(Material("grey", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), size=10.0, material="grey", name="ground")
+    s.add_box((0, 0, 0.5), (1.0, 1.0, 1.0), "grey", name="box")
+    s.add_point_light((1.0, -1.0, 3.0), power=500.0)
+    s.set_camera((2.5, -4.0, 3.0), (0, 0, 0.4), view_angle=45)
+    film = s.render(RenderSettings(photons=5_000, caustic_photons=0, spp=1, seed=1,
+                                   workers=1))
+    assert film.stats["indirect_share"] < render_mod.PHOTONS_SHARE_FULL  # (small, yet)
+    assert "pilot_share" not in film.stats and film.stats["photons_emitted"] == 5_000
