@@ -9,7 +9,7 @@ Shader of those (a Mix of two opaque surfaces whose parameters do not blend line
 a dielectric and a metal, takes one side per hit with the factor's probability, as Cycles'
 closure sampling; Add sums the closures: their even mix at closure weight 2, exact for
 Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
-transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
+transparent shares of an Add add up too, as Cycles sums them), an Image Texture (its Extension,
 Interpolation, UDIM tiles), a Color Attribute or Attribute node (a mesh attribute by
 name), an RGB / Value node, or a tree of the
 colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp,
@@ -237,6 +237,34 @@ def _alpha_mix(sn, wa, a: Closure, wb, b: Closure):
         else:
             terms.append(sn.Math("MULTIPLY", c.alpha_texture, w * c.alpha))
     return 1.0, sn.Math("ADD", terms[0], terms[1], clamp=True)
+
+
+def _summed_transparency(a: Closure, b: Closure, ea: float, eb: float, out: Closure):
+    """(3,) transparent tint of `out`, the blend of a and b at closure weight wa + wb
+    (MaterialConverter._weighted_sum), whose pass lobe must transmit
+    T = ea (1 - alpha_a) tint_a + eb (1 - alpha_b) tint_b: Cycles sums the Transparent
+    BSDFs' weights as it sums every closure (bsdf_transparent_setup adds each one's to
+    closure_transparent_extinction, which shadow rays take unclamped and camera rays
+    sample by its share of the summed sample weights). The blend's pass lobe transmits
+    (1 - alpha_out) x tint, so tint = T / (1 - alpha_out): above 1 where the surface
+    takes a share beside a whole pass (Add of a white Transparent and a Diffuse BSDF:
+    alpha 1/2, tint 2, closure weight 2, which transmits 1 and reflects 1 as in Cycles;
+    the average transmitted 1/2, 0.38-0.84 x Cycles on a sphere in a grey world).
+    With an alpha texture alpha_out varies per hit: exact where both sides have one
+    closure weight and one tint (or one side is opaque), T / (1 - alpha_out) being the
+    tint x (ea + eb) then; None otherwise (the caller warns and keeps the average)."""
+    if a.alpha_texture is None and b.alpha_texture is None:
+        if out.alpha >= 1.0:
+            return out.transparent_tint
+        t = (ea * (1.0 - a.alpha) * a.transparent_tint
+             + eb * (1.0 - b.alpha) * b.transparent_tint)
+        return t / (1.0 - out.alpha)
+    if a.weight != b.weight:
+        return None
+    clear = [c for c in (a, b) if c.alpha < 1.0 or c.alpha_texture is not None]
+    if len(clear) == 2 and not np.allclose(a.transparent_tint, b.transparent_tint):
+        return None
+    return clear[0].transparent_tint * (ea + eb)
 
 
 def _weighted(sn, wa, xa, wb, xb):
@@ -1562,8 +1590,9 @@ class MaterialConverter:
         either side keeps its own weight (exact where _blend is: equal or complementary
         lobes, e.g. Diffuse + Diffuse, Diffuse + Glossy); unlike opaque surfaces
         (_blend_inexact) pick one side per hit, b with probability wb / (wa + wb), at that
-        weight (_mix_per_hit); emission ea x a's + eb x b's.
-        The transparent shares (alpha < 1) are averaged by wa : wb, not added up (warned)."""
+        weight (_mix_per_hit); emission ea x a's + eb x b's, and the transparent shares
+        (alpha < 1) ea x a's + eb x b's too (_summed_transparency; averaged and warned
+        where an alpha texture makes their ratio vary per hit)."""
         sn = self.pm.shadernodes
         total = wa + wb
         if (total > 0 and 0 < wb < total and self._opaque(a) and self._opaque(b)
@@ -1584,9 +1613,15 @@ class MaterialConverter:
             out.weight = total * out.weight  # (an emission-only side's share: _blend)
         out.emission, out.emission_texture = _emission_mix(sn, ea, a, eb, b)
         if not all(c.alpha == 1.0 and c.alpha_texture is None for c in (a, b)):
-            self._warn(f"material '{self._mat.name}': {node.type.replace('_', ' ').title()} "
-                       f"'{node.name}' of surfaces with a transparent share: the surfaces "
-                       "add up, their transparent shares are averaged")
+            tint = _summed_transparency(a, b, ea, eb, out)
+            if tint is None:
+                self._warn(f"material '{self._mat.name}': "
+                           f"{node.type.replace('_', ' ').title()} '{node.name}' of surfaces "
+                           "with a transparent share, an alpha texture on one and another "
+                           "colour or closure weight on the other: the surfaces add up, "
+                           "their transparent shares are averaged")
+            else:
+                out.transparent_tint = tint
         return out
 
     # Lobe parameters that a per-hit Mix Shader factor blends linearly.

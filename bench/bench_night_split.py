@@ -94,6 +94,7 @@ def render_ours(args):
     kw.update(_pairs(args.set))
     patches = {tuple(k.split(".")): v for k, v in _pairs(args.const)}
     film, cpu, _ = BI.render_film(pm_scene, kw, patches)
+    print(f"ours: global search radius {film.stats.get('radius_global', float('nan')):.4f} m")
     means = {n: float(getattr(film, n).mean()) for n in
              ("direct", "indirect", "caustic", "specular", "emission")}
     return film.combined.astype(np.float64), cpu, means

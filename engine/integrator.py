@@ -32,8 +32,8 @@ from . import (adaptive, aopass, chaincounts, datapasses, heterogeneous, lightpa
                photonvisibility, raymaterials, sampleclamp, shadelight, subsurfacewalk,
                volumeemission,
                vectorpass, volumescatter, volumewalk, worldmedium)
-from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
-                   surface_hit, surface_hit_lobes)
+from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, _hit_alpha, closures, lobe_weights,
+                   plain_surfaces, surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_normals, gather_rays, keep_path_hits,
                             mirror_survival, pick_lobes, shade_lobes)
@@ -1557,6 +1557,30 @@ def lobe_choice(albedo, tp):
     choose_lobes(np.ascontiguousarray(albedo, np.float64), np.ascontiguousarray(tp, np.float64),
                  sel, q, p, psum)
     return sel, q, p, psum
+
+
+def passes_past_limit(table, hit, over, d, tp, ray_cls):
+    """The transparent passes of camera-chain hits past a bounce limit (over (N,) bool):
+    Cycles sets up only the Transparent BSDF on a path flagged
+    PATH_RAY_TERMINATE_AFTER_TRANSPARENT (bsdf_transparent_setup: num_closure_left 1) and
+    samples it with probability 1, so such a path still goes on through see-through
+    surfaces, unbent, with its throughput x the transparency (1 - alpha) x tint, and
+    collects the light beyond (a glossy surface inside a transparent sphere: the
+    reflected ray's light through the sphere's near side was lost, 0.86 x Cycles at Max
+    Bounces 0; docs/design.md, Bounce limits). Returns (rows, origins (K,3), directions
+    (K,3), throughput (K,3), ray class (K,), pdf (K,) inf) of the hits with a pass share,
+    d (N,3), tp (N,3) and ray_cls (N,) being the incoming rays'."""
+    rows = np.flatnonzero(over)
+    params = hit.params if hit.params is not None else table.closure_params
+    at = rows if hit.params is not None else np.take(hit.mat, rows)
+    a = np.take(_hit_alpha(table, hit), rows)
+    w = (1.0 - a)[:, None] * params[at, pr.M_TTINT:pr.M_TTINT + 3]
+    ok = (w > 0).any(axis=1)
+    rows, w = rows[ok], w[ok]
+    dk = np.ascontiguousarray(np.take(d, rows, axis=0), np.float64)
+    cls = np.broadcast_to(np.asarray(ray_cls, np.int64), (len(over),))
+    return (rows, hit.clear(rows, dk), dk, np.take(tp, rows, axis=0) * w,
+            np.take(cls, rows), np.full(len(rows), np.inf))
 
 
 def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
@@ -3175,6 +3199,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng)
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
         d_in, pdf_in = d, pdf_b
+        tp_in, cls_in = tp, ray_cls
         cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,
                                  uv=uv, split=None if may_split is None else may_split > 0)
         keep, o, d, tp, ray_cls, pdf_b = cont[:6]
@@ -3185,6 +3210,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                               pdf_b))
             if may_split is not None:
                 cont = cont[:6] + (cont[6][go],)
+            # But it passes a transparent share, unbent (Cycles' TERMINATE_AFTER_TRANSPARENT).
+            extra = passes_past_limit(ctx.table, hit, over, d_in, tp_in, cls_in)
+            if len(extra[0]):
+                keep, o, d, tp, ray_cls, pdf_b = (
+                    np.concatenate((a, b)) for a, b in zip((keep, o, d, tp, ray_cls, pdf_b),
+                                                           extra))
+                if may_split is not None:
+                    cont = cont[:6] + (np.concatenate((cont[6],
+                                                       np.zeros(len(extra[0]), bool))),)
         if medium is not None:
             # Refracted or passed into a medium, or out of it (engine/media.py): out of
             # an object's medium into the world volume's, if any.

@@ -31,6 +31,7 @@ import numpy as np
 
 from .closures import principled as pr
 from .closures import ggx, tables
+from . import glassadjoint as ga
 from .closures.fresnel import F0_from_ior, schlick_remap
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .jit import kernel, register_warm_up
@@ -207,17 +208,8 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         gx, gy, gz = gx * sign, gy * sign, gz * sign
         sx, sy, sz = gx, gy, gz
         if smooth:
-            b0 = 1.0 - b1 - b2
-            nx = (b0 * corner_normals[t, 0, 0] + b1 * corner_normals[t, 1, 0]
-                  + b2 * corner_normals[t, 2, 0])
-            ny = (b0 * corner_normals[t, 0, 1] + b1 * corner_normals[t, 1, 1]
-                  + b2 * corner_normals[t, 2, 1])
-            nz = (b0 * corner_normals[t, 0, 2] + b1 * corner_normals[t, 1, 2]
-                  + b2 * corner_normals[t, 2, 2])
-            nl = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
-            nx, ny, nz = nx / nl, ny / nl, nz / nl
-            s = abs(nx) + abs(ny) + abs(nz)
-            if math.isfinite(s) and s >= 0.5:
+            valid, nx, ny, nz = _interpolated_normal(corner_normals, t, b1, b2)
+            if valid:
                 sx, sy, sz = nx * sign, ny * sign, nz * sign
         # Veach's guard: a shading normal that puts the viewer below the surface.
         if -(dx * sx + dy * sy + dz * sz) <= 1e-6:
@@ -234,6 +226,38 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
         ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
         offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz, tl)
+
+
+@kernel
+def _interpolated_normal(corner_normals, t, b1, b2):
+    """(valid, unit normal) of triangle row t's corner normals (T,3,3) interpolated at
+    barycentrics b1, b2, on its winding's side; valid False for a degenerate or
+    non-finite one (the geometric normal is used instead)."""
+    b0 = 1.0 - b1 - b2
+    nx = (b0 * corner_normals[t, 0, 0] + b1 * corner_normals[t, 1, 0]
+          + b2 * corner_normals[t, 2, 0])
+    ny = (b0 * corner_normals[t, 0, 1] + b1 * corner_normals[t, 1, 1]
+          + b2 * corner_normals[t, 2, 1])
+    nz = (b0 * corner_normals[t, 0, 2] + b1 * corner_normals[t, 1, 2]
+          + b2 * corner_normals[t, 2, 2])
+    nl = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
+    nx, ny, nz = nx / nl, ny / nl, nz / nl
+    s = abs(nx) + abs(ny) + abs(nz)
+    return math.isfinite(s) and s >= 0.5, nx, ny, nz
+
+
+@kernel
+def _glass_normal(corner_normals, t, b1, b2, front, gx, gy, gz, nx, ny, nz):
+    """The shading normal Cycles' glass closure starts from at a photon's hit (on the
+    arrival side g): the hit's n, or, where photon_surfaces' guard replaced it by g (the
+    photon arrives below it), the interpolated one again (Cycles has no such guard:
+    glassadjoint takes those arrivals). Returns the unit normal (3 floats)."""
+    if nx == gx and ny == gy and nz == gz and corner_normals.shape[0] > 0:
+        valid, sx, sy, sz = _interpolated_normal(corner_normals, t, b1, b2)
+        if valid:
+            sign = 1.0 if front else -1.0
+            return sx * sign, sy * sign, sz * sign
+    return nx, ny, nz
 
 
 @kernel
@@ -429,7 +453,29 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
                 + args[_PLAIN_ARG + 1:])
-    return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri)
+    if GLASS_ADJOINT_MODE == GLASS_ADJOINT_EVERY_BENT:
+        bend_cos = _FLAT_NORMAL_COS
+    else:
+        bend_cos = math.cos(math.radians(GLASS_ADJOINT_MIN_BEND_DEG))
+    return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
+                    GLASS_ADJOINT_MODE, bend_cos)
+
+
+# How scatter sends photons at smooth glass with a bent shading normal.
+# GLASS_ADJOINT_WHERE_TURNED (the default): where the normal is bent more than
+# GLASS_ADJOINT_MIN_BEND_DEG from the face, by engine/glassadjoint.py (the adjoint of
+# Cycles' per-direction turned normal: its flux ratio |w.Ng| / |s.Ng|, and the root
+# search for turned-normal refractions only where glassadjoint.turn_possible); at
+# smaller bends by the glass lobe's own sample about the shading normal (main's bits:
+# there Cycles turns the normal only for arrivals within ~3 bends of grazing or of the
+# critical angle and the flux ratio is 1 + O(bend), no change an image shows:
+# docs/accuracy.md, smoothglass44; a UV sphere of 32 segments bends its normals up to
+# ~5.3 degrees). The other two are diagnostics for A/B runs in one process
+# (bench/bench_accuracy_ab.py's @photonkernels.GLASS_ADJOINT_MODE=...; tests): never, or
+# with the root search at every hit bent more than ~0.1 degree (smoothglass43's rule).
+GLASS_ADJOINT_NEVER, GLASS_ADJOINT_EVERY_BENT, GLASS_ADJOINT_WHERE_TURNED = 0, 1, 2
+GLASS_ADJOINT_MODE = GLASS_ADJOINT_WHERE_TURNED
+GLASS_ADJOINT_MIN_BEND_DEG = 6.0
 
 
 # smooth_glass's per-(material, side) constants (smooth_glass_consts), columns of a row:
@@ -707,7 +753,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              caster, first_hit_mode, caustic_only, vis_on, limits,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
-             nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri):
+             nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
+             adjoint_mode, bend_cos):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -744,6 +791,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     surfaces some of their ray kinds do not see). Returns (stored, continued) counts.
     hit_rows (2, >= m) int64: scratch for the hits' rows and triangle rows (lent by the
     trace's buffer pool: fresh arrays per call cost page faults; contents ignored).
+    adjoint_mode: GLASS_ADJOINT_MODE's codes, bend_cos: the cosine between shading and
+    geometric normal below which a smooth glass hit takes glassadjoint (the wrapper
+    scatter passes the module's settings).
 
     Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
     what is left); the power is divided by that probability and multiplied by the sampled
@@ -814,6 +864,11 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     sg = np.zeros((2 * params.shape[0], SG_N))  # row 2 x material + arrived outside
     sg_mu = 0.0
     sg_remap = -1.0
+    # glassadjoint's arguments and candidate rows at a bent smooth glass hit.
+    gd = np.empty(3)
+    gnn = np.empty(3)
+    gng = np.empty(3)
+    gcand = np.empty((ga.MAX_W, 7))
     ns_ = 0
     nn = 0
     for b0 in range(0, nh, _BLOCK):
@@ -1021,7 +1076,32 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 ok = max(k0, max(k1, k2)) > 0.0
             else:
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
-                if jc == -SMOOTH_GLASS:
+                bent = turned = False
+                un0 = un1 = un2 = 0.0
+                if (jc == -SMOOTH_GLASS and corner_normals.shape[0] > 0
+                        and adjoint_mode != GLASS_ADJOINT_NEVER):
+                    t = tri[b0 + j]
+                    un0, un1, un2 = _glass_normal(corner_normals, t, np.float64(u[i]),
+                                                  np.float64(v[i]), front_b[j], gx, gy, gz,
+                                                  n0, n1, n2)
+                    # A bent shading normal: the adjoint of Cycles' glass there
+                    # (engine/glassadjoint.py), not a sample about n; its root search
+                    # only where Cycles could turn n for a direction sent to this arrival.
+                    bent = abs(un0 * gx + un1 * gy + un2 * gz) < bend_cos
+                    turned = bent and (adjoint_mode == GLASS_ADJOINT_EVERY_BENT
+                                       or ga.turn_possible(dx, dy, dz, un0, un1, un2, gx,
+                                                           gy, gz, gprm[0, pr.P_GLASS_ETA]))
+                if bent:
+                    gd[0], gd[1], gd[2] = dx, dy, dz
+                    gnn[0], gnn[1], gnn[2] = un0, un1, un2
+                    gng[0], gng[1], gng[2] = gx, gy, gz
+                    nw = ga.candidates(gprm, gd, gnn, gng, gcand, turned)
+                    okp, ox, oy, oz, k0, k1, k2, transmitted = ga.pick(
+                        gcand, nw, uniform(key, slot[i], bounce, 5))
+                    ix, iy, iz = pr.frame_local(n0, n1, n2, ox, oy, oz)
+                    if not okp:
+                        k0 = k1 = k2 = 0.0
+                elif jc == -SMOOTH_GLASS:
                     # The glass lobe's own sampler; smooth, it reads only its third number
                     # (reflect or refract): the first two are not drawn.
                     ix, iy, iz, k0, k1, k2, transmitted = _smooth_glass_sample(
@@ -1244,6 +1324,9 @@ def bounce_usable(counts: np.ndarray, limits, camera=(0, 0, 0, 0)) -> np.ndarray
         & (c[:, 3] + cam[3] <= lim[3])
     return ok
 
+
+# |n.g| below this: a smooth glass hit's shading normal is bent (glassadjoint), ~0.1 deg.
+_FLAT_NORMAL_COS = 1.0 - 1.5e-6
 
 # lobe_classes' codes: how scatter sets up a material's lobes.
 FULL, PLAIN, SMOOTH_GLASS = 0, 1, 2

@@ -79,6 +79,10 @@ class Context:
     # the shot is natural, or no such light): the global radius is taken from the
     # photons inside it (_build_maps, global_emitters).
     importance_region: object = None
+    # The pre-pass' lookups (visualimportance.lookup_points, (N,3)) where visual
+    # importance traced them for this pass (global_emitters), else None: lookup_radius
+    # reads them instead of tracing them again.
+    lookups: np.ndarray | None = None
     # Final-gather rays per camera sample of the camera pass (0: settings.gather_rays),
     # chosen after the photon pass (gather_count)
     gather_rays: int = 0
@@ -702,7 +706,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         n = global_photon_count(ctx, stats, should_cancel, memo)
         sctx = ctx if n == s.photons else replace(ctx, settings=replace(s, photons=n))
         emitters, counts = global_emitters(sctx, photon_counts(ctx, n), stats, memo)
-        ctx.importance_region = sctx.importance_region
+        ctx.importance_region, ctx.lookups = sctx.importance_region, sctx.lookups
         glow_from_global = split is not None or (plan.caustics and not use_caustic_shot)
         if GLOW_SHOT and glow_from_global and _importance_aimed(emitters):
             g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n))
@@ -1005,8 +1009,10 @@ def _diffuse_area(ctx) -> float:
 
 
 def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
-    """(radius (m), photons it was measured on): the global search radius from the
-    global photons' own spacing (photonmap.auto_radius; local: not the spacing they would
+    """(radius (m), photons it was measured on; 0: measured at the lookups): the global
+    search radius where the estimates are made (lookup_radius, docs/design.md, Photon
+    mapping model); without lookups from the global photons' own spacing
+    (photonmap.auto_radius; local: not the spacing they would
     have if spread over a huge ground plane they barely light). With an aimed shot (visual
     importance), from the photons inside its region of interest, which holds
     visualimportance.ROI_COVER of the camera's lookups: a sky lights a 40 m ground evenly,
@@ -1014,9 +1020,74 @@ def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
     0.21 m near them) made the gather map's discs 5x too wide (docs/performance.md,
     "skynoise")."""
     k = ctx.settings.k_nearest
+    if RADIUS_FROM_LOOKUPS:
+        r = lookup_radius(ctx, shot, k)
+        if r is not None:
+            # measured 0: the caustic cap keeps the whole shot's spacing (_build_maps).
+            return r, 0
     positions = region_photons(shot.position, ctx.importance_region, k)
     return (auto_radius(diffuse_area, len(positions), k, ctx.geo.extent, positions,
                         workers=ctx.settings.threads), len(positions))
+
+
+# The global search radius from the k-NN distance where the estimates are made (the
+# pre-pass' gather-ray ends; the camera's diffuse hits without final gathering) instead
+# of at the stored photons (docs/accuracy.md "radius43", "radius44"). False: auto_radius
+# over the photons (the rule before).
+RADIUS_FROM_LOOKUPS = True
+# The radius over the lookups' median k-NN distance (2: as auto_radius's over the photons').
+LOOKUP_RADIUS_SCALE = 2.0
+
+
+def lookup_radius(ctx, shot, k: int) -> float | None:
+    """Global search radius (m) at final gathering's lookups: kth_radius over the
+    pre-pass' gather-ray ends (visualimportance.lookup_points: where final gathering's
+    rays end on a surface that stores photons) and the photons of `shot` (any kind).
+    The photons' own k-NN spacing (auto_radius) weighs each place by its photon count,
+    so a lamp in a narrow gap, where most photons pile up, shrank the radius 5x for the
+    whole room (docs/accuracy.md "night43"); the lookups weigh each place by how often an
+    estimate is made there. The points are visual importance's (ctx.lookups, traced once
+    by global_emitters) where it ran, else traced here (the same seeded stream: the same
+    points). None: no lookup point, or the shot holds at most k photons (then
+    auto_radius, as before)."""
+    from .visualimportance import lookup_points
+    if len(shot) <= k:
+        return None
+    points = ctx.lookups if ctx.lookups is not None else lookup_points(ctx)
+    return kth_radius(points, shot.position, k, ctx.geo.extent)
+
+
+def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
+    """Global search radius (m) without final gathering, where the global map is read at
+    the camera's diffuse hits: kth_radius over the pre-pass' camera paths' diffuse hits
+    (visualimportance.diffuse_camera_hits, ROI_RAYS rays, seeded as lookup_points) and the
+    global map's photons `positions` (N,3). None as lookup_radius."""
+    from .visualimportance import ROI_RAYS, diffuse_camera_hits
+    if len(positions) <= k:
+        return None
+    rng = np.random.default_rng([ctx.settings.seed, 95])
+    points = diffuse_camera_hits(ctx, ROI_RAYS, rng)[0]
+    return kth_radius(points, positions, k, ctx.geo.extent)
+
+
+def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
+               extent: float) -> float | None:
+    """LOOKUP_RADIUS_SCALE (2) x the median, over `points` (M,3) (where the estimates are
+    made; a strided sample of at most photonmap.RADIUS_SAMPLE of them), of the distance to
+    the k-th nearest of `positions` (N,3, N > k), in m; at most 0.1 x the scene's
+    `extent` (auto_radius's cap). A point far from every photon (a dark place) raises the
+    median as any sparse one does. None without points or when the median is not a
+    positive finite distance."""
+    from .mortontree import KthTree
+    from .photonmap import RADIUS_SAMPLE
+    if points is None or len(points) == 0:
+        return None
+    points = points[::max(1, len(points) // RADIUS_SAMPLE)]
+    d = KthTree(positions).kth(points, k)
+    r = LOOKUP_RADIUS_SCALE * float(np.median(d))
+    if not (r > 0 and math.isfinite(r)):
+        return None
+    return float(min(r, 0.1 * extent))
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> dict:
@@ -1194,9 +1265,12 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
         elif plan.indirect and not s.final_gather:
             rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
             out["global_map"] = pm = _counted_map(shot, workers, rows)
-            out["global_radius"] = s.radius or auto_radius(
-                diffuse_area, len(pm), k, geo.extent, pm.photons.position, pm.tree,
-                workers=workers)
+            # Read at the camera's diffuse hits: the k-NN distance there
+            # (camera_radius); the photons' own spacing (auto_radius) without any.
+            out["global_radius"] = s.radius or (
+                RADIUS_FROM_LOOKUPS and camera_radius(ctx, pm.photons.position, k)) or \
+                auto_radius(diffuse_area, len(pm), k, geo.extent, pm.photons.position,
+                            pm.tree, workers=workers)
         return out
 
     out_deeper = {}
@@ -1426,6 +1500,7 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict, memo: dict | N
     (visualimportance.region_of_interest: a camera pre-pass) for the next call of the
     same pass (global_photon_count's pilot, then the shot), or None."""
     s = ctx.settings
+    ctx.lookups = None  # (this pass': set below where visual importance traces them)
     if not (s.photon_importance and ctx.plan.indirect and s.final_gather
             and not s.paper_mode and not getattr(ctx.scene, "photons_per_light", None)):
         if s.photon_importance and ctx.plan.indirect and not s.paper_mode:
@@ -1443,6 +1518,7 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict, memo: dict | N
         if memo is not None:
             memo["region"] = region
     region = memo["region"] if memo is not None else region
+    ctx.lookups = np.zeros((0, 3)) if region is None else region.points
     shot = plan_global_shot(ctx, ctx.lights, s.photons, counts, region)
     stats["photon_importance"] = shot.report
     # Photons from infinity (a world, a sun) fall evenly on every open surface to its far

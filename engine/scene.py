@@ -148,7 +148,10 @@ class Material:
     object's Z axis (engine/anisotropy.py).
     `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF),
     tinted by `transparent_tint` (the Transparent BSDF's Color: the pass transmits
-    (1 - alpha) x tint per channel, for camera rays, shadow rays and photons alike).
+    (1 - alpha) x tint per channel, for camera rays, shadow rays and photons alike; a
+    tint above 1 is the sum of an Add Shader's Transparent BSDFs beside a surface share,
+    as Cycles sums closure weights: (1 - alpha) x tint is clamped to 1 per channel, the
+    tint to 1 where an alpha texture is set).
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
     image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
@@ -341,11 +344,17 @@ class Material:
         tint = _vec3(self.transparent_tint, f"{who} transparent_tint")
         if np.any(tint < 0):
             raise SceneError(f"{who} transparent_tint: must be >= 0, got {tint.tolist()}")
-        if np.any(tint > 1):
+        # The pass transmits (1 - alpha) x tint: a tint above 1 is a sum of Transparent
+        # BSDFs beside a surface share (an Add Shader, Cycles' summed closure weights),
+        # kept while the pass lets through no more light than arrives; an alpha texture
+        # lowers alpha per hit, so there the tint itself stays within 1.
+        a = min(max(float(self.alpha), 0.0), 1.0)
+        top = 1.0 / (1.0 - a) if self.alpha_texture is None and a < 1.0 else 1.0
+        if np.any(tint > top * (1.0 + 1e-12)):
             # A pass that lets more light through than arrives would create energy.
-            self.warnings.append(f"{who}: transparent tint {tint.round(3).tolist()} above 1 "
-                                 "clamped to 1 (it would create energy)")
-        self.transparent_tint = np.minimum(tint, 1.0)
+            self.warnings.append(f"{who}: transparent tint {tint.round(3).tolist()} x (1 - "
+                                 f"alpha) above 1 clamped to 1 (it would create energy)")
+        self.transparent_tint = np.minimum(tint, top)
         self.ior = _finite(self.ior, f"{who} ior")
         if self.ior <= 0:
             raise SceneError(f"{who} ior: must be > 0, got {self.ior}")

@@ -101,9 +101,16 @@ def test_auto_guides_a_patch_lit_room_and_not_an_evenly_lit_one():
 
 def test_auto_lowers_the_patch_rooms_gather_noise_with_the_same_mean():
     """Paired seeds (the same photon maps): auto (guided here) against off, the indirect
-    pass's mean within 3 standard errors and its per-pixel spread over seeds below 0.7 of
-    the cosine gather's (measured 0.49 / 0.80 of the mean, 16 x 16, 8 spp, 5 seeds; paired
-    difference of the means 0.24 standard errors)."""
+    pass's mean within 3 standard errors and its per-pixel spread over seeds below 0.8 of
+    the cosine gather's (16 x 16, 8 spp, 5 seeds). Measured with the global search radius
+    taken at the gather rays' ends (docs/accuracy.md "radius44": 0.29 m, twice the
+    photons' spacing here, so the guide's grids, one per 2-radius cube, are 8x fewer), seeds
+    1-5 / 6-10 / 11-15 / 16-20: 0.72 / 0.68 / 0.73 / 0.71 (0.58 / 0.80 of the mean at
+    seeds 1-5; the paired means 1.6 / 0.3 / 1.2 / 0.7 standard errors apart, of both
+    signs); with the photons' spacing (the rule before) 0.62 / 0.61 / 0.66 / 0.59. Grids
+    spaced by the photons' spacing under the new radius read 0.65 here, but the night
+    room's lamp-lit gather noisier (0.281 against 0.248 of the mean) and 1 % brighter:
+    the guide keeps the gather map's radius."""
     def indirect(film):
         return np.asarray(film.passes()["indirect"], np.float64)[..., :3].mean(axis=-1)
     seeds = range(1, 6)
@@ -113,7 +120,7 @@ def test_auto_lowers_the_patch_rooms_gather_noise_with_the_same_mean():
     assert abs(d.mean()) < 3 * d.std(ddof=1) / np.sqrt(len(d)) + 1e-4 * off.mean()
     noise_off = off.std(axis=0).mean() / off.mean()
     noise_auto = auto.std(axis=0).mean() / auto.mean()
-    assert noise_auto < 0.7 * noise_off, (noise_auto, noise_off)
+    assert noise_auto < 0.8 * noise_off, (noise_auto, noise_off)
 
 
 @pytest.mark.parametrize("value", ["sometimes", 2])

@@ -169,13 +169,16 @@ def test_a_shot_in_many_chunks_is_the_same_on_one_and_two_workers():
         assert getattr(a, name).flags.c_contiguous
 
 
-def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
+def test_plain_materials_scatter_as_with_the_full_set_of_lobes(monkeypatch):
     """scatter's plain-material path (only the diffuse and pass weights written, Russian
     roulette over those two lobes) gives the photons the full closure set-up and the
     roulette over every lobe give, bit for bit: plain = all False sends every hit through
     principled.setup. Glass and plain hits alternate in the blocks (a plain hit after a
     glass one must not read the glass lobes' weights), and a translucent wall uses the
-    pass lobe."""
+    pass lobe. The ball's normals bend up to ~11 degrees, where SMOOTH_GLASS rows take
+    engine/glassadjoint.py, which FULL rows do not have yet (docs/accuracy.md,
+    smoothglass43): off here, so both paths sample the glass lobe."""
+    monkeypatch.setattr(pk, "GLASS_ADJOINT_MODE", pk.GLASS_ADJOINT_NEVER)
     s = _scene()
     s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.45))
     s.add_material(Material("veil", (0.3, 0.6, 0.9), alpha=0.4))

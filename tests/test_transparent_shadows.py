@@ -261,3 +261,39 @@ def test_glossy_floor_under_a_card_counts_the_light_once():
     card, open_ = film(True), film(False)
     assert card.direct.mean() / open_.direct.mean() == pytest.approx(0.5, rel=1e-6)
     assert card.combined.mean() / open_.combined.mean() == pytest.approx(0.5, rel=0.01)
+
+
+def test_summed_transparency_above_one_tint_passes_the_whole_sun():
+    """An Add Shader of a white Transparent BSDF and a surface (Cycles sums closure
+    weights, bsdf_transparent_setup) exports alpha 1/2, tint 2, closure weight 2: the
+    pass transmits (1 - alpha) x tint = 1, so the floor under the card gets the whole
+    sun, and photons cross it with their power whole. The tint is kept (no warning)
+    while (1 - alpha) x tint stays within 1; above that it is clamped there, warned, and
+    with an alpha texture (alpha lower per hit) the tint itself stays within 1."""
+    ctx = _sun_over_cards([0.5], tints=[(2.0, 2.0, 2.0)])
+    from engine.closures import principled as pr
+    assert np.allclose(ctx.table.closure_params[:, pr.M_TTINT:pr.M_TTINT + 3].max(), 2.0)
+    E = direct_irradiance(ctx, _floor_hits(ctx, 200), np.random.default_rng(1), Counters())
+    assert np.allclose(E, 2.0, rtol=1e-12)
+    ph = trace_photons(ctx, ctx.lights, [100000], caustic_only=False, stream=1)
+    z = ph.position[:, 2].astype(np.float64) + ctx.geo.offset[2]
+    x = ph.position[:, :2].astype(np.float64) + ctx.geo.offset[:2]
+    floor = (np.abs(z) < 1e-3) & (ph.kind == DIRECT)
+    under = floor & np.all(np.abs(x) < 1.9, axis=1)
+    beside = floor & np.any(np.abs(x) > 2.1, axis=1)
+    assert under.any() and beside.any()
+    # The photons' flux per m^2 on the floor: as much under the card as beside it (the
+    # photons take the pass by its share of the lobes' weights, their power x weight /
+    # probability; 100k photons: ~1 % of noise).
+    flux_under = ph.power[under].astype(np.float64).sum(axis=0) / 3.8 ** 2
+    flux_beside = ph.power[beside].astype(np.float64).sum(axis=0) / (8.0 ** 2 - 4.2 ** 2)
+    assert np.allclose(flux_under, flux_beside, rtol=0.03), (flux_under, flux_beside)
+    m = Material("sum", (0.5, 0.5, 0.5), alpha=0.5, transparent_tint=(2.0, 1.0, 0.5))
+    assert np.allclose(m.transparent_tint, (2.0, 1.0, 0.5)) and not m.warnings
+    m = Material("over", (0.5, 0.5, 0.5), alpha=0.5, transparent_tint=(3.0, 1.0, 0.5))
+    assert np.allclose(m.transparent_tint, (2.0, 1.0, 0.5))
+    assert any("clamped" in w for w in m.warnings)
+    node = ImageLookup(_alpha_checker(), output="ALPHA")
+    m = Material("cut", (0.5, 0.5, 0.5), alpha=0.5, alpha_texture=node,
+                 transparent_tint=(2.0, 1.0, 0.5))
+    assert np.allclose(m.transparent_tint, (1.0, 1.0, 0.5)) and m.warnings

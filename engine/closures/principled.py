@@ -552,16 +552,34 @@ def glossy_normal_row(ns, ng, wo, i):
     """glossy_normals for row i: (raised, N' in ns's frame (3 values), wo.N'); raised
     False: the glossy lobes keep ns (the other values unused)."""
     n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
-    g0, g1, g2 = ng[i, 0], ng[i, 1], ng[i, 2]
-    if n0 == g0 and n1 == g1 and n2 == g2:
-        return False, 0.0, 0.0, 0.0, 0.0
     w0, w1, w2 = wo[i, 0], wo[i, 1], wo[i, 2]
+    raised, p0, p1, p2 = valid_reflection_normal(n0, n1, n2, ng[i, 0], ng[i, 1], ng[i, 2],
+                                                 w0, w1, w2)
+    if not raised:
+        return False, 0.0, 0.0, 0.0, 0.0
+    l0, l1, l2 = frame_local(n0, n1, n2, p0, p1, p2)
+    ln = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+    if not ln > 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0
+    return True, l0 / ln, l1 / ln, l2 / ln, (w0 * p0 + w1 * p1 + w2 * p2) / ln
+
+
+@kernel
+def valid_reflection_normal(n0, n1, n2, g0, g1, g2, w0, w1, w2):
+    """Cycles' ensure_valid_specular_reflection (kernel/closure/bsdf_util.h) for one
+    unit shading normal n, geometric normal g (both on the viewer's side) and unit view
+    direction w: (raised, N') with N' (world, unit up to rounding) rotated from n towards
+    g just enough that the mirror direction of w about it rises min(0.9 w.g, 0.01) over
+    the surface; raised False where n == g or the mirror direction about n is that high
+    already (N' then unused: n is kept)."""
+    if n0 == g0 and n1 == g1 and n2 == g2:
+        return False, 0.0, 0.0, 0.0
     ni = n0 * w0 + n1 * w1 + n2 * w2
     r0, r1, r2 = 2.0 * ni * n0 - w0, 2.0 * ni * n1 - w1, 2.0 * ni * n2 - w2
     iz = w0 * g0 + w1 * g1 + w2 * g2
     t = min(0.9 * iz, 0.01)
     if r0 * g0 + r1 * g1 + r2 * g2 >= t:
-        return False, 0.0, 0.0, 0.0, 0.0
+        return False, 0.0, 0.0, 0.0
     ng_dot = n0 * g0 + n1 * g1 + n2 * g2
     x0, x1, x2 = n0 - ng_dot * g0, n1 - ng_dot * g1, n2 - ng_dot * g2
     ln = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
@@ -572,19 +590,14 @@ def glossy_normal_row(ns, ng, wo, i):
     ix = w0 * x0 + w1 * x1 + w2 * x2
     a = ix * ix + iz * iz
     if a <= 0.0:
-        return False, 0.0, 0.0, 0.0, 0.0
+        return False, 0.0, 0.0, 0.0
     b = 2.0 * (a + iz * t)
     c = (t + iz) * (t + iz)
     disc = math.sqrt(max(b * b - 4.0 * a * c, 0.0))
     nz2 = 0.25 * (b + disc) / a if ix < 0.0 else 0.25 * (b - disc) / a
     nx = math.sqrt(max(1.0 - nz2, 0.0))
     nz = math.sqrt(max(nz2, 0.0))
-    p0, p1, p2 = nx * x0 + nz * g0, nx * x1 + nz * g1, nx * x2 + nz * g2
-    l0, l1, l2 = frame_local(n0, n1, n2, p0, p1, p2)
-    ln = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
-    if not ln > 0.0:
-        return False, 0.0, 0.0, 0.0, 0.0
-    return True, l0 / ln, l1 / ln, l2 / ln, (w0 * p0 + w1 * p1 + w2 * p2) / ln
+    return True, nx * x0 + nz * g0, nx * x1 + nz * g1, nx * x2 + nz * g2
 
 
 @kernel

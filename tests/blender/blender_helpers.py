@@ -96,6 +96,23 @@ def default_photonmap(scene):
     return pm
 
 
+def default_cycles(scene):
+    """Every Cycles scene setting back to its default (Light Paths, pixel filter,
+    caustics, ...): an earlier test's Transmission bounces 0 left in the shared session
+    zeroed the reference's Transmission Indirect. Enums whose registered default is not
+    one of their items (sampling_pattern, denoiser: the startup file's Tabulated Sobol
+    would become an invalid 0, and Cycles' noise another) keep their value. Returns
+    scene.cycles."""
+    c = scene.cycles
+    for p in c.bl_rna.properties:
+        if p.identifier == "rna_type" or p.is_readonly:
+            continue
+        if p.type == "ENUM" and p.default not in {i.identifier for i in p.enum_items}:
+            continue
+        c.property_unset(p.identifier)
+    return c
+
+
 def store_cycles_means(path, means_of, **about):
     """Script entry of the tests whose Cycles image means are stored (tests/references/):
     registers the add-on in this process' Blender, means_of(bpy, tmp_path) -> {key: mean

@@ -11,7 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from blender_helpers import ROOT, cheap, cycles_plain, read_layers, render_exr
+from blender_helpers import (ROOT, cheap, cycles_plain, default_cycles, default_photonmap,
+                             read_layers, render_exr)
 
 pytestmark = pytest.mark.blender
 
@@ -53,6 +54,11 @@ def _scene(bpy):
     mb.sphere("Lamp", 0.25, _emitter(mb, "lamp", (1.0, 0.6, 0.3), 4.0), (1.4, 0.6, 0.25),
               segments=24, rings=12)
     mb.set_world((0.25, 0.3, 0.4))
+    # Both engines at their defaults: the tests share one Blender session, and an earlier
+    # test's Photon Mapping off (photon_mapping False, kept by make_blends.reset) read our
+    # Diffuse Indirect 0 where Cycles reads 0.09-0.12 (a clean-clone CI, radius43).
+    default_photonmap(scene)
+    default_cycles(scene)
     mb.light("Area", "AREA", (1.0, -1.5, 3.0), 300.0, look_at=(0, 0, 0), size=1.0)
     mb.camera((0, -4.2, 1.8), (0, 0.3, 0.5), fov_deg=55.0)
     r = scene.render
@@ -152,6 +158,8 @@ def _fog_scene(bpy):
     mb.light("Lamp", "POINT", (1.3, -0.6, 1.4), 200.0)
     mb.camera((0, -4.2, 1.8), (0, 0.0, 0.8), fov_deg=50.0)
     black_world(bpy, scene)
+    default_photonmap(scene)
+    default_cycles(scene)
     scene.cycles.volume_bounces = 0
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage = 48, 36, 100
