@@ -475,8 +475,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         else:
             most = (" at most (fewer where the indirect light is a small share)"
                     if s.gather_by_share else "")
-            auto, why = True, (f"{s.photons:,} photons; final gathering with {s.gather_rays} "
-                               f"ray(s) per sample{most}" if s.final_gather else
+            # (render.global_photon_count: a pilot sizes the shot under a world or a sun)
+            fewer = (" at most" if s.gather_by_share and s.final_gather and not s.paper_mode
+                     and any(li.kind in (SUN, WORLD) for li in lights) else "")
+            auto, why = True, (f"{s.photons:,} photons{fewer}; final gathering with "
+                               f"{s.gather_rays} ray(s) per sample{most}" if s.final_gather else
                                f"{s.photons:,} photons, estimated directly from the global map")
         plan.indirect = _override(s.indirect, auto, "indirect light (global map)", why, plan)
 

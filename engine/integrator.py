@@ -1752,6 +1752,17 @@ SECONDARY_SAMPLES_PER_PIXEL = 4
 # a floor: 623 glow photons, 1 % of the seeds' variance), the same relMSE with 4
 # (docs/performance.md "worldfast43").
 GLOW_SAMPLES_PER_PIXEL = SECONDARY_SAMPLES_PER_PIXEL
+# Both follow their estimate's share of the light the camera sees (worldcolour44:
+# render.py sets Context.glow_per_pixel / secondary_per_pixel from glow_share /
+# secondary_share, smooth_per_pixel). Taking the estimate at n of a pixel's samples
+# instead of all adds the estimate's variation within the pixel, a pixel's relative
+# variance of about share^2 x that variation / n, at a cost about n: variance x cost is
+# least with n in proportion to the share (render.gather_count's rule). At and above
+# SMOOTH_SHARE_FULL (render.GLOW_SHARE_FULL's rms share) the constants above; below it in
+# proportion, rounded, never under one. A world-lit yard's glow (rms share 0.024) and
+# secondary caustic took 0.5 of its 2.0 CPU s at 4 a pixel; 1 a pixel read the same
+# relMSE and FLIP (docs/performance.md "worldcolour44").
+SMOOTH_SHARE_FULL = 0.08
 # Hits reached through a rough lobe take the caustic estimate at every sample, not at
 # CAUSTIC_SAMPLES_PER_PIXEL of them (_trace_paths; False: the stride everywhere, as before:
 # bench/bench_accuracy_ab.py's @integrator.CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE=False).
@@ -1862,6 +1873,19 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     else:
         out[sel] += weight * np.take(f, sel, axis=0) * E
     return out
+
+
+def smooth_per_pixel(most: int, share: float | None, full: float | None = None) -> int:
+    """Samples a pixel that take a smooth estimate (_smooth_estimate's per_pixel) whose
+    light is rms share `share` of what the camera sees (visualimportance.glow_share /
+    secondary_share; None or not finite: not known, `most`): most x share / full rounded
+    to the nearest, from 1 to `most` (SMOOTH_SHARE_FULL's comment). Rounded, not ceiled
+    as gather_count's rays: a share just over a step would double the estimates.
+    full: None, SMOOTH_SHARE_FULL (read at the call: A/B benches set it)."""
+    if share is None or not math.isfinite(share):
+        return int(most)
+    full = SMOOTH_SHARE_FULL if full is None else full
+    return int(min(most, max(1, math.floor(most * share / full + 0.5))))
 
 
 def smooth_sample_weight(spp: int, stride: int) -> float:
@@ -2000,6 +2024,21 @@ def _add_diffuse(acc, pix, tp, rows, chain, bounce, diffuse_limit, direct, caust
             tp, rows)
 
 
+def _caustic_per_pixel(ctx) -> int:
+    """Samples a pixel taking the caustic map's estimate: GLOW_SAMPLES_PER_PIXEL, or the
+    glow's share's (Context.glow_per_pixel), for a glow-only map; else
+    CAUSTIC_SAMPLES_PER_PIXEL."""
+    if getattr(getattr(ctx, "plan", None), "caustics_glow_only", False):
+        return getattr(ctx, "glow_per_pixel", 0) or GLOW_SAMPLES_PER_PIXEL
+    return CAUSTIC_SAMPLES_PER_PIXEL
+
+
+def _secondary_per_pixel(ctx) -> int:
+    """Samples a pixel taking the secondary map's estimate: the share's
+    (Context.secondary_per_pixel), else SECONDARY_SAMPLES_PER_PIXEL."""
+    return getattr(ctx, "secondary_per_pixel", 0) or SECONDARY_SAMPLES_PER_PIXEL
+
+
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
                   scattered=None, extra=None, clamp_tp=None):
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
@@ -2008,9 +2047,8 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
-    glow_only = getattr(getattr(ctx, "plan", None), "caustics_glow_only", False)
     caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
-                               footprint, GLOW_SAMPLES_PER_PIXEL if glow_only else None,
+                               footprint, _caustic_per_pixel(ctx),
                                every=scattered, counts=extra, clamp_tp=clamp_tp)
     if ctx.gather_map is not None:
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
@@ -2018,7 +2056,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
         _smooth_estimate(ctx, ctx.secondary_map, ctx.secondary_radius or ctx.global_radius,
-                         hit, f, sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL,
+                         hit, f, sample_id, footprint, _secondary_per_pixel(ctx),
                          into=indirect, counts=extra, clamp_tp=clamp_tp)
     elif ctx.global_map is not None and len(ctx.global_map):
         if PHOTON_VISIBILITY:
@@ -2272,8 +2310,8 @@ def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
     spp = s.spp
     schedule = adaptive.Schedule(s.adaptive_threshold, s.adaptive_min_samples, spp)
     rounds = schedule.rounds()
-    strides = [max(1, -(-spp // k)) for k in (CAUSTIC_SAMPLES_PER_PIXEL,
-                                              SECONDARY_SAMPLES_PER_PIXEL)]
+    strides = [max(1, -(-spp // k)) for k in (_caustic_per_pixel(ctx),
+                                              _secondary_per_pixel(ctx))]
     acc = Accumulator(npix)
     count = np.zeros(npix, np.int64)    # samples taken, per pixel
     half = np.zeros((npix, 3))          # radiance summed over half A (adaptive.class_a)

@@ -19,7 +19,7 @@ from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_view
 from . import integrator as _integrator
-from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
+from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons, smooth_per_pixel
 from .jit import ensure_compiled
 from .lightlinking import links_for
 from .lights import allocate_photons, prepare_lights
@@ -43,7 +43,7 @@ from .stagespans import StageSpans
 from .heterogeneous import HeterogeneousMedia
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
-from .visualimportance import glow_share, indirect_share
+from .visualimportance import glow_share, indirect_share, secondary_share
 from .volumeemission import glows
 
 
@@ -86,6 +86,10 @@ class Context:
     # Final-gather rays per camera sample of the camera pass (0: settings.gather_rays),
     # chosen after the photon pass (gather_count)
     gather_rays: int = 0
+    # Samples a pixel taking the glow-only caustic map's and the secondary map's estimates
+    # (0: integrator's constants), chosen after the photon pass (smooth_counts)
+    glow_per_pixel: int = 0
+    secondary_per_pixel: int = 0
     packed_lights: tuple | None = None  # lights as the direct-light kernels read them
     shadow: ShadowTransmittance | None = None  # transparent shadows (None: none in the scene)
     # Light trees for many lights (engine/lights/selection.py selector_for), built on use.
@@ -270,7 +274,7 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     ctx.regather_maps = ctx.regather_secondary = ()
     ctx.gather_counts = None
-    ctx.gather_rays = 0
+    ctx.gather_rays = ctx.glow_per_pixel = ctx.secondary_per_pixel = 0
     s = ctx.settings
     shot = ()
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
@@ -697,11 +701,15 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
     emitters = counts = g_emitters = g_counts = pre_radius = None
     if global_shot:
-        emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
+        # (n: settings.photons, fewer where a pilot finds the indirect share small)
+        memo = {}  # (the pilot's region of interest: the same camera pre-pass)
+        n = global_photon_count(ctx, stats, should_cancel, memo)
+        sctx = ctx if n == s.photons else replace(ctx, settings=replace(s, photons=n))
+        emitters, counts = global_emitters(sctx, photon_counts(ctx, n), stats, memo)
+        ctx.importance_region, ctx.lookups = sctx.importance_region, sctx.lookups
         glow_from_global = split is not None or (plan.caustics and not use_caustic_shot)
         if GLOW_SHOT and glow_from_global and _importance_aimed(emitters):
-            g_emitters, g_counts = glow_emitters(emitters, counts,
-                                                 photon_counts(ctx, s.photons))
+            g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n))
     sizes = (int(sum(counts)) if global_shot else 0,
              int(sum(g_counts)) if g_emitters is not None else 0,
              int(s.caustic_photons) if use_caustic_shot else 0)
@@ -726,8 +734,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
                 0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else pre_radius[0]))
             g_split = glow_split(g_share)
             stats["glow_share"], stats["glow_split"] = g_share, g_split
-            g_emitters, g_counts = glow_emitters(emitters, counts,
-                                                 photon_counts(ctx, s.photons), g_split)
+            g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n),
+                                                 g_split)
             sizes = (sizes[0], int(sum(g_counts)), sizes[2])
             # The glow's caustic paths (light off rough specular layers first, or window
             # glass: L S+ D, the first S not a caster) from a shot of their own whose
@@ -836,6 +844,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     elif guide_skipped:
         # (auto at a share too small for any grid to pay: guiding.can_guide; not built)
         stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
+    smooth_counts(ctx, shot, stats)
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_photon_hit_view), always filled.
@@ -865,6 +874,27 @@ def gather_count(most: int, share: float | None) -> int:
 
 
 _NOT_MEASURED = object()  # (_photon_maps: the share not measured while the maps were built)
+
+
+def smooth_counts(ctx, shot, stats) -> None:
+    """Samples a pixel for the smooth estimates of a glow-only caustic map and of the
+    secondary map, from their rms shares of the light the camera sees
+    (integrator.smooth_per_pixel; visualimportance.glow_share, the glow shot's if it was
+    measured, and secondary_share, ~0.02 s each, on this thread: the same for any
+    worker count): ctx.glow_per_pixel, ctx.secondary_per_pixel and their stats."""
+    from .integrator import GLOW_SAMPLES_PER_PIXEL, SECONDARY_SAMPLES_PER_PIXEL
+    radius = ctx.settings.radius or ctx.global_radius
+    if not (len(shot) and radius > 0):
+        return
+    if ctx.plan.caustics_glow_only and ctx.caustic_map is not None and len(ctx.caustic_map):
+        if "glow_share" not in stats:
+            stats["glow_share"] = glow_share(ctx, shot, radius)
+        ctx.glow_per_pixel = smooth_per_pixel(GLOW_SAMPLES_PER_PIXEL, stats["glow_share"])
+        stats["glow_per_pixel"] = ctx.glow_per_pixel
+    if ctx.secondary_map is not None and len(ctx.secondary_map):
+        stats["secondary_share"] = share = secondary_share(ctx, shot, radius)
+        ctx.secondary_per_pixel = smooth_per_pixel(SECONDARY_SAMPLES_PER_PIXEL, share)
+        stats["secondary_per_pixel"] = ctx.secondary_per_pixel
 
 
 def share_counts(ctx) -> bool:
@@ -1402,6 +1432,64 @@ def _caustic_radius_words(settings: RenderSettings, stats: dict, held: str) -> s
     return f"{n}, every photon within {cap}"
 
 
+# The global shot's photons follow the indirect share (worldcolour44): a pilot shot of
+# PILOT_FRACTION x settings.photons (its own random stream, PILOT_STREAM; thrown away)
+# measures the share (visualimportance.indirect_share, as gather_count's), and below
+# PHOTONS_SHARE_FULL the shot is settings.photons x share / PHOTONS_SHARE_FULL, never
+# under PHOTONS_LEAST of it. The indirect pass's variance is the gather rays' (share^2 x
+# their variance / G) plus the map's; where the share is small the gather ray's own
+# noise is most of it: a world-lit yard at 2.9 % read relMSE 0.0019 with 400k and 200k
+# photons (its indirect pass 8 -> 9 % of the seeds' variance) in 30 % less CPU. The
+# floor bounds the estimates' blur (the radius grows as 1 / sqrt(photons): 1.41x at
+# half); PHOTONS_SHARE_FULL 0: always settings.photons, no pilot (A/B benches). Only
+# with a light at infinity (a world, a sun: open scenes, whose direct light is most of
+# what the camera sees): the pilot costs 0.1-0.15 CPU s (its region of interest, radius
+# and share), which rooms lit by lamps alone (the example boxes: shares 13-41 %) would
+# pay for nothing.
+PHOTONS_SHARE_FULL = GATHER_SHARE_FULL
+PHOTONS_LEAST = 0.5
+PILOT_FRACTION = 1.0 / 32.0
+PILOT_STREAM = 4  # trace_photons' random stream of the pilot (global 1, caustic 2, glow 3)
+
+
+def photons_for_share(most: int, share: float | None) -> int:
+    """Global photons for an indirect share `share` (None or not finite: not known,
+    `most`): most x share / PHOTONS_SHARE_FULL rounded up, from most x PHOTONS_LEAST
+    (rounded up) to most."""
+    if (share is None or not math.isfinite(share) or not PHOTONS_SHARE_FULL > 0
+            or share >= PHOTONS_SHARE_FULL):
+        return int(most)
+    return int(min(most, max(math.ceil(most * PHOTONS_LEAST),
+                             math.ceil(most * share / PHOTONS_SHARE_FULL))))
+
+
+def global_photon_count(ctx: Context, stats: dict, should_cancel=None,
+                        memo: dict | None = None) -> int:
+    """The global shot's photon total: settings.photons, or photons_for_share of a pilot
+    shot's indirect share where the share decides the gather rays (final gathering,
+    share_counts) and the photons are the renderer's to size (not the paper's method,
+    no photons per light), in a scene with a light at infinity (PHOTONS_SHARE_FULL's
+    comment); stats get pilot_photons and pilot_share; memo: global_emitters' (the
+    pilot's region of interest, for the shot's)."""
+    s = ctx.settings
+    if not (PHOTONS_SHARE_FULL > 0 and s.photons > 0 and ctx.plan.indirect
+            and any(isinstance(light, InfiniteLight) for light in ctx.lights)
+            and s.final_gather and not s.paper_mode
+            and not getattr(ctx.scene, "photons_per_light", None) and share_counts(ctx)):
+        return s.photons
+    n = max(1, int(s.photons * PILOT_FRACTION))
+    sub = replace(ctx, settings=replace(s, photons=n))
+    emitters, counts = global_emitters(sub, photon_counts(sub, n), {}, memo)
+    pilot = trace_photons(sub, emitters, counts, caustic_only=False, stream=PILOT_STREAM,
+                          should_cancel=should_cancel)
+    if not len(pilot):
+        return s.photons
+    radius = s.radius or global_search_radius(sub, pilot, _diffuse_area(ctx))[0]
+    share = indirect_share(sub, pilot, radius)
+    stats["pilot_photons"], stats["pilot_share"] = int(pilot.emitted), share
+    return photons_for_share(s.photons, share)
+
+
 def photon_counts(ctx: Context, total: int) -> list[int]:
     """Global photons per prepared light: a light named in scene.photons_per_light (the
     paper's MaxRayPerLightSrc, engine/api.py) emits exactly that many; the others share
@@ -1416,7 +1504,7 @@ def photon_counts(ctx: Context, total: int) -> list[int]:
     return [fixed[li.name] if o else next(shared) for li, o in zip(ctx.lights, own)]
 
 
-def global_emitters(ctx: Context, counts: list[int], stats: dict):
+def global_emitters(ctx: Context, counts: list[int], stats: dict, memo: dict | None = None):
     """The global shot's emitters and photon counts: with visual importance
     (engine/visualimportance.py) the photons go where the camera's gather rays end; else
     ctx.lights with `counts`. Off for the paper's method (its photons are the paper's:
@@ -1424,7 +1512,9 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
     where the global map serves no indirect light, and without final gathering (the map
     is then read at camera hits, where its light has mostly bounced in from elsewhere:
     aiming the photons' first hits there starves it). stats gets the decision
-    (photon_importance: one line)."""
+    (photon_importance: one line). memo: a dict that keeps the region of interest
+    (visualimportance.region_of_interest: a camera pre-pass) for the next call of the
+    same pass (global_photon_count's pilot, then the shot), or None."""
     s = ctx.settings
     ctx.lookups = None  # (this pass': set below where visual importance traces them)
     if not (s.photon_importance and ctx.plan.indirect and s.final_gather
@@ -1439,7 +1529,11 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
             return emitters, counts
         return ctx.lights, counts
     from .visualimportance import plan_global_shot, region_of_interest
-    region = region_of_interest(ctx)
+    if memo is None or "region" not in memo:
+        region = region_of_interest(ctx)
+        if memo is not None:
+            memo["region"] = region
+    region = memo["region"] if memo is not None else region
     ctx.lookups = np.zeros((0, 3)) if region is None else region.points
     shot = plan_global_shot(ctx, ctx.lights, s.photons, counts, region)
     stats["photon_importance"] = shot.report

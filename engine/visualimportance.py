@@ -679,15 +679,32 @@ def glow_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
     (tests/blender/test_rough_glow_cycles.py: 0.11 rms, 0.008 of the summed light).
     None when the camera sees nothing diffuse or the shot holds no photon there."""
     from .photonkernels import CAUSTIC
-    est = _kind_estimates(ctx, shot, radius, np.arange(len(shot)), (CAUSTIC,), rays,
+    return _rms_share(ctx, shot, radius, (CAUSTIC,), rays, max_photons)
+
+
+def secondary_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
+                    max_photons: int = SHARE_PHOTONS) -> float | None:
+    """How much of the light the camera sees the secondary caustic carries (caustic light
+    one diffuse bounce back: the CAUSTIC_DIFFUSE photons of a global shot, the secondary
+    map's): the rms over the pre-pass' diffuse camera hits of each hit's share
+    E_secondary / E_all, as glow_share (every photon of the shot; radius (m) the k-NN
+    cap), unitless in [0, 1]; None where glow_share's is."""
+    from .photonkernels import CAUSTIC_DIFFUSE
+    return _rms_share(ctx, shot, radius, (CAUSTIC_DIFFUSE,), rays, max_photons)
+
+
+def _rms_share(ctx, shot, radius, kinds, rays, max_photons):
+    """The rms over the lit diffuse camera hits of E_kinds / E_all (_kind_estimates over
+    every photon of the shot), or None."""
+    est = _kind_estimates(ctx, shot, radius, np.arange(len(shot)), kinds, rays,
                           max_photons)
     if est is None:
         return None
-    E, Ec = est
+    E, Ek = est
     lit = E > 0
     if not lit.any():
         return None
-    return float(np.sqrt(np.mean((Ec[lit] / E[lit]) ** 2)))
+    return float(np.sqrt(np.mean((Ek[lit] / E[lit]) ** 2)))
 
 
 # --- Window glass's rims (effects.window_glass) --------------------------------------------

@@ -51,6 +51,9 @@ def _yard(plaster: bool = True):
 
 def _shots(scene, full_share, monkeypatch, seed=2, photons=20_000):
     monkeypatch.setattr(render_mod, "GLOW_SHARE_FULL", full_share)
+    # (every global photon: the glow shot's split alone is under test, not the pilot's
+    # count, render.global_photon_count)
+    monkeypatch.setattr(render_mod, "PHOTONS_SHARE_FULL", 0.0)
     st = RenderSettings(photons=photons, caustic_photons=5_000, seed=seed, workers=1)
     ctx = prepare_context(scene, st)
     try:

@@ -73,9 +73,11 @@ def test_fewer_gather_points_at_a_small_share_keep_the_indirect_mean(monkeypatch
     with the share's, over 6 seeds: fewer points, the indirect pass's mean the same within
     3 standard errors of the paired differences (other photons become points and others
     estimate: the maps' noise differs, not their mean). GATHER_POINTS scaled down with the
-    photons (20k, not 400k) so the share's count binds as in a full render."""
+    photons (20k, not 400k) so the share's count binds as in a full render; the photons
+    kept at 20k (PHOTONS_SHARE_FULL 0: no pilot, test_photons_by_share.py's rule)."""
     made = []
     monkeypatch.setattr(render_mod, "GATHER_POINTS", 2_000)
+    monkeypatch.setattr(render_mod, "PHOTONS_SHARE_FULL", 0.0)
 
     class Counting(render_mod.GatherMap):
         def __init__(self, *a, **kw):
