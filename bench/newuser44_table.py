@@ -30,6 +30,7 @@ import os
 import resource
 import sys
 import time
+from pathlib import Path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
@@ -178,34 +179,26 @@ def main():
     r = scene.render
     r.resolution_x, r.resolution_y = a.res
     r.resolution_percentage = 100
-    if a.masks:
+    if a.masks:  # which object each pixel centre sees, for newuser26_compare.py
         ids, names = object_masks(scene, *a.res)
         np.save(a.masks, ids)
-        with open(a.masks + ".json", "w") as f:
-            json.dump(names, f)
-        print("masks:", names)
-        return
+        Path(a.masks + ".json").write_text(json.dumps(names))
+        return print("masks:", names)
+    c = scene.cycles  # Light Paths: Cycles' settings, read by the add-on too
     if a.no_clamp:
-        scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
-    if a.mode == "ours":
-        r.engine = "PHOTONMAP"
-        for s in a.set:
-            k, v = s.split("=", 1)
-            setattr(scene.photonmap, k, ast.literal_eval(v))
-    else:
-        r.engine = "CYCLES"
-        c = scene.cycles
+        c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    r.engine = "PHOTONMAP" if a.mode == "ours" else "CYCLES"
+    for k, v in (s.split("=", 1) for s in a.set):
+        setattr(scene.photonmap, k, ast.literal_eval(v))
+    if r.engine == "CYCLES":  # plain: no denoiser, every pixel the same samples
         c.device, c.samples, c.seed = "CPU", int(a.mode.split(":")[1]), 0
         c.use_denoising = c.use_adaptive_sampling = False
     if a.save:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(a.save))
-    s = r.image_settings
-    if hasattr(s, "media_type"):
-        s.media_type = "IMAGE"
-    s.file_format = "OPEN_EXR"
-    s.color_depth = "32"
-    r.filepath = os.path.abspath(a.out)
-    r.use_file_extension = False
+    fmt = r.image_settings  # linear 32-bit EXR: the comparison reads radiance
+    fmt.media_type = "IMAGE"
+    fmt.file_format, fmt.color_depth = "OPEN_EXR", "32"
+    r.filepath, r.use_file_extension = os.path.abspath(a.out), False
     t0, w0 = cpu(), time.time()
     bpy.ops.render.render(write_still=True)
     t, wall = cpu() - t0, time.time() - w0
