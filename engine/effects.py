@@ -1025,7 +1025,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         names = sorted({table.names[m] for m in seen if not vol[m]})
         volumes = sorted({table.names[m] for m in seen if vol[m]})
         what = "; ".join(x for x in (
-            "alpha below 1 in " + _quoted(names, most=REPORT_NAMES_MAX) if names else "",
+            # A Transparent BSDF (in an Add or Mix Shader) is alpha below 1 to the
+            # engine, but the user set no Alpha there (newuser44's curtain card).
+            "see-through (a Transparent BSDF, Alpha below 1 or an alpha texture) in "
+            + _quoted(names, most=REPORT_NAMES_MAX) if names else "",
             "the surfaces of volume-only " + _quoted(volumes, most=REPORT_NAMES_MAX)
             + " (invisible, as in Cycles)" if volumes else "") if x)
         cap = s.transparent_max_bounces

@@ -912,15 +912,16 @@ def test_cycles_caustics_switches_are_named_where_they_change_cycles_image():
 
 def test_a_volume_only_fog_box_is_not_reported_as_alpha():
     """The surfaces of a volume-only material are a transparent pass (invisible, as in
-    Cycles): the transparency line names them as such, not as "alpha below 1"
-    (newuser36), and still says how far shadow rays cross them; a real cut-out keeps
-    "alpha below 1"."""
+    Cycles): the transparency line names them as such, not as see-through
+    (newuser36), and still says how far shadow rays cross them; a real cut-out is
+    see-through, by a Transparent BSDF or Alpha (newuser44: a curtain of Transparent +
+    Diffuse read "alpha below 1", an Alpha its user never set)."""
     s = _room(Material("floor", (0.6, 0.6, 0.6)))
     s.add_material(Material("Fog", volume_only=True, scattering=(0.2, 0.2, 0.2)))
     s.add_box((0.0, 0.5, 1.0), (2.0, 2.0, 2.0), "Fog", name="FogBox")
     line = _line(_plan(s), "transparency")
     assert "the surfaces of volume-only 'Fog' (invisible, as in Cycles)" in line, line
-    assert "alpha below 1" not in line and "shadow rays cross up to" in line
+    assert "see-through" not in line and "shadow rays cross up to" in line
     vol = _line(_plan(s), "volume scattering")
     assert "scattered once towards the camera" in vol and "more times" not in vol, vol
     # Not a "transparent" surface in the specular line (newuser41b's smoke was).
@@ -931,7 +932,8 @@ def test_a_volume_only_fog_box_is_not_reported_as_alpha():
     s.add_material(Material("card", (0.8, 0.8, 0.8), alpha=0.5))
     s.add_plane((1.5, 0.5, 0.5), (0, -1, 0), (0.5, 0.5), "card", name="Card")
     line = _line(_plan(s), "transparency")
-    assert "alpha below 1 in 'card'" in line and "volume-only 'Fog'" in line, line
+    assert ("see-through (a Transparent BSDF, Alpha below 1 or an alpha texture) in 'card'"
+            in line and "volume-only 'Fog'" in line), line
 
 
 def test_zero_photons_turn_indirect_light_off_and_say_why():
