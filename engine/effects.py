@@ -998,18 +998,20 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # paths in rare bright samples, which the clamp cuts, while our photon
             # estimates are smooth and seldom reach it (newuser40: a room lit through an
             # open window 1.046x Cycles at Indirect 10, its ceiling 1.21x; 1.002x with
-            # Cycles' clamp off).
+            # Cycles' clamp off). Said as a possibility: where Cycles' paths find the
+            # bounce light often enough the clamp cuts nothing (newuser44: a table by a
+            # window, Cycles the same with the clamp at 10 and off).
             glass_note = ("; Cycles clamps each path sample, and the bounce light of a "
                           "sunlit room comes to its paths in rare bright samples that the "
                           "clamp cuts, while photon estimates are smooth and seldom reach "
-                          "it: such rooms read brighter here than in Cycles; set Indirect "
-                          "to 0 in both to compare them")
+                          "it: such rooms can read brighter here than in Cycles (where the "
+                          "clamp cuts anything); set Indirect to 0 in both to compare them")
         if s.clamp_indirect > 0 and plan.caustics and plan.casters:
             # (newuser41: the rims of glass eyes 1.12x Cycles at Indirect 10, up to 1.9x
             # in a block; 1.000 with Cycles' clamp off)
             glass_note += ("; the caustics of " + _quoted(plan.casters, most=REPORT_NAMES_MAX)
                            + " likewise reach Cycles' paths in rare bright samples that "
-                           "its clamp cuts: they read brighter here")
+                           "its clamp cuts: they can read brighter here")
         plan.add("clamping", True,
                  f"Light Paths > Clamping: direct light {limit(s.clamp_direct)}, indirect "
                  f"light and photon estimates {limit(s.clamp_indirect)}; brighter samples "
