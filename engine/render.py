@@ -36,7 +36,7 @@ from .panelight import panes_for
 from .parallel import Cancelled, run_cancellable, run_tasks
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
                       trace_photons)
-from .resources import check_resources
+from .resources import check_resources, regather_levels
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
 from .stagespans import StageSpans
@@ -1089,7 +1089,11 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
                                        len(rows), share if share_counts(ctx) else None, k),
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
-                                   subsets=masks, secondary=secondary)
+                                   subsets=masks, secondary=secondary,
+                                   # (its photons kept for the lookups that drop some:
+                                   # chaincounts.subset_irradiance; none where no
+                                   # limit can bind)
+                                   bounces=shot.bounces if regather_levels(s) else None)
             guide_pays = s.gather_guiding == "on" or can_guide(share)
             if s.gather_guiding != "off" and gather_map.tree is not None and not guide_pays:
                 out_deeper["guide_skipped"] = True  # auto: no grid could reach AUTO_GAIN
