@@ -263,6 +263,21 @@ class GatherCounts:
         hit = np.array([self.drops_any(level, tuple(int(x) for x in k)) for k in keys])
         return hit[which]
 
+    def kept_share(self, level, key) -> float:
+        """The share of the power lookups at gather level `level` read from its map that
+        photons usable for camera counts key (4-tuple) carry, over the whole map (s20's
+        last-level scale; now only integrator.LOOKUP_SUBSETS = False reads it, an A/B
+        diagnostic: a lookup's own share is where the dropped photons lie)."""
+        got = self._cache.get(("share", level) + key)
+        if got is None:
+            rows, power, _ = self._classes()
+            nominal = pk.bounce_usable(rows, self.limits, (level + 1, level + 1, 0, 0))
+            ok = pk.bounce_usable(rows, self.limits, key)
+            kept = float(power[nominal].sum())
+            got = float(power[nominal & ok].sum()) / kept if kept > 0.0 else 1.0
+            self._cache[("share", level) + key] = got
+        return got
+
     def reroute(self, level, counts) -> np.ndarray:
         """(K,) bool for lookups with camera counts (K,4) at gather level `level`."""
         counts = np.asarray(counts, np.int64)

@@ -856,6 +856,12 @@ _UNSET = object()  # gather_indirect's lean: not given
 # gather once more from their end, up to this many levels deep (Jensen's advice for
 # short gather rays). Deeper, the lookup is used as it is.
 MAX_GATHER_LEVEL = 2
+# Gather lookups whose counts drop some of their level map's photons read their usable
+# photons alone at their gather point (_chain_lookups; gatherlevel44). False: the read
+# before (the map whole below the reroute share, the last level's scaled by the whole
+# map's kept share), kept as an A/B diagnostic (bench/bench_accuracy_ab.py
+# --variant old:@integrator.LOOKUP_SUBSETS=False).
+LOOKUP_SUBSETS = True
 # Guided gather directions (engine/guiding.py) at the regathers' levels too (True), or at
 # level 0 only
 GUIDE_REGATHERS = False
@@ -1291,6 +1297,14 @@ def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather, gmap, point):
             boundary[again] = True
         # (a boundary row gathers again: its Ey is not read)
         read &= ~boundary
+    if not LOOKUP_SUBSETS:
+        if not regather:
+            keys, which = chaincounts.unique_counts(counts)
+            scale = np.array([gc.kept_share(level, tuple(int(x) for x in k))
+                              if gc.drops(level, tuple(int(x) for x in k)) else 1.0
+                              for k in keys])[which]
+            Ey[~past] *= scale[~past, None]
+        return
     if getattr(gmap, "estimating", None) is None or not read.any():
         return
     # The map's irradiance holds the dropped photons' power too, and their share of a
