@@ -1313,6 +1313,8 @@ def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather, gmap, point):
     # the map by the whole map's kept share; docs/accuracy.md, gatherlevel44).
     rows = np.flatnonzero(read)
     rows = rows[gc.partial(level, counts[rows])]
+    # (most points' estimates hold none of the photons those counts drop: E as it is)
+    rows = rows[chaincounts.may_drop(gmap, level, counts[rows], point[rows])]
     if len(rows):
         Ey[rows] = chaincounts.subset_irradiance(gmap, limits, counts[rows], point[rows])
 

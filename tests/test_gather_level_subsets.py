@@ -11,15 +11,19 @@ of their usable photons alone at their gather point (gatherlevel44).
   at the last level and, below the reroute share, at level 0. Before, the last level
   read the map scaled by the whole map's kept share (~1, from the floor's photons): 3x
   the wall's usable light; level 0 read the map whole.
+- GatherMap.drop_bounds / chaincounts.may_drop: a point whose bound holds no photon reads
+  E exactly at every counts the bound covers (the floor's direct photons: no lookup there
+  runs counts_irradiance); the wall's deep photons set the bounds they fall in.
 """
 from types import SimpleNamespace
 
 import numpy as np
 
-from engine.chaincounts import GatherCounts
+from engine.chaincounts import DROP_BOUND_EXTRA, DROP_BOUND_LEVELS, GatherCounts
 from engine.integrator import MAX_GATHER_LEVEL, _chain_lookups
 from engine.photonmap import GatherMap
 from engine.photons import Photons
+from engine.render import _drop_bound_masks
 
 LIMITS = np.array([6, 1024, 1024, 1024], np.int64)
 ARGS = (0.08, 32, 1, "knn_simpson")
@@ -53,8 +57,10 @@ def _maps(ph):
     """The render's level-0 map (keep) with its deeper levels' subsets and counts."""
     subsets = [ph.usable(LIMITS, camera=(lv + 1, lv + 1, 0, 0))
                for lv in range(1, MAX_GATHER_LEVEL + 1)]
-    return GatherMap(ph, *ARGS, max_points=4000, keep=ph.usable(LIMITS, camera=(1, 1, 0, 0)),
-                     subsets=subsets, bounces=ph.bounces)
+    gathered = ph.usable(LIMITS, camera=(1, 1, 0, 0))
+    bounds = _drop_bound_masks(ph, LIMITS, gathered, subsets, list(range(len(subsets))))
+    return GatherMap(ph, *ARGS, max_points=4000, keep=gathered, subsets=subsets,
+                     bounces=ph.bounces, drop_bounds=bounds)
 
 
 def test_counts_irradiance_is_the_subset_maps_E():
@@ -117,3 +123,44 @@ def test_lookups_after_a_chain_read_their_usable_photons_where_they_lie():
         # estimates of a third of a disc's photons read ~4 % low over the wall's points).
         np.testing.assert_allclose(Ey[rows].mean(axis=0), 30.0, rtol=0.15)
         np.testing.assert_allclose(whole[rows].mean(axis=0), 90.0, rtol=0.08)
+
+
+def test_drop_bounds_skip_exactly_where_no_dropped_photon_lies():
+    ph, _ = _corner(np.random.default_rng(5))
+    g = _maps(ph)
+    every = np.arange(len(g.position))
+    wall = g.position[:, 0] < 1e-6
+    assert 100 < wall.sum() < len(every) - 100
+    assert set(g.drop_bounds) == {(lv, e) for lv in range(DROP_BOUND_LEVELS)
+                                  for e in range(1, DROP_BOUND_EXTRA + 1)}
+    for level in range(DROP_BOUND_LEVELS):
+        gmap = g if level == 0 else g.subset_maps[level - 1]
+        for extra in range(1, DROP_BOUND_EXTRA + 1):
+            bound = g.drop_bounds[(level, extra)]
+            # the deep photons (3 scatters, total limit 6) are dropped once
+            # level + 1 + extra + 3 > 6, and lie on the wall alone
+            assert not bound[~wall].any()
+            assert bound[wall].mean() == (1.0 if level + extra > 2 else 0.0)
+            key = (level + 1 + extra, level + 1, extra, extra)
+            got = gmap.counts_irradiance(every, LIMITS, key)
+            assert np.array_equal(got[~bound], gmap.E[~bound])
+            assert (got[bound].sum(1) < gmap.E[bound].sum(1)).all()
+    # _chain_lookups at level 0 on the floor, counts that drop the deep photons: E as it
+    # is, no estimate run
+    g = _maps(ph)
+    n = 300
+    rng = np.random.default_rng(6)
+    p = np.c_[0.2 + 0.6 * rng.random((n, 2)), np.zeros(n)]
+    gmap = g
+    Ey, boundary, point = gmap.lookup(p, np.tile([0.0, 0.0, 1.0], (n, 1)), points=True)
+    Ey, boundary, point = Ey.copy(), boundary.copy(), point.copy()
+    assert (point >= 0).all()
+    power = ph.power.astype(np.float64).sum(axis=1)
+    ctx = SimpleNamespace(settings=SimpleNamespace(bounce_limits=LIMITS),
+                          gather_counts=GatherCounts(ph.bounces, power, LIMITS, 0.005))
+    whole = Ey.copy()
+    cnt = np.tile(np.array((3, 0, 3, 3), np.int64), (n, 1))
+    _chain_lookups(ctx, 0, cnt, Ey, boundary, np.ones(n), False, gmap, point)
+    assert ctx.gather_counts.partial(0, cnt[:1] + [1, 1, 0, 0])[0]
+    assert np.array_equal(Ey, whole)
+    assert not gmap.counts_cache  # no lookup ran counts_irradiance
