@@ -1,5 +1,7 @@
 """CPU cost of the s20 limits changes against the behaviour before them in one process
-(before: GatherCounts.last_level_scale 1, chaincounts.flat_passages never binding),
+(before: the gather map read whole, GatherCounts.partial all False - s20's last-level
+scale, GatherCounts.last_level_scale, is now gatherlevel44's subsets -, and
+chaincounts.flat_passages never binding),
 interleaved, best of REPS, getrusage user+sys, one worker, 16 spp. Figure 6 is exported
 from its blend once by a child Blender process (bench_kernels.exported).
 
@@ -15,9 +17,9 @@ from engine.render import render
 from engine.api import PaperScene
 from engine.scene import Material
 ensure_compiled()
-o_scale, o_pass = chaincounts.GatherCounts.last_level_scale, chaincounts.flat_passages
+o_scale, o_pass = chaincounts.GatherCounts.partial, chaincounts.flat_passages
 def set_main(on):
-    chaincounts.GatherCounts.last_level_scale = (lambda self, level, c: np.ones(len(c))) if on else o_scale
+    chaincounts.GatherCounts.partial = (lambda self, level, c: np.zeros(len(c), bool)) if on else o_scale
     chaincounts.flat_passages = (lambda c, l: np.full(len(np.asarray(c).reshape(-1, 4)), 1 << 20)) if on else o_pass
 def pane():
     s = PaperScene(width=80, height=60)

@@ -1,6 +1,7 @@
 """A closed room with a mirror ball and a glass ball (area light) at Total 5 and 64: live
-Cycles (CSPP=512 spp) against ours with the last regather level's scale
-(chaincounts.GatherCounts.last_level_scale) and without it (the read before), 48 x 36,
+Cycles (CSPP=512 spp) against ours with the lookups' subsets (chaincounts.GatherCounts.partial,
+subset_irradiance; gatherlevel44, before it the last level's whole-map scale
+last_level_scale) and without them (the map read whole, the read before s20), 48 x 36,
 16 spp x 3 seeds (docs/performance.md, "limits").
 
     NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_limits_room_cycles.py
@@ -30,8 +31,8 @@ mb.camera((0.5, -2.2, 1.4), (-0.3, 2.0, 1.0), fov_deg=70)
 mb.set_world((0.0, 0.0, 0.0))
 scene.render.resolution_x, scene.render.resolution_y = 48, 36
 scene.render.resolution_percentage = 100
-orig = chaincounts.GatherCounts.last_level_scale
-ones = lambda self, level, counts: np.ones(len(counts))
+orig = chaincounts.GatherCounts.partial
+ones = lambda self, level, counts: np.zeros(len(counts), bool)
 tmp = tempfile.mkdtemp()
 for total in (5, 64):
     c = cycles_plain(scene, int(os.environ.get("CSPP", 512)), total)
@@ -44,7 +45,7 @@ for total in (5, 64):
     pm.spp, pm.photons = 16, 100_000
     got = {}
     for name, fn in (("main", ones), ("branch", orig)):
-        chaincounts.GatherCounts.last_level_scale = fn
+        chaincounts.GatherCounts.partial = fn
         vals = []
         for seed in (0, 1, 2):
             pm.seed = seed

@@ -18,8 +18,10 @@ diffuse, glossy, transmission) on top of the map's own camera counts.
   render.SUBSET_POWER_SHARE of the power the map's own level keeps; final gathering
   gathers again from their ends (integrator.gather_indirect), where direct light,
   the next level's gather and the secondary caustic are all taken with the real counts.
-  At the last level (no regather) they read the map scaled by the share of its power
-  their counts keep (`GatherCounts.last_level_scale`).
+  The other lookups whose counts drop some of the map's photons (below that share, or
+  at the last level, which gathers no more) read the irradiance of their usable photons
+  alone at their gather point (`subset_irradiance`: GatherMap.counts_irradiance, the
+  point's estimate again with those photons' mask, made on first use).
 - Shadow rays through flat glass passages (engine/shadowtransmittance.py) cross only as
   many as the hit's counts allow (`flat_passages`), per lobe kind: a hit's diffuse and
   glossy lobes may differ (directlight.accumulate_bsdf), rough glass counts its
@@ -239,10 +241,33 @@ class GatherCounts:
             self._cache[(level,) + key] = got
         return got
 
+    def drops_any(self, level, key) -> bool:
+        """Whether lookups at gather level `level` reached with camera counts key (4-tuple)
+        drop any photon that level's map (counts (level + 1, level + 1, 0, 0)) keeps."""
+        got = self._cache.get(("any", level) + key)
+        if got is None:
+            rows, _, _ = self._classes()
+            nominal = pk.bounce_usable(rows, self.limits, (level + 1, level + 1, 0, 0))
+            ok = pk.bounce_usable(rows, self.limits, key)
+            got = self._cache[("any", level) + key] = bool((nominal & ~ok).any())
+        return got
+
+    def partial(self, level, counts) -> np.ndarray:
+        """(K,) bool for lookups with camera counts (K,4) at gather level `level`: those
+        whose counts drop some of the photons the level's map keeps (its precomputed
+        irradiance holds their power too; subset_irradiance reads the rest alone)."""
+        counts = np.asarray(counts, np.int64)
+        if not len(counts):
+            return np.zeros(0, bool)
+        keys, which = unique_counts(counts)
+        hit = np.array([self.drops_any(level, tuple(int(x) for x in k)) for k in keys])
+        return hit[which]
+
     def kept_share(self, level, key) -> float:
-        """The share of the power lookups at gather level `level` read from its map
-        (counts (level + 1, level + 1, 0, 0)) that photons usable for camera counts key
-        (4-tuple) carry: 1 - dropped / kept of drops, from the photons' count classes."""
+        """The share of the power lookups at gather level `level` read from its map that
+        photons usable for camera counts key (4-tuple) carry, over the whole map (s20's
+        last-level scale; now only integrator.LOOKUP_SUBSETS = False reads it, an A/B
+        diagnostic: a lookup's own share is where the dropped photons lie)."""
         got = self._cache.get(("share", level) + key)
         if got is None:
             rows, power, _ = self._classes()
@@ -253,28 +278,6 @@ class GatherCounts:
             self._cache[("share", level) + key] = got
         return got
 
-    def last_level_scale(self, level, counts) -> np.ndarray:
-        """(K,) float64 for lookups with camera counts (K,4) at the last gather level,
-        where none gathers again: the lookups reroute would send on (their counts drop
-        more than `share` of the map's power) read the map scaled by kept_share, the
-        share of its power their photons carry (the map's irradiance holds the others'
-        too); 1 elsewhere (the map as it is, as at the other levels). The scale is the
-        whole map's: where the dropped photons gather unevenly (a caustic's deeper
-        photons) a lookup keeps their local excess or deficit; an exact answer needs the
-        map's irradiance again for those counts (a subset map per count class, a whole
-        estimate pass each: docs/performance.md, limits)."""
-        counts = np.asarray(counts, np.int64)
-        out = np.ones(len(counts))
-        if not len(counts):
-            return out
-        keys, which = unique_counts(counts)
-        scale = np.ones(len(keys))
-        for j, k in enumerate(keys):
-            key = tuple(int(x) for x in k)
-            if self.drops(level, key):
-                scale[j] = self.kept_share(level, key)
-        return scale[which]
-
     def reroute(self, level, counts) -> np.ndarray:
         """(K,) bool for lookups with camera counts (K,4) at gather level `level`."""
         counts = np.asarray(counts, np.int64)
@@ -284,3 +287,59 @@ class GatherCounts:
         keys, which = unique_counts(counts)
         hit = np.array([self.drops(level, tuple(int(x) for x in k)) for k in keys])
         return hit[which]
+
+
+# The gather map's per-point drop bounds (render._drop_bound_masks) cover lookups at the
+# levels below DROP_BOUND_LEVELS whose counts exceed their level's by at most
+# DROP_BOUND_EXTRA bounces of each kind but diffuse (others: the lookup's own estimate
+# again, counts_irradiance). Each is a mask more in the map's one estimate pass (9
+# masks: Figure 6's map build +0.5 CPU s); level 0 holds ~95 % of Figure 6's lookups
+# that drop photons.
+DROP_BOUND_EXTRA = 3
+DROP_BOUND_LEVELS = 1
+
+
+def may_drop(gmap, level, counts, point) -> np.ndarray:
+    """(K,) bool for lookups at gather level `level` with camera counts (K,4) at gmap's
+    gather points `point` (K,) int64: False where none of the photons their counts drop
+    adds to the point's estimate, which then equals the point's irradiance E exactly
+    (its photons' sums without terms that were 0; subset_irradiance need not run):
+    counts beyond the level's (level + 1, level + 1, 0, 0) by no diffuse bounce and at
+    most DROP_BOUND_EXTRA of each other kind, at a point whose bound
+    (GatherMap.drop_bounds[(level, extra)]) holds no photon. True elsewhere (and for
+    maps without bounds)."""
+    counts = np.asarray(counts, np.int64)
+    out = np.ones(len(counts), bool)
+    bounds = getattr(gmap, "drop_bounds", None)
+    if not bounds or not len(counts):
+        return out
+    extra = counts - np.array([level + 1, level + 1, 0, 0], np.int64)
+    most = np.maximum(np.maximum(extra[:, 0], extra[:, 2]), extra[:, 3])
+    most[extra[:, 1] != 0] = 0  # (a diffuse bounce more: no bound)
+    for m in range(1, DROP_BOUND_EXTRA + 1):
+        bound = bounds.get((level, m))
+        rows = np.flatnonzero(most == m)
+        if bound is not None and len(rows):
+            out[rows] = np.take(bound, np.take(point, rows))
+    return out
+
+
+def subset_irradiance(gmap, limits, counts, point) -> np.ndarray:
+    """(K,3) float64: the irradiance at gather points `point` (K,) int64 of gmap (a
+    GatherMap built with the photons' bounces) from the photons usable at each row's
+    camera counts counts (K,4) alone: what a subset map for those counts would hold at
+    the point (GatherMap.counts_irradiance, computed per distinct count and point on
+    first use). The lookups whose counts drop some of the level map's photons read it
+    (integrator._chain_lookups): the dropped photons' share of a point's light is their
+    share where they lie, not the whole map's (a closed sphere of glass and diffuse
+    sides traps light bounce after bounce: its deep photons carry most of the power
+    inside it and little of the map's)."""
+    counts = np.asarray(counts, np.int64)
+    out = np.empty((len(counts), 3))
+    if not len(counts):
+        return out
+    keys, which = unique_counts(counts)
+    for j, key in enumerate(keys):
+        rows = np.flatnonzero(which == j)
+        out[rows] = gmap.counts_irradiance(np.take(point, rows), limits, key)
+    return out

@@ -857,6 +857,12 @@ _UNSET = object()  # gather_indirect's lean: not given
 # gather once more from their end, up to this many levels deep (Jensen's advice for
 # short gather rays). Deeper, the lookup is used as it is.
 MAX_GATHER_LEVEL = 2
+# Gather lookups whose counts drop some of their level map's photons read their usable
+# photons alone at their gather point (_chain_lookups; gatherlevel44). False: the read
+# before (the map whole below the reroute share, the last level's scaled by the whole
+# map's kept share), kept as an A/B diagnostic (bench/bench_accuracy_ab.py
+# --variant old:@integrator.LOOKUP_SUBSETS=False).
+LOOKUP_SUBSETS = True
 # Guided gather directions (engine/guiding.py) at the regathers' levels too (True), or at
 # level 0 only
 GUIDE_REGATHERS = False
@@ -881,8 +887,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     camera chain's mirror / glass / glossy / sheen bounces, engine/chaincounts.py; None:
     none). The gather rays' own continuations add theirs: a lookup past a limit adds
     nothing, and one whose counts drop more light than its level's map holds
-    (chaincounts.GatherCounts.reroute) gathers again from its end (the last level reads
-    the map scaled by the share of its power the counts keep, last_level_scale).
+    (chaincounts.GatherCounts.reroute) gathers again from its end; the others that drop
+    some of its photons (every one at the last level) read their usable photons' alone
+    at their gather point (chaincounts.subset_irradiance).
     glow_only: the irradiance from emitting media alone (engine/volumeemission.py): no
     lookup, no surface emission, no lamps' light scattered in fog; the glow's second
     bounce gathers that way from level 0's gather ends."""
@@ -1156,12 +1163,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # points where the map holds it (_point_secondary).
                 sec_E = gmap.secondary_E if regather else None
                 got = gmap.lookup(lp[:nd], ln[:nd], offset=loff[:nd], scratch=buf,
-                                  points=sec_E is not None,
+                                  points=sec_E is not None or cnt is not None,
                                   surface=hit_surfaces(ctx, np.take(y.prim, dsel)))
                 Ey, boundary = got[:2]
                 if cnt is not None:
                     _chain_lookups(ctx, level, cnt[idx[dsel]], Ey, boundary, lt[:nd],
-                                   regather)
+                                   regather, gmap, got[2])
                 again = buf.again[:nd]
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
@@ -1300,14 +1307,15 @@ _NO_COUNTS = np.zeros((0, 4), np.int64)  # count_bent: only whether a ray is ben
 _NO_ROWS = np.zeros(0, np.int64)
 
 
-def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
+def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather, gmap, point):
     """Gather lookups at `level` whose rays have bounces cnt (K,4) beyond the level's own
     (chaincounts): those past a limit read nothing and are not gathered again (Ey 0,
     boundary False, lt inf); those whose counts drop more light than the level's map
-    holds gather again from their end (boundary True, with regather), or, at the last
-    level, read Ey scaled by the share of the map's power they keep
-    (GatherCounts.last_level_scale). Ey (K,3), boundary, lt (K,): the lookups' arrays,
-    changed in place."""
+    holds gather again from their end (boundary True, with regather); the others whose
+    counts drop some of the map's photons (every one at the last level) read the
+    irradiance of their usable photons alone at their gather point (point (K,) int64,
+    GatherMap.lookup's; chaincounts.subset_irradiance). Ey (K,3), boundary, lt (K,): the
+    lookups' arrays, changed in place; gmap: the level's GatherMap."""
     counts = chaincounts.camera_counts(cnt, (level + 1, level + 1, 0, 0))
     limits = ctx.settings.bounce_limits
     past = ~chaincounts.within(counts, limits)
@@ -1315,19 +1323,36 @@ def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
         Ey[past] = 0.0
         boundary[past] = False
         lt[past] = np.inf
-    if regather and ctx.gather_counts is not None:
-        again = ctx.gather_counts.reroute(level, counts) & ~past
+    gc = ctx.gather_counts
+    if gc is None:
+        return
+    read = ~past & (point >= 0)
+    if regather:
+        again = gc.reroute(level, counts) & ~past
         if again.any():
             boundary[again] = True
-    elif ctx.gather_counts is not None:
-        # The last level gathers no more: the lookups that would go on read the map
-        # scaled by the share of its power their counts keep (it held the photons past
-        # a limit too: Total 5 in a room with a mirror and a glass ball, 19 % of those
-        # lookups' light; docs/performance.md, limits).
-        scale = ctx.gather_counts.last_level_scale(level, counts)
-        cut = np.flatnonzero((scale < 1.0) & ~past)
-        if len(cut):
-            Ey[cut] *= scale[cut, None]
+        # (a boundary row gathers again: its Ey is not read)
+        read &= ~boundary
+    if not LOOKUP_SUBSETS:
+        if not regather:
+            keys, which = chaincounts.unique_counts(counts)
+            scale = np.array([gc.kept_share(level, tuple(int(x) for x in k))
+                              if gc.drops(level, tuple(int(x) for x in k)) else 1.0
+                              for k in keys])[which]
+            Ey[~past] *= scale[~past, None]
+        return
+    if getattr(gmap, "estimating", None) is None or not read.any():
+        return
+    # The map's irradiance holds the dropped photons' power too, and their share of a
+    # point's light is their share where they lie, not the map's (a closed sphere of
+    # Glass + Diffuse sides at 8 bounces read 1.53x Cycles when the last level scaled
+    # the map by the whole map's kept share; docs/accuracy.md, gatherlevel44).
+    rows = np.flatnonzero(read)
+    rows = rows[gc.partial(level, counts[rows])]
+    # (most points' estimates hold none of the photons those counts drop: E as it is)
+    rows = rows[chaincounts.may_drop(gmap, level, counts[rows], point[rows])]
+    if len(rows):
+        Ey[rows] = chaincounts.subset_irradiance(gmap, limits, counts[rows], point[rows])
 
 
 def _deeper(pmap, deeper, level):

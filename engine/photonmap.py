@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from . import hashgrid, kdtree, mortontree
+from . import photonkernels as pk
 from .jit import kernel, register_warm_up
 from .mortontree import morton_order  # noqa: F401 (query order; tests, benches)
 from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
@@ -1113,7 +1114,8 @@ class GatherMap:
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
                  workers: int = 1, should_cancel=None, rows: np.ndarray | None = None,
-                 keep: np.ndarray | None = None, subsets=(), secondary=()):
+                 keep: np.ndarray | None = None, subsets=(), secondary=(),
+                 bounces: np.ndarray | None = None, drop_bounds=None):
         """rows: (K,) int, build from photons.take(rows) only (gathered once, straight into
         the trees' order). The independent steps run side by side on `workers` threads
         (parallel.run_tasks: the two kd-trees, then the points' irradiance and their
@@ -1131,10 +1133,19 @@ class GatherMap:
         instead of a whole map's.
         secondary: (N,) bool masks over `photons` like keep; self.secondary_levels then
         holds, per mask, the points' irradiance (P,3) from that mask's photons alone
-        (the same searches: another mask of the estimate pass; [] without)."""
+        (the same searches: another mask of the estimate pass; [] without).
+        bounces: (N,4) uint8 over `photons`, their counts (Photons.bounces): the map keeps
+        its estimating photons and their counts for counts_irradiance (None: not kept).
+        drop_bounds: {key: (N,) bool over `photons`} or None; self.drop_bounds then holds,
+        per key, (P,) bool: whether some photon of that mask adds to the point's estimate
+        (another mask of the same searches; a mask without a photon of nonzero power:
+        all False, no mask). integrator._chain_lookups reads them as bounds on the
+        photons a lookup's counts can drop (render._drop_bound_masks)."""
         self.workers = workers
         self.subset_maps = []
         self.secondary_levels = []
+        self.estimating = None  # counts_irradiance's photons (bounces given), else None
+        self.drop_bounds = {}
         # With an Accel, a lookup only takes a gather point it can see: a point on the
         # other side of a wall (e.g. the ground outside a room, coplanar with the floor
         # inside) would otherwise leak light under the wall (docs/stability.md).
@@ -1165,7 +1176,7 @@ class GatherMap:
                  lambda stop, rows_=np.take(rows, others), scale_=scale:
                  PhotonMap(photons, workers, rows=rows_, power_scale=scale_,
                            keep_source=(keep is not None or bool(len(subsets))
-                                        or bool(len(secondary))))]
+                                        or bool(len(secondary)) or bounces is not None))]
         del position, share, is_point, others, scale
         tree, estimating = run_tasks(trees, workers, should_cancel)
         del trees
@@ -1187,6 +1198,20 @@ class GatherMap:
         # never on their power (PhotonMap.irradiance's masks: the same bits as an estimate
         # pass per mask, for about the cost of one).
         masks = ([] if keep is None else [keep]) + list(subsets) + list(secondary)
+        # The drop bounds' masks, each once, and only those holding a photon with power.
+        bound_keys = list((drop_bounds or {}).keys())
+        bound_masks, bound_of = [], []
+        if bound_keys:
+            with_power = np.any(photons.power != 0.0, axis=1)
+        for key in bound_keys:
+            mask = drop_bounds[key] & with_power
+            same = [i for i, m in enumerate(bound_masks) if np.array_equal(m, mask)]
+            if same or not mask.any():
+                bound_of.append(same[0] if same else -1)
+            else:
+                bound_of.append(len(bound_masks))
+                bound_masks.append(mask)
+        masks += bound_masks
 
         def estimate(stop):
             chosen = None
@@ -1205,17 +1230,70 @@ class GatherMap:
         done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
         E, self.boundary = done[0], done[1]
         levels = list(done[2]) if masks else []
+        if bound_masks:
+            hit = [np.any(b != 0.0, axis=1) for b in levels[len(levels) - len(bound_masks):]]
+            levels = levels[:len(levels) - len(bound_masks)]
+        for key, j in zip(bound_keys, bound_of):
+            self.drop_bounds[key] = hit[j] if j >= 0 else np.zeros(len(self.position), bool)
         self.E = E if keep is None else levels.pop(0)
         if len(secondary):
             self.secondary_levels = levels[len(levels) - len(secondary):]
             levels = levels[:len(levels) - len(secondary)]
         self.radius = radius
         self.tree = tree
+        if bounces is not None:
+            # (shared with the views below: one cache of counts_irradiance's answers)
+            self.estimating = estimating
+            # Its photons' distinct count rows and each photon's (a mask per count is
+            # then a take: bounce_usable over every photon cost ~20 ms a call on
+            # Figure 6's 0.7 M, 40 % of its render at 80 x 60).
+            from .chaincounts import unique_counts
+            rows, which = unique_counts(np.take(bounces, estimating.source, axis=0))
+            self.estimating_classes = (rows, which.astype(np.int32))
+            self.estimate_args = (k, min_photons, estimator)
+            self.counts_cache = {}
         for E in levels:
             # The same points, trees, neighbour lists and boundary flags (shared).
             view = copy.copy(self)
             view.E, view.subset_maps, view.secondary_levels = E, [], []
             self.subset_maps.append(view)
+
+    def counts_irradiance(self, points, limits, camera) -> np.ndarray:
+        """(M,3) float64: the irradiance at gather points `points` (M,) int64 (indices into
+        self.position) from the photons usable at camera-side counts `camera` (4-tuple,
+        B_TOTAL order) within `limits` (4,) alone: what a subset map of those photons
+        (the constructor's subsets, the others' power counted as 0) holds there, the same
+        bits (one point's estimate depends on nothing else). Computed on first use per
+        (counts, point) and kept (counts_cache, shared by the views): two threads may
+        compute a point twice, the same values. Needs the map built with bounces;
+        raises ValueError otherwise."""
+        if self.estimating is None:
+            raise ValueError("GatherMap.counts_irradiance: the map was built without bounces")
+        points = np.asarray(points, np.int64)
+        key = tuple(int(x) for x in camera)
+        got = self.counts_cache.get(key)
+        if got is None:
+            P = len(self.position)
+            rows, which = self.estimating_classes
+            # The count's mask once, kept as bits (1/8 B a photon): the take over every
+            # estimating photon per call was 2/3 of these calls' CPU on Figure 6.
+            bits = np.packbits(np.take(pk.bounce_usable(rows, np.asarray(limits, np.int64),
+                                                        key), which))
+            got = self.counts_cache.setdefault(key, (np.zeros((P, 3)), np.zeros(P, bool),
+                                                     bits))
+        E, done, bits = got
+        new = np.unique(points[~done[points]])
+        if len(new):
+            k, min_photons, estimator = self.estimate_args
+            mask = np.unpackbits(bits, count=len(self.estimating)).view(np.bool_)
+            surf = self.surface if len(self.surface) else None
+            _, masked = self.estimating.irradiance(
+                np.take(self.position, new, axis=0), np.take(self.normal, new, axis=0),
+                self.radius, k, min_photons, estimator, masks=mask[None],
+                surface=None if surf is None else np.take(surf, new))
+            E[new] = masked[0]
+            done[new] = True
+        return np.take(E, points, axis=0)
 
     def serial(self) -> "GatherMap":
         """The same map, queried on the calling thread only (see PhotonMap.serial)."""

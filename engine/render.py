@@ -14,7 +14,7 @@ import numpy as np
 from . import adaptive, cryptomatte, lightgroups, panorama, shadowcatcher
 from .accel import Accel
 from .ambientocclusion import attach_tracer
-from .chaincounts import GatherCounts
+from .chaincounts import DROP_BOUND_EXTRA, DROP_BOUND_LEVELS, GatherCounts
 from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_view
@@ -36,7 +36,7 @@ from .panelight import panes_for
 from .parallel import Cancelled, run_cancellable, run_tasks
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
                       trace_photons)
-from .resources import check_resources
+from .resources import check_resources, regather_levels
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
 from .stagespans import StageSpans
@@ -635,6 +635,25 @@ def render_cryptomatte(ctx: Context, region, film: Film, should_cancel) -> None:
     film.stats["time_cryptomatte"] = time.perf_counter() - t0
 
 
+def _drop_bound_masks(shot, limits, gathered, masks, level_of) -> dict:
+    """{(level, extra): (N,) bool} over the shot's photons, for the levels below
+    chaincounts.DROP_BOUND_LEVELS and extra 1..chaincounts.DROP_BOUND_EXTRA: the photons of that level's map (gathered
+    at level 0, else its subset mask masks[level_of[level - 1]], or gathered at -1: the
+    map render.level_maps gives the level) that a lookup with camera counts (level + 1 +
+    e_total, level + 1, e_glossy, e_transmission), each e at most extra, may drop: those
+    not usable at (level + 1 + extra, level + 1, extra, extra). Usability only falls as
+    counts grow, so that set holds every photon such a lookup drops
+    (chaincounts.may_drop)."""
+    out = {}
+    for level in range(min(DROP_BOUND_LEVELS, MAX_GATHER_LEVEL + 1)):
+        i = level_of[level - 1] if level else -1
+        kept = gathered if i < 0 else masks[i]
+        for extra in range(1, DROP_BOUND_EXTRA + 1):
+            ok = shot.usable(limits, camera=(level + 1 + extra, level + 1, extra, extra))
+            out[(level, extra)] = kept & ~ok
+    return out
+
+
 def level_maps(gather_map: GatherMap, level_of: list, secondary_of: list) -> tuple:
     """The map each regathering level reads (render context's regather_maps), with each
     level's secondary-caustic share set (GatherMap.secondary_E).
@@ -1187,13 +1206,23 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
             # Every non-caustic photon makes the map's points and discs; the irradiance
             # counts those valid one diffuse bounce after the camera's hit (keep).
             rows = np.flatnonzero(shot.kind != CAUSTIC)
+            bounded = regather_levels(s)
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
                                    max_points=gather_points(
                                        len(rows), share if share_counts(ctx) else None, k),
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
-                                   subsets=masks, secondary=secondary)
+                                   subsets=masks, secondary=secondary,
+                                   # (its photons kept for the lookups that drop some:
+                                   # chaincounts.subset_irradiance; none where no
+                                   # limit can bind)
+                                   bounces=shot.bounces if bounded else None,
+                                   # (which points' estimates hold photons a lookup's
+                                   # counts may drop: most hold none)
+                                   drop_bounds=_drop_bound_masks(shot, limits, gathered,
+                                                                 masks, level_of)
+                                   if bounded else None)
             guide_pays = s.gather_guiding == "on" or can_guide(share)
             if s.gather_guiding != "off" and gather_map.tree is not None and not guide_pays:
                 out_deeper["guide_skipped"] = True  # auto: no grid could reach AUTO_GAIN

@@ -49,6 +49,12 @@ measured peak for a set of renders. What each part counts:
   engine/render.py _build_maps): per level the irradiance and boundary flag of every
   gather point, counted at the most levels (integrator.MAX_GATHER_LEVEL) whenever the
   limits can drop photons.
+- gather lookups' photons: where the limits can drop photons (regather_levels), the
+  gather map keeps the photons its points' estimates read (photonmap.GatherMap
+  estimating: their kd-tree, power, directions, normals, kinds, surfaces, counts and
+  rows), for the lookups after a chain whose counts drop some of them
+  (chaincounts.subset_irradiance), and the points' irradiance per such count read
+  (24 B a point: a few counts a render).
 - regather secondary shares: per regathering level (integrator.MAX_GATHER_LEVEL) the
   secondary-caustic share of every gather point's irradiance (GatherMap.secondary_levels,
   read by the regathered ends: integrator.SECONDARY_FROM_GATHER_POINTS).
@@ -104,6 +110,10 @@ BYTES_PER_INSTANCE = 400  # a shared instance: record, matrices, top-level box a
 # at the defaults (60,739 points of 733,827 photons), 0.99x on an HDRI-lit ground;
 # GATHER_POINT_SPREAD leaves room above that. Each deeper level holds a (P,3) float64
 # irradiance per point; the boundary flags are the level-0 map's (shared).
+# The estimating photons a gather map keeps for its lookups' subsets (GatherMap
+# estimating, counts_cache): float32 position, power, direction, normal (48 B), kind,
+# surface, source row, counts (17 B) and the kd-tree's share; estimated, not measured.
+BYTES_PER_KEPT_GATHER_PHOTON = 80
 GATHER_MAX_POINTS = 60_000
 GATHER_POINT_SPREAD = 1.25
 BYTES_PER_GATHER_POINT_LEVEL = 24
@@ -350,6 +360,9 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
             est.parts["regather maps"] = (gather_points(s.photons * stores) * levels
                                           * BYTES_PER_GATHER_POINT_LEVEL)
             est.drivers["regather maps"] = "photons"
+            est.parts["gather lookups' photons"] = int(s.photons * stores
+                                                       * BYTES_PER_KEPT_GATHER_PHOTON)
+            est.drivers["gather lookups' photons"] = "photons"
         if s.final_gather and s.photons and integrator.SECONDARY_FROM_GATHER_POINTS:
             # Each regathering level's secondary-caustic share of the gather points'
             # estimates ((P,3) float64 a level: GatherMap.secondary_levels).

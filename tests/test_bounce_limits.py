@@ -538,14 +538,15 @@ def test_a_mirror_as_the_photons_first_scatter_is_the_light_vertex():
         assert films[key].caustic.max() == 0.0, key
 
 
-def test_last_level_lookups_read_the_share_of_the_map_their_counts_keep():
-    """At the last gather level no lookup gathers again: one whose counts drop more than
-    the share of the map's power (reroute's decision) reads the map scaled by the share
-    of its photons' power the counts keep (the photons' own sums: a lookup of the level's
-    map after a glass ball at Total 5 keeps those of <= 1 scatter of the map's <= 2),
-    every other lookup the map as it is (scale 1). Before, it read the whole map: a room
-    with a mirror and a glass ball at Total 5 read 1.024x Cycles, now 0.998x
-    (tests/blender/test_blender_bounces.py; docs/performance.md, limits)."""
+def test_gather_counts_tell_the_lookups_that_drop_some_of_the_maps_photons():
+    """GatherCounts.partial: the lookups whose counts drop any photon their level's map
+    keeps (they read their usable photons alone at their gather point,
+    chaincounts.subset_irradiance; tests/test_gather_level_subsets.py); reroute: those
+    that drop more than the share of its power. Level 2's map (counts (3, 3, 0, 0))
+    keeps the photons of <= 2 scatters at Total 5; a lookup after a glass ball keeps
+    those of <= 1. Before gatherlevel44 the last level scaled the map by the whole map's
+    kept share instead (a room with a mirror and a glass ball at Total 5 read 1.024x
+    Cycles unscaled, 0.998x scaled: tests/blender/test_blender_bounces.py)."""
     from engine.chaincounts import GatherCounts
     rng = np.random.default_rng(5)
     n = 5000
@@ -558,10 +559,12 @@ def test_last_level_lookups_read_the_share_of_the_map_their_counts_keep():
     g = GatherCounts(bounces, power, lim, 0.005)
     level = 2  # its map: counts (3, 3, 0, 0), photons of <= 2 scatters
     counts = np.array([[3, 3, 0, 0], [4, 3, 0, 1], [5, 3, 1, 1], [4, 3, 0, 1], [6, 3, 0, 3]])
-    got = g.last_level_scale(level, counts)
-    kept = power[total <= 2].sum()
-    want = [1.0, power[total <= 1].sum() / kept, power[total == 0].sum() / kept]
-    np.testing.assert_allclose(got[:3], want, rtol=1e-12)
-    assert got[3] == got[1]
-    assert got[4] == 0.0  # past the limit (the caller reads nothing there anyway)
+    assert g.partial(level, counts).tolist() == [False, True, True, True, True]
     assert g.reroute(level, counts).tolist() == [False, True, True, True, True]
+    # Dropping only a sliver of the power: partial, not rerouted.
+    few = np.zeros((n, 4), np.uint8)
+    few[:3, 0] = 2
+    g2 = GatherCounts(few, np.ones(n), lim, 0.005)
+    assert g2.partial(level, counts[:3]).tolist() == [False, True, True]
+    assert g2.reroute(level, counts[:3]).tolist() == [False, False, False]
+    assert not g2.partial(level, np.zeros((0, 4), np.int64)).size

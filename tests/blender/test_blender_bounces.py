@@ -438,9 +438,10 @@ def test_closed_room_with_a_mirror_and_a_glass_ball_at_total_5_matches_cycles(bp
     """_closed_room with a mirror ball and a glass ball, Max Bounces Total 5 (the others
     64): final-gather rays through the balls reach the last regather level with more
     bounces than its map's, whose photons past the limit the lookups read in full
-    (1.024x Cycles, 3 seeds; 0.996x at Total 64); they now read the map scaled by the
-    share of its power their counts keep (chaincounts.GatherCounts.last_level_scale):
-    0.998x. Bound 1.2 %. ~12 s."""
+    (1.024x Cycles, 3 seeds; 0.996x at Total 64); s20 read the map scaled by the whole
+    map's share of power their counts keep (0.998x); since gatherlevel44 they read their
+    usable photons alone at their gather point (chaincounts.subset_irradiance). Bound
+    1.2 %. ~12 s."""
     bpy = bpy_addon
     scene = _closed_room_with_balls_at_total_5(bpy)
     cyc = _stored_means()["closed room with balls, total 5"][0]  # Cycles 512 spp, seed 0
