@@ -41,6 +41,8 @@ def test_glass_plus_diffuse_sphere_traps_light_as_in_cycles(fresh_scene, bpy_add
     print(f"ours / Cycles {ratio.round(4)}")
     # Red over 8 renders at 16 spp: 0.99-1.08 (seeds 0-2, and the scene built and
     # rendered again in one Blender process, which reads another value at the same seed:
-    # 1.005 then 1.068, not found why; the engine renders one exported scene to the same
-    # bits each time); at 64 spp 1.007-1.016. Before, 1.53 / 1.53 / 1.13. Bound 10 %.
+    # 1.005 then 1.068: Blender's UV sphere primitive orders its loops and triangles
+    # differently at each build, the same triangles and vertices, so the same seed draws
+    # other samples; the engine renders one exported scene to the same bits each time);
+    # at 64 spp 1.007-1.016. Before, 1.53 / 1.53 / 1.13. Bound 10 %.
     assert abs(ratio - 1.0).max() < 0.10, ratio
