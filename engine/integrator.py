@@ -1788,6 +1788,12 @@ GLOW_SAMPLES_PER_PIXEL = SECONDARY_SAMPLES_PER_PIXEL
 # secondary caustic took 0.5 of its 2.0 CPU s at 4 a pixel; 1 a pixel read the same
 # relMSE and FLIP (docs/performance.md "worldcolour44").
 SMOOTH_SHARE_FULL = 0.08
+# A glow-only caustic map takes at least GLOW_LEAST_PER_PIXEL of them: window glass sends
+# its refracted photons there too, and a thick pane's edges bunch them into narrow
+# estimates that one sample a pixel leaves as single bright pixels (the feature matrix's
+# window room behind a 2 cm slab, seeds 0-5, worst 8 x 8 block's error: 0.531 at seed 0
+# with 1, 0.312 with 2, 0.237 with 4; the other seeds 0.12-0.26 at each).
+GLOW_LEAST_PER_PIXEL = 2
 # Hits reached through a rough lobe take the caustic estimate at every sample, not at
 # CAUSTIC_SAMPLES_PER_PIXEL of them (_trace_paths; False: the stride everywhere, as before:
 # bench/bench_accuracy_ab.py's @integrator.CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE=False).
@@ -1900,17 +1906,19 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     return out
 
 
-def smooth_per_pixel(most: int, share: float | None, full: float | None = None) -> int:
+def smooth_per_pixel(most: int, share: float | None, full: float | None = None,
+                     least: int = 1) -> int:
     """Samples a pixel that take a smooth estimate (_smooth_estimate's per_pixel) whose
     light is rms share `share` of what the camera sees (visualimportance.glow_share /
     secondary_share; None or not finite: not known, `most`): most x share / full rounded
-    to the nearest, from 1 to `most` (SMOOTH_SHARE_FULL's comment). Rounded, not ceiled
-    as gather_count's rays: a share just over a step would double the estimates.
+    to the nearest, from `least` (1; GLOW_LEAST_PER_PIXEL for a glow map) to `most`
+    (SMOOTH_SHARE_FULL's comment). Rounded, not ceiled as gather_count's rays: a share
+    just over a step would double the estimates.
     full: None, SMOOTH_SHARE_FULL (read at the call: A/B benches set it)."""
     if share is None or not math.isfinite(share):
         return int(most)
     full = SMOOTH_SHARE_FULL if full is None else full
-    return int(min(most, max(1, math.floor(most * share / full + 0.5))))
+    return int(min(most, max(least, math.floor(most * share / full + 0.5))))
 
 
 def smooth_sample_weight(spp: int, stride: int) -> float:

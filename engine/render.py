@@ -901,14 +901,16 @@ def smooth_counts(ctx, shot, stats) -> None:
     (integrator.smooth_per_pixel; visualimportance.glow_share, the glow shot's if it was
     measured, and secondary_share, ~0.02 s each, on this thread: the same for any
     worker count): ctx.glow_per_pixel, ctx.secondary_per_pixel and their stats."""
-    from .integrator import GLOW_SAMPLES_PER_PIXEL, SECONDARY_SAMPLES_PER_PIXEL
+    from .integrator import (GLOW_LEAST_PER_PIXEL, GLOW_SAMPLES_PER_PIXEL,
+                             SECONDARY_SAMPLES_PER_PIXEL)
     radius = ctx.settings.radius or ctx.global_radius
     if not (len(shot) and radius > 0):
         return
     if ctx.plan.caustics_glow_only and ctx.caustic_map is not None and len(ctx.caustic_map):
         if "glow_share" not in stats:
             stats["glow_share"] = glow_share(ctx, shot, radius)
-        ctx.glow_per_pixel = smooth_per_pixel(GLOW_SAMPLES_PER_PIXEL, stats["glow_share"])
+        ctx.glow_per_pixel = smooth_per_pixel(GLOW_SAMPLES_PER_PIXEL, stats["glow_share"],
+                                              least=GLOW_LEAST_PER_PIXEL)
         stats["glow_per_pixel"] = ctx.glow_per_pixel
     if ctx.secondary_map is not None and len(ctx.secondary_map):
         stats["secondary_share"] = share = secondary_share(ctx, shot, radius)

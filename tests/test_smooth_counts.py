@@ -29,6 +29,9 @@ def test_smooth_per_pixel_follows_the_share_within_bounds():
     # rounded to the nearest: 4 x 0.024 / 0.08 = 1.2 -> 1 (ceiled: 2), 1.6 -> 2, 2.5 -> 3
     assert spp(4, 0.3 * full) == 1 and spp(4, 0.4 * full) == 2 and spp(4, 0.625 * full) == 3
     assert spp(4, 0.5, full=1.0) == 2  # an explicit full
+    # a glow map's floor (GLOW_LEAST_PER_PIXEL: thick panes' edges bunch its photons)
+    least = integrator.GLOW_LEAST_PER_PIXEL
+    assert spp(4, 0.0, least=least) == least and spp(4, full, least=least) == 4
     shares = np.linspace(0.0, 0.12, 61)
     counts = [spp(4, s) for s in shares]
     assert all(a <= b for a, b in zip(counts, counts[1:]))  # monotone in the share
