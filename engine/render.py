@@ -1560,11 +1560,10 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict, memo: dict | N
             return emitters, counts
         return ctx.lights, counts
     from .visualimportance import plan_global_shot, region_of_interest
-    if memo is None or "region" not in memo:
-        region = region_of_interest(ctx)
-        if memo is not None:
-            memo["region"] = region
-    region = memo["region"] if memo is not None else region
+    memo = {} if memo is None else memo
+    if "region" not in memo:  # (None is a kept answer: no region)
+        memo["region"] = region_of_interest(ctx)
+    region = memo["region"]
     ctx.lookups = np.zeros((0, 3)) if region is None else region.points
     shot = plan_global_shot(ctx, ctx.lights, s.photons, counts, region)
     stats["photon_importance"] = shot.report
