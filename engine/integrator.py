@@ -1620,6 +1620,52 @@ def lobe_choice(albedo, tp):
     return sel, q, p, psum
 
 
+# A constant world's light through the camera's first hits' reflective lobes by a control
+# variate (world_control): the lobes' albedo x the world's radiance added at the hit, the
+# world's radiance subtracted from each continued ray wherever it goes (so a ray that
+# escapes adds nothing; a ray that meets a surface adds that surface's light less the
+# world's). The continuation's own noise (the lobe's f cos / pdf weights, the Russian
+# roulette of choose_lobes) then stays only on the rays that meet something
+# (docs/performance.md "worldfast45"). False: the continuation alone, as Cycles.
+WORLD_CONTROL_VARIATE = True
+# The lobes the control variate takes: reflective, sampled with a density or a mirror;
+# the pass, glass and translucent lobes (which leave the surface's far side) never.
+_CONTROL_LOBES = np.array([name in ("metal", "spec", "coat", "sheen") for name in SPEC_LOBES])
+
+
+def world_control(ctx, modes, clamping, lpass, medium, world_row, links, catchers):
+    """(3,) float64 the radiance of a constant world that the camera's first hits'
+    reflective lobes meet only by their continuation (MODE_CONTINUATION: no shadow rays),
+    for the control variate (WORLD_CONTROL_VARIATE; _trace_paths); None where it does not
+    apply: no such world, an environment map, light portals, a world volume or any
+    medium, Light Linking, shadow catchers, Cycles' clamps or light passes (whose
+    per-sample sums it would change)."""
+    if not WORLD_CONTROL_VARIATE or clamping or lpass is not None or medium is not None \
+            or world_row >= 0 or links is not None or catchers is not None:
+        return None
+    worlds = [li for li, light in enumerate(ctx.lights) if light.kind == WORLD]
+    if len(worlds) != 1 or modes[worlds[0]] != MODE_CONTINUATION:
+        return None
+    light = ctx.lights[worlds[0]]
+    if light.environment is not None or len(light.portal_rects):
+        return None
+    scene = ctx.scene
+    if getattr(scene, "environment", None) is not None or worldmedium.active(scene):
+        return None
+    bg = np.asarray(worldmedium.background(scene, np.array([[0.0, 0.0, 1.0]])),
+                    np.float64)[0]
+    return bg.copy() if np.all(np.isfinite(bg)) and np.any(bg > 0) else None
+
+
+def control_rows(p, psum):
+    """(K,) int64: the hits (rows of choose_lobes' p (N, len(SPEC_LOBES)), psum (N,))
+    whose continued lobes are all _CONTROL_LOBES (some weight, none elsewhere): every ray
+    they continue is a reflection whose expected weight is the lobes' albedo."""
+    p = np.asarray(p)
+    other = (p[:, ~_CONTROL_LOBES] > 0).any(axis=1)
+    return np.flatnonzero((np.asarray(psum) > 0) & ~other)
+
+
 def passes_past_limit(table, hit, over, d, tp, ray_cls):
     """The transparent passes of camera-chain hits past a bounce limit (over (N,) bool):
     Cycles sets up only the Transparent BSDF on a path flagged
@@ -2751,6 +2797,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # Cycles' light passes (engine/lightpasses.py): each path's class and bends.
     lpass = acc.light = (lightpasses.PathPasses(acc, len(o)) if "light" in want_data
                          else None)
+    # A constant world through the first hits' reflective lobes (world_control; None: not
+    # here); cv_rows: the continued rays that carry its subtraction into the next bounce.
+    cv_world = (world_control(ctx, modes, clamping, lpass, medium, world_row, links,
+                              catchers) if depth_limit > 0 else None)
+    cv_rows = None
     first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
              else np.zeros(len(o), bool))
     for bounce in range(depth_limit + 1):
@@ -2760,6 +2811,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             raise Cancelled()
         target = "emission" if bounce == 0 else "specular"
         counters.count("paths", bounce, len(o))
+        if cv_rows is not None:
+            # The control variate's other half: each reflected ray less the world's
+            # radiance, wherever it ends (an escaping ray then adds world - world = 0).
+            if len(cv_rows):
+                acc.add("specular", pix, np.broadcast_to(-cv_world, (len(cv_rows), 3)), tp,
+                        cv_rows)
+            cv_rows = None
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         if bounce > 0 and coincident is not None:
             # Rays leaving a glass face that another surface touches (a bottle standing
@@ -3272,6 +3330,19 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,
                                  uv=uv, split=None if may_split is None else may_split > 0)
         keep, o, d, tp, ray_cls, pdf_b = cont[:6]
+        if cv_world is not None and bounce == 0:
+            # The control variate's constant: the world x the reflective lobes' albedo
+            # (bsdf.closures', Cycles' estimates: the expected f cos / pdf of the rays
+            # continue_specular reflects, roulette and choice included), at the hits
+            # whose continued lobes are all reflective.
+            cvh = control_rows(choice[2], choice[3])
+            if len(cvh):
+                alb = np.take(closures(ctx.table, hit, ctx.geo)[1], cvh, axis=0)
+                A = alb[:, 1:, :][:, _CONTROL_LOBES, :].sum(axis=1)
+                acc.add("specular", pix, A * cv_world, tp_in, cvh)
+                flag = np.zeros(len(tp_in), bool)
+                flag[cvh] = True
+                cv_rows = np.flatnonzero(np.take(flag, keep))
         if over is not None:
             # Past a limit: no bounce from here (the numbers drawn as for every path).
             go = ~over[keep]
