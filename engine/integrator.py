@@ -1628,6 +1628,9 @@ def lobe_choice(albedo, tp):
 # roulette of choose_lobes) then stays only on the rays that meet something
 # (docs/performance.md "worldfast45"). False: the continuation alone, as Cycles.
 WORLD_CONTROL_VARIATE = True
+# Its weight at a hit from a second reflection's escape (world_probe); False: 1 at every
+# hit.
+WORLD_CONTROL_PROBE = True
 # The lobes the control variate takes: reflective, sampled with a density or a mirror;
 # the pass, glass and translucent lobes (which leave the surface's far side) never.
 _CONTROL_LOBES = np.array([name in ("metal", "spec", "coat", "sheen") for name in SPEC_LOBES])
@@ -1696,6 +1699,27 @@ def control_albedo(ctx, hit, rows, p):
         alb = np.take(closures(ctx.table, hit, ctx.geo)[1], np.take(rows, slow), axis=0)
         A[slow] = alb[:, 1:, :][:, _CONTROL_LOBES, :].sum(axis=1)
     return A
+
+
+def world_probe(ctx, hit, tp, ray_cls, choice, rows, rng, counters) -> np.ndarray:
+    """(K,) bool for the hits rows (K,): a reflection sampled again from the hit's lobes
+    (continue_specular with every row surviving, from rng, a stream of its own) escapes
+    to the world (an occlusion ray of class GLOSSY). The control variate's weight beta
+    at the hit: with beta drawn independently of the continuation, beta (L_w A - L_w tp')
+    has mean 0 whatever beta is, so the estimate stays unbiased, and its variance is
+    u Var((L - L_w) tp') + (1 - u) Var(L tp'), u the probe's chance to escape: the
+    control variate's where the lobe sees the world, the plain continuation's where it
+    sees surfaces (a glossy floor under a dark table: L_w tp' alone there would add the
+    world's noise to a dark reflection). Rows whose probe is not continued read False."""
+    n = len(tp)
+    cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice,
+                             go_u=np.zeros(n))
+    keep, o, d = cont[0], cont[1], cont[2]
+    escaped = np.zeros(n, bool)
+    if len(keep):
+        escaped[keep] = ~ctx.accel.occluded(o, d, None, cls=GLOSSY)
+        counters.shadow_rays += len(keep)
+    return np.take(escaped, rows)
 
 
 def passes_past_limit(table, hit, over, d, tp, ray_cls):
@@ -2834,6 +2858,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     cv_world = (world_control(ctx, modes, clamping, lpass, medium, world_row, links,
                               catchers) if depth_limit > 0 else None)
     cv_rows = None
+    cv_rng = None  # world_probe's numbers, made when first needed
     first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
              else np.zeros(len(o), bool))
     for bounce in range(depth_limit + 1):
@@ -3368,6 +3393,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # continue_specular reflects, roulette and choice included), at the hits
             # whose continued lobes are all reflective.
             cvh = control_rows(choice[2], choice[3])
+            if len(cvh):
+                # Its weight, 1 or 0 a hit: whether a second, independent reflection
+                # escapes (world_probe); 0 keeps the continuation alone where the lobe
+                # sees surfaces darker than the world.
+                if cv_rng is None:
+                    cv_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
+                              else np.random.default_rng(rng.integers(1 << 62)))
+                if WORLD_CONTROL_PROBE:
+                    cvh = cvh[world_probe(ctx, hit, tp_in, cls_in, choice, cvh, cv_rng,
+                                          counters)]
             if len(cvh):
                 acc.add("specular", pix, control_albedo(ctx, hit, cvh, choice[2]) * cv_world,
                         tp_in, cvh)

@@ -6,10 +6,15 @@ world is unoccluded; the control variate adds that at the hit and subtracts L_w 
 reflected ray wherever it goes, so only the rays that meet a surface keep a random part.
 
 - A white furnace: an energy-preserving white metal ball (multiscatter GGX, F = 1) under
-  a uniform white world reflects exactly the world: every pixel 1 (analytic), with no
-  noise left under the control variate, and 1 on average without it.
+  a uniform white world reflects exactly the world: every pixel 1 (analytic) with the
+  control variate at weight 1 everywhere (its constant is the lobe's albedo), 1 on
+  average without it; with the probe's weights (integrator.world_probe) 1 on average
+  with less variance.
 - Occlusion: a glossy floor with a block on it (its reflections meet the block) keeps its
   Specular pass's mean over paired seeds, with less variance.
+- A room lit through a window: the floor's reflections meet walls far darker than the
+  world; weight 1 everywhere would add the world's noise to them (2.5 x the variance,
+  measured), the probe's weights keep the variance of the continuation alone.
 - Where the control variate does not apply (an environment map, Cycles' clamps) nothing
   changes.
 """
@@ -22,13 +27,13 @@ from engine.api import PaperScene, box_mesh
 from engine.scene import Material
 
 
-def _render(scene, on, **kw):
-    old = integrator.WORLD_CONTROL_VARIATE
-    integrator.WORLD_CONTROL_VARIATE = on
+def _render(scene, on, probe=True, **kw):
+    old = integrator.WORLD_CONTROL_VARIATE, integrator.WORLD_CONTROL_PROBE
+    integrator.WORLD_CONTROL_VARIATE, integrator.WORLD_CONTROL_PROBE = on, probe
     try:
         return scene.render(RenderSettings(**{"spp": 8, "photons": 4000, "seed": 1, **kw}))
     finally:
-        integrator.WORLD_CONTROL_VARIATE = old
+        integrator.WORLD_CONTROL_VARIATE, integrator.WORLD_CONTROL_PROBE = old
 
 
 def _metal_ball():
@@ -42,7 +47,8 @@ def _metal_ball():
 
 def test_white_furnace_metal_ball_reads_the_world_exactly():
     s = _metal_ball()
-    on = np.asarray(_render(s, True).combined, np.float64)
+    on = np.asarray(_render(s, True, probe=False).combined, np.float64)
+    probed = np.asarray(_render(s, True).combined, np.float64)
     off = np.asarray(_render(s, False).combined, np.float64)
     # (the ball fills the middle of the frame; the corners see the world itself)
     mid = on[5:11, 5:11]
@@ -51,6 +57,10 @@ def test_white_furnace_metal_ball_reads_the_world_exactly():
     mid_off = off[5:11, 5:11]
     assert abs(mid_off.mean() - 1.0) < 0.02, mid_off.mean()
     assert mid_off.std() > 1e-3, mid_off.std()
+    # the probe's weights: 0 only where its reflection left below the surface
+    mid_probed = probed[5:11, 5:11]
+    assert abs(mid_probed.mean() - 1.0) < 0.02, mid_probed.mean()
+    assert mid_probed.std() < 0.5 * mid_off.std(), (mid_probed.std(), mid_off.std())
 
 
 def _floor_and_block():
@@ -89,3 +99,44 @@ def test_not_applied_under_clamps_or_an_environment():
     a = _render(s, True)
     b = _render(s, False)
     np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
+
+
+def _room():
+    """A 4 x 4 x 2.5 m room, a glossy floor, a dark block, lit by a white world through a
+    1.6 x 1.2 m window; the camera inside."""
+    s = PaperScene(width=16, height=12, background=(1.0, 1.0, 1.0))
+    s.add_material(Material("floor", (0.3, 0.3, 0.3), roughness=0.3, specular=1.0))
+    s.add_material(Material("wall", (0.6, 0.6, 0.6), roughness=0.8, specular=1.0))
+    s.add_material(Material("dark", (0.05, 0.05, 0.05), roughness=0.5, specular=1.0))
+    s.add_plane((0, 0, 0), (0, 0, 1), 4.0, "floor", name="floor")
+    h, top = 2.0, 2.5
+    quads = [((-h, -h, 0), (h, -h, 0), (h, -h, top), (-h, -h, top)),
+             ((-h, -h, 0), (-h, h, 0), (-h, h, top), (-h, -h, top)),
+             ((h, -h, 0), (h, h, 0), (h, h, top), (h, -h, top)),
+             ((-h, -h, top), (h, -h, top), (h, h, top), (-h, h, top)),
+             # the +y wall around the window x in [-0.8, 0.8], z in [0.8, 2.0]
+             ((-h, h, 0), (h, h, 0), (h, h, 0.8), (-h, h, 0.8)),
+             ((-h, h, 2.0), (h, h, 2.0), (h, h, top), (-h, h, top)),
+             ((-h, h, 0.8), (-0.8, h, 0.8), (-0.8, h, 2.0), (-h, h, 2.0)),
+             ((0.8, h, 0.8), (h, h, 0.8), (h, h, 2.0), (0.8, h, 2.0))]
+    for k, q in enumerate(quads):
+        s.add_triangles(np.array(q, float), np.array([[0, 1, 2], [0, 2, 3]]), "wall",
+                        name=f"wall{k}")
+    v, f = box_mesh((0.5, 0.3, 0.4), 0.8)
+    s.add_triangles(v, f, "dark", name="block")
+    s.set_camera((0, -1.8, 1.6), (0, 1, -0.45), view_angle=70)
+    return s
+
+
+def test_room_through_a_window_keeps_the_variance():
+    s = _room()
+    imgs = {on: np.stack([np.asarray(_render(s, on, seed=k, photons=4000, spp=4).combined,
+                                     np.float64) for k in range(4)])
+            for on in (False, True)}
+    ref = 0.5 * (imgs[False].mean(axis=0) + imgs[True].mean(axis=0))
+    den = ref * ref + 0.01
+    var = {on: float((np.var(imgs[on], axis=0, ddof=1) / den).mean()) for on in imgs}
+    # (weight 1 everywhere: 2.5 x; measured with the probe 1.01 x over 6 seeds)
+    assert var[True] < 1.3 * var[False], var
+    m_on, m_off = imgs[True].mean(), imgs[False].mean()
+    assert abs(m_on / m_off - 1.0) < 0.02, (m_on, m_off)
