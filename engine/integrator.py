@@ -1631,19 +1631,22 @@ WORLD_CONTROL_VARIATE = True
 # Its weight at a hit from a second reflection's escape (world_probe); False: 1 at every
 # hit.
 WORLD_CONTROL_PROBE = True
-# The lobes the control variate takes: reflective, sampled with a density or a mirror;
-# the pass, glass and translucent lobes (which leave the surface's far side) never.
-_CONTROL_LOBES = np.array([name in ("metal", "spec", "coat", "sheen") for name in SPEC_LOBES])
+# The lobes the control variate takes: reflective, sampled with a density or a mirror,
+# continued as GLOSSY rays; the pass, glass and translucent lobes (which leave the
+# surface's far side) never.
+# (Not sheen's: Cycles counts its bounce as diffuse, so its world light would belong to
+# the Diffuse light passes, and its lobe is seldom alone.)
+_CONTROL_LOBES = np.array([name in ("metal", "spec", "coat") for name in SPEC_LOBES])
 
 
-def world_control(ctx, modes, clamping, lpass, medium, world_row, links, catchers):
+def world_control(ctx, modes, clamping, medium, world_row, links, catchers):
     """(3,) float64 the radiance of a constant world that the camera's first hits'
     reflective lobes meet only by their continuation (MODE_CONTINUATION: no shadow rays),
     for the control variate (WORLD_CONTROL_VARIATE; _trace_paths); None where it does not
     apply: no such world, an environment map, light portals, a world volume or any
-    medium, Light Linking, shadow catchers, Cycles' clamps or light passes (whose
-    per-sample sums it would change)."""
-    if not WORLD_CONTROL_VARIATE or clamping or lpass is not None or medium is not None \
+    medium, Light Linking, shadow catchers, Cycles' clamps (which hold each sample's
+    light, which it changes). Cycles' light passes take its terms as Glossy Direct."""
+    if not WORLD_CONTROL_VARIATE or clamping or medium is not None \
             or world_row >= 0 or links is not None or catchers is not None:
         return None
     worlds = [li for li, light in enumerate(ctx.lights) if light.kind == WORLD]
@@ -2855,8 +2858,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                          else None)
     # A constant world through the first hits' reflective lobes (world_control; None: not
     # here); cv_rows: the continued rays that carry its subtraction into the next bounce.
-    cv_world = (world_control(ctx, modes, clamping, lpass, medium, world_row, links,
-                              catchers) if depth_limit > 0 else None)
+    cv_world = (world_control(ctx, modes, clamping, medium, world_row, links, catchers)
+                if depth_limit > 0 else None)
     cv_rows = None
     cv_rng = None  # world_probe's numbers, made when first needed
     first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
@@ -2872,8 +2875,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # The control variate's other half: each reflected ray less the world's
             # radiance, wherever it ends (an escaping ray then adds world - world = 0).
             if len(cv_rows):
-                acc.add("specular", pix, np.broadcast_to(-cv_world, (len(cv_rows), 3)), tp,
-                        cv_rows)
+                minus = np.broadcast_to(-cv_world, (len(cv_rows), 3))
+                acc.add("specular", pix, minus, tp, cv_rows)
+                if lpass is not None:  # (one bend on: the path's Glossy Direct)
+                    lpass.met(pix, minus, tp, cv_rows, lightpasses.ENVIRONMENT)
             cv_rows = None
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         if bounce > 0 and coincident is not None:
@@ -3404,8 +3409,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     cvh = cvh[world_probe(ctx, hit, tp_in, cls_in, choice, cvh, cv_rng,
                                           counters)]
             if len(cvh):
-                acc.add("specular", pix, control_albedo(ctx, hit, cvh, choice[2]) * cv_world,
-                        tp_in, cvh)
+                Lc = control_albedo(ctx, hit, cvh, choice[2]) * cv_world
+                acc.add("specular", pix, Lc, tp_in, cvh)
+                if lpass is not None:  # (the world met one glossy bend on)
+                    lpass.shaded(pix, Lc, tp_in, cvh, lightpasses.GLOSSY_DIRECT)
                 flag = np.zeros(len(tp_in), bool)
                 flag[cvh] = True
                 cv_rows = np.flatnonzero(np.take(flag, keep))

@@ -140,3 +140,11 @@ def test_room_through_a_window_keeps_the_variance():
     assert var[True] < 1.3 * var[False], var
     m_on, m_off = imgs[True].mean(), imgs[False].mean()
     assert abs(m_on / m_off - 1.0) < 0.02, (m_on, m_off)
+
+
+def test_same_image_for_any_worker_count():
+    # (the probe's numbers come from a stream of each chunk's own)
+    s = _floor_and_block()
+    a = _render(s, True, workers=1, spp=4)
+    b = _render(s, True, workers=2, spp=4)
+    np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
