@@ -1628,8 +1628,8 @@ def lobe_choice(albedo, tp):
 # roulette of choose_lobes) then stays only on the rays that meet something
 # (docs/performance.md "worldfast45"). False: the continuation alone, as Cycles.
 WORLD_CONTROL_VARIATE = True
-# Its weight at a hit from a second reflection's escape (world_probe); False: 1 at every
-# hit.
+# Its weight at a hit from further, independent reflections' escapes (world_probe);
+# False: 1 at every hit.
 WORLD_CONTROL_PROBE = True
 # Probes a hit (beta: the share of them that escapes, 0, 1/2 or 1): with 2 the yard's
 # variance fell 9 % more than with 1 for +5 % CPU (product: 1 %, +2 %), a window-lit

@@ -8,13 +8,13 @@ reflected ray wherever it goes, so only the rays that meet a surface keep a rand
 - A white furnace: an energy-preserving white metal ball (multiscatter GGX, F = 1) under
   a uniform white world reflects exactly the world: every pixel 1 (analytic) with the
   control variate at weight 1 everywhere (its constant is the lobe's albedo), 1 on
-  average without it; with the probe's weights (integrator.world_probe) 1 on average
+  average without it; with the probes' weights (integrator.world_probe) 1 on average
   with less variance.
 - Occlusion: a glossy floor with a block on it (its reflections meet the block) keeps its
   Specular pass's mean over paired seeds, with less variance.
 - A room lit through a window: the floor's reflections meet walls far darker than the
   world; weight 1 everywhere would add the world's noise to them (2.5 x the variance,
-  measured), the probe's weights keep the variance of the continuation alone.
+  measured), the probes' weights keep the variance of the continuation alone.
 - Where the control variate does not apply (an environment map, Cycles' clamps) nothing
   changes.
 """
