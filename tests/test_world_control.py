@@ -68,9 +68,15 @@ def _floor_and_block():
     s.add_material(Material("floor", (0.5, 0.5, 0.5), roughness=0.4, specular=1.0))
     s.add_material(Material("block", (0.2, 0.6, 0.3), roughness=0.6, specular=1.0))
     s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
-    v, f = box_mesh((0.0, 0.6, 0.5), 1.0)
-    s.add_triangles(v, f, "block", name="block")
-    s.set_camera((0, -3.5, 1.2), (0, 0.9, -0.35), view_angle=50)
+    return _with_block(s, (0.0, 0.6, 0.5), 1.0, "block", (0, -3.5, 1.2), (0, 0.9, -0.35), 50)
+
+
+def _with_block(s, centre, size, material, eye, direction, view_angle):
+    """s with a cube of `material` (its centre, edge in m) named "block" and the camera
+    at eye looking along direction."""
+    v, f = box_mesh(centre, size)
+    s.add_triangles(v, f, material, name="block")
+    s.set_camera(eye, direction, view_angle=view_angle)
     return s
 
 
@@ -122,10 +128,7 @@ def _room():
     for k, q in enumerate(quads):
         s.add_triangles(np.array(q, float), np.array([[0, 1, 2], [0, 2, 3]]), "wall",
                         name=f"wall{k}")
-    v, f = box_mesh((0.5, 0.3, 0.4), 0.8)
-    s.add_triangles(v, f, "dark", name="block")
-    s.set_camera((0, -1.8, 1.6), (0, 1, -0.45), view_angle=70)
-    return s
+    return _with_block(s, (0.5, 0.3, 0.4), 0.8, "dark", (0, -1.8, 1.6), (0, 1, -0.45), 70)
 
 
 def test_room_through_a_window_keeps_the_variance():
