@@ -3405,9 +3405,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # whose continued lobes are all reflective.
             cvh = control_rows(choice[2], choice[3])
             if len(cvh):
-                # Its weight, 1 or 0 a hit: whether a second, independent reflection
-                # escapes (world_probe); 0 keeps the continuation alone where the lobe
-                # sees surfaces darker than the world.
+                # Its weight beta a hit: the share of WORLD_CONTROL_PROBES further,
+                # independent reflections that escape (world_probe); 0 keeps the
+                # continuation alone where the lobe sees surfaces darker than the world.
                 if cv_rng is None:
                     cv_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
                               else np.random.default_rng(rng.integers(1 << 62)))
