@@ -837,7 +837,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                    + ("each emitting triangle's centre" if li.kind == MESH
                       else f"the centre of '{li.name}'"))
         elif li.kind == MESH:
-            why = f"{len(li.tri_index):,} emitting triangles, picked by a light tree at each point"
+            # Named by their objects: "emissive meshes" alone left a user guessing which
+            # objects glow (newuser45's lamp shade of Emission).
+            owners = [geo.object_names[i] for i in np.unique(geo.object_id[li.tri_index])]
+            why = (f"{len(li.tri_index):,} emitting triangles of "
+                   f"{_quoted(owners, most=REPORT_NAMES_MAX)}, picked by a light tree at "
+                   "each point")
         elif sized:
             rays = n_samples * spp
             why = f"{rays} shadow ray{'s' if rays != 1 else ''} per pixel for '{li.name}'"

@@ -604,6 +604,18 @@ def test_world_colour_line_says_what_lights_the_scene_in_plain_words():
     assert "cosine" not in line
 
 
+def test_emissive_meshes_line_names_the_glowing_objects():
+    """The soft-shadows line of the emissive meshes names the objects that glow
+    (newuser45: "soft shadows 'emissive meshes': 64 emitting triangles" for a lamp shade
+    of Emission left the user guessing which object it meant)."""
+    s = _room(Material("white_diffuse_floor", (0.8, 0.8, 0.8)))
+    s.add_material(Material("shade_glow", (0, 0, 0), emission=(4.0, 3.0, 1.8)))
+    s.add_box((1.2, 1.0, 1.2), (0.3, 0.3, 0.3), "shade_glow", name="LampShade")
+    line = _line(_plan(s), "soft shadows 'emissive meshes':")
+    assert line == ("soft shadows 'emissive meshes': on - 12 emitting triangles of "
+                    "'LampShade', picked by a light tree at each point"), line
+
+
 def test_a_glossy_bsdf_is_glossy_and_metal_needs_metallic_above_one_half():
     """A Glossy BSDF ball at roughness 0.2 was named "polished metal" (new-user trial,
     s17): surfaces are named by their closure, with the setting to look for; metal is a
