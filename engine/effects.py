@@ -1006,8 +1006,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # Cycles' clamp off). Said as a possibility: where Cycles' paths find the
             # bounce light often enough the clamp cuts nothing (newuser44: a table by a
             # window, Cycles the same with the clamp at 10 and off).
+            # "sunlit" only where a sun shines: newuser45's lamp-lit evening room under a
+            # dim World colour was called a sunlit room.
+            lit = ("sunlit" if any(li.kind == SUN for li in emitting) else
+                   "sky-lit (World)")
             glass_note = ("; Cycles clamps each path sample, and the bounce light of a "
-                          "sunlit room comes to its paths in rare bright samples that the "
+                          f"{lit} room comes to its paths in rare bright samples that the "
                           "clamp cuts, while photon estimates are smooth and seldom reach "
                           "it: such rooms can read brighter here than in Cycles (where the "
                           "clamp cuts anything); set Indirect to 0 in both to compare them")

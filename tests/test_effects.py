@@ -718,6 +718,15 @@ def test_report_says_when_clamping_is_on():
     # Why a room reads brighter than Cycles at its default Indirect 10 (newuser40).
     assert "rare bright samples that the clamp cuts" in text
     assert "set Indirect to 0 in both" in text
+    assert "bounce light of a sunlit room" in text
+    # A World colour without a sun: not "sunlit" (newuser45's evening room).
+    sky = PaperScene(width=16, height=16)
+    sky.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+    sky.add_sphere((0, 0, 1), 0.5, "white_diffuse", name="ball")
+    sky.background = (0.2, 0.3, 0.4)
+    sky.set_camera((0, -5, 2), (0, 0, 0.5))
+    text = effects(sky.render(dataclasses.replace(base, clamp_indirect=10.0)))
+    assert "bounce light of a sky-lit (World) room" in text and "sunlit" not in text, text
     # No light at all: a black image, no clamping paragraph.
     dark = PaperScene(width=16, height=16)
     dark.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
