@@ -3,23 +3,22 @@
 
     .venv/bin/python bench/newuser45_artefacts.py MASKS.npy REF.exr A.exr [B.exr ...]
 
-Per image: NaN / Inf pixels; fireflies (pixels whose luminance is over 4x the median of
-their 3 x 3 neighbourhood of the same object, and over 0.05, where the reference's pixel
-is not); blotches (the 99th percentile and maximum, over an object's pixels, of the ratio
+Per image: NaN / Inf pixels; fireflies (pixels whose luminance is over 4x - and specks,
+over 2x - the median of their 3 x 3 neighbourhood of the same object, and over 0.05,
+where the reference's pixel is not); blotches (the 99th percentile and maximum, over an object's pixels, of the ratio
 of 5 x 5 box means of the image to the reference's, objects of 400 pixels or more, inner
 pixels only: the whole box on that object); and the largest luminance. Luminance: Rec. 709
 weights of linear RGB.
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from newuser26_compare import LUM, read_exr  # noqa: E402
+from newuser26_compare import LUM, read_exr, read_masks  # noqa: E402
 
 
 def windows(a, k):
@@ -57,9 +56,7 @@ def blotches(img_lum, ref_lum, ids, names, k=5, least=400):
 
 def main():
     masks_path, ref_path, *others = sys.argv[1:]
-    ids = np.load(masks_path)
-    with open(masks_path + ".json") as f:
-        names = json.load(f)
+    ids, names = read_masks(masks_path)
     ref = read_exr(ref_path)
     rl = ref @ LUM
     ref_ff = fireflies(rl, ids)
@@ -68,11 +65,13 @@ def main():
         bad = ~np.isfinite(im).all(-1)
         lum = np.where(bad, 0, im @ LUM)
         ff = fireflies(lum, ids) & (p == ref_path or ~ref_ff)
+        specks = int((fireflies(lum, ids, factor=2.0)
+                      & (p == ref_path or ~fireflies(rl, ids, factor=2.0))).sum())
         where = [(int(r), int(c), names[ids[r, c]] if ids[r, c] >= 0 else "(world)",
                   round(float(lum[r, c]), 3), round(float(rl[r, c]), 3))
                  for r, c in zip(*np.nonzero(ff))][:8]
         print(f"{os.path.basename(p)}: NaN/Inf {int(bad.sum())}, fireflies {int(ff.sum())} "
-              f"{where}, max luminance {lum.max():.3f}")
+              f"{where}, specks (2x) {specks}, max luminance {lum.max():.3f}")
         if p != ref_path:
             for n, (p99, mx, p1) in blotches(lum, rl, ids, names).items():
                 print(f"  blotches {n}: 5x5 ratio 1st pct {p1:.3f}, 99th pct {p99:.3f}, "

@@ -5,6 +5,7 @@ add-on's default settings) and with Cycles.
 
     PYTHONPATH=. .venv/bin/python bench/newuser45_room.py MODE OUT.exr [--res W H]
         [--masks MASKS.npy] [--save FILE.blend] [--set NAME=VALUE] [--no-clamp]
+        [--vase-anisotropic A] [--vase-flat]
 
 The room: 5 x 4 x 2.6 m, a window (1.6 x 1.1 m hole, no pane) in the back (+Y) wall
 onto a dim blue evening world colour (0.02, 0.03, 0.06); a Spot light (150 W, 50 deg,
@@ -23,18 +24,14 @@ reads too).
 Prints `RESULT mode cpu_s=... wall_s=...` (this process and its children, from
 resource.getrusage; the scene build excluded). --masks writes an (H, W) int array of
 object ids (row 0 at the top; -1 the world) and a JSON of the names; compare with
-bench/newuser26_compare.py. --save writes the .blend (for `python -m addon.batch`).
+bench/newuser26_compare.py. --save writes the .blend (for `python -m addon.batch`)
+before the render.
 """
 from __future__ import annotations
 
-import argparse
-import ast
-import json
 import math
 import os
 import sys
-import time
-from pathlib import Path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
@@ -45,9 +42,9 @@ import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
-from newuser26_scenes import (assign, camera, cpu, cube, cylinder,  # noqa: E402
-                              new_material, object_masks, principled)
-from newuser44_table import lathe  # noqa: E402
+from newuser26_scenes import (assign, camera, cube, cylinder, new_material,  # noqa: E402
+                              principled)
+from newuser44_table import arguments, lathe, render  # noqa: E402
 
 
 def wood_png(path, n=64, seed=0):
@@ -98,7 +95,7 @@ def emission(name, color, strength):
     return m
 
 
-def room_scene(png):
+def room_scene(png, vase_anisotropic=0.6, vase_flat=False):
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene  # view transform: Blender's default (AgX)
     wall = principled("Wall", (0.8, 0.78, 0.74), 0.8)
@@ -107,7 +104,7 @@ def room_scene(png):
     paint = principled("CarPaint", (0.5, 0.03, 0.03), 0.5, Coat_Weight=1.0,
                        Coat_Roughness=0.05)
     brushed = principled("BrushedMetal", (0.9, 0.88, 0.85), 0.25, metallic=1.0,
-                         Anisotropic=0.6)
+                         Anisotropic=vase_anisotropic)
     pole = principled("LampPole", (0.05, 0.05, 0.05), 0.4, metallic=1.0)
     shade = emission("LampShade", (1.0, 0.75, 0.45), 4.0)
     # Room, open towards the camera (-Y side missing).
@@ -132,7 +129,10 @@ def room_scene(png):
     # Brushed-metal vase on the table (radius, height) profile.
     prof = [(0.05, 0.0), (0.08, 0.05), (0.09, 0.12), (0.06, 0.22), (0.04, 0.28),
             (0.05, 0.32)]
-    lathe("Vase", prof, brushed, (-0.7, 0.3, 0.45))
+    vase = lathe("Vase", prof, brushed, (-0.7, 0.3, 0.45))
+    if vase_flat:  # Shade Flat: the geometric normals
+        for p in vase.data.polygons:
+            p.use_smooth = False
     # Floor lamp at the right: a pole and an open emissive cylinder as the shade.
     cylinder("LampPole", 0.015, 1.4, (1.8, 1.3, 0.7), pole, vertices=16)
     bpy.ops.mesh.primitive_cylinder_add(vertices=32, radius=0.2, depth=0.3,
@@ -169,53 +169,15 @@ def room_scene(png):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("mode")
-    ap.add_argument("out")
-    ap.add_argument("--res", type=int, nargs=2, default=(160, 120))
-    ap.add_argument("--masks")
-    ap.add_argument("--save")
-    ap.add_argument("--no-clamp", action="store_true",
-                    help="Light Paths > Clamping Direct and Indirect 0 (read by both engines)")
-    ap.add_argument("--set", action="append", default=[],
-                    help="photonmap.NAME=VALUE (Python literal)")
+    ap = arguments()
+    ap.add_argument("--vase-anisotropic", type=float, default=0.6,
+                    help="the vase's Principled Anisotropic (0: isotropic)")
+    ap.add_argument("--vase-flat", action="store_true", help="the vase Shade Flat")
     a = ap.parse_args()
     import addon
     addon.register()
     png = os.path.join(os.path.dirname(os.path.abspath(a.out)), "newuser45_wood.png")
-    scene = room_scene(wood_png(png))
-    r = scene.render
-    r.resolution_x, r.resolution_y = a.res
-    r.resolution_percentage = 100
-    if a.masks:  # which object each pixel centre sees, for newuser26_compare.py
-        ids, names = object_masks(scene, *a.res)
-        np.save(a.masks, ids)
-        Path(a.masks + ".json").write_text(json.dumps(names))
-        return print("masks:", names)
-    c = scene.cycles  # Light Paths: Cycles' settings, read by the add-on too
-    if a.no_clamp:
-        c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
-    r.engine = "PHOTONMAP" if a.mode == "ours" else "CYCLES"
-    for k, v in (s.split("=", 1) for s in a.set):
-        setattr(scene.photonmap, k, ast.literal_eval(v))
-    if r.engine == "CYCLES":  # plain: no denoiser, every pixel the same samples
-        c.device, c.samples, c.seed = "CPU", int(a.mode.split(":")[1]), 0
-        c.use_denoising = c.use_adaptive_sampling = False
-    fmt = r.image_settings  # linear 32-bit EXR: the comparison reads radiance
-    fmt.media_type = "IMAGE"
-    fmt.file_format, fmt.color_depth = "OPEN_EXR", "32"
-    r.filepath, r.use_file_extension = os.path.abspath(a.out), False
-    if a.save:
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(a.save))
-        return print("saved", a.save)
-    t0, w0 = cpu(), time.time()
-    bpy.ops.render.render(write_still=True)
-    t, wall = cpu() - t0, time.time() - w0
-    if r.engine == "PHOTONMAP":
-        import addon.engine as ae
-        print("last_render:", {k: v for k, v in ae.last_render.items()
-                               if k in ("width", "height", "cancelled", "error")})
-    print(f"RESULT {a.mode} cpu_s={t:.1f} wall_s={wall:.1f}", flush=True)
+    render(room_scene(wood_png(png), a.vase_anisotropic, a.vase_flat), a)
 
 
 if __name__ == "__main__":
