@@ -7,7 +7,8 @@ Per image: NaN / Inf pixels; fireflies (pixels whose luminance is over 4x - and 
 over 2x - the median of their 3 x 3 neighbourhood of the same object, and over 0.05,
 where the reference's pixel is not); blotches (the 99th percentile and maximum, over an object's pixels, of the ratio
 of 5 x 5 box means of the image to the reference's, objects of 400 pixels or more, inner
-pixels only: the whole box on that object); and the largest luminance. Luminance: Rec. 709
+pixels only: the whole box on that object); the largest luminance; and the mean HDR-FLIP
+against the reference (flip_evaluator, docs/design.md, Measuring accuracy). Luminance: Rec. 709
 weights of linear RGB.
 """
 from __future__ import annotations
@@ -73,6 +74,10 @@ def main():
         print(f"{os.path.basename(p)}: NaN/Inf {int(bad.sum())}, fireflies {int(ff.sum())} "
               f"{where}, specks (2x) {specks}, max luminance {lum.max():.3f}")
         if p != ref_path:
+            import flip_evaluator
+            flip = flip_evaluator.evaluate(ref.astype(np.float32), im.astype(np.float32),
+                                           "HDR")[1]
+            print(f"  HDR-FLIP against {os.path.basename(ref_path)}: {float(flip):.4f}")
             for n, (p99, mx, p1) in blotches(lum, rl, ids, names).items():
                 print(f"  blotches {n}: 5x5 ratio 1st pct {p1:.3f}, 99th pct {p99:.3f}, "
                       f"max {mx:.3f}")
