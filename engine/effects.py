@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .closures.ggx import ALPHA_MIN
+from .closures.principled import M_ANISO
 from .geometry import CAMERA, SHADOW, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
@@ -1264,8 +1265,12 @@ def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> 
         return f" (Glossy BSDF, roughness {float(np.min(table.roughness[mats[glossy]])):.2g})"
     if kind in ("polished metal", "metal"):
         metal = mats[table.metallic[mats] > METAL_WORDS]
+        # Brushed metal says so (newuser45's vase at Anisotropic 0.6 read as plain metal).
+        aniso = (0.0 if table.closure_params is None else
+                 float(np.max(np.abs(table.closure_params[metal, M_ANISO]))))
         return (f" (metallic {float(np.max(table.metallic[metal])):.2g}, roughness "
-                f"{float(np.min(table.roughness[metal])):.2g})")
+                f"{float(np.min(table.roughness[metal])):.2g}"
+                + (f", anisotropic {aniso:.2g}" if aniso > 0 else "") + ")")
     return ""
 
 

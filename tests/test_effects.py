@@ -628,13 +628,17 @@ def test_a_glossy_bsdf_is_glossy_and_metal_needs_metallic_above_one_half():
                          ("Half", Material("half", (0.5, 0.5, 0.5), metallic=0.5,
                                            roughness=0.1, specular=1.0), 1.5),
                          ("Blurry", Material("glossy05", (0.9, 0.9, 0.9), metallic=1.0,
-                                             roughness=0.5, node="glossy"), 3.0)):
+                                             roughness=0.5, node="glossy"), 3.0),
+                         ("Brushed", Material("brushed", (0.9, 0.9, 0.9), metallic=1.0,
+                                              roughness=0.25, anisotropic=0.6), 4.5)):
         s.add_material(mat)
         s.add_sphere((x, 0.5, 0.5), 0.5, mat.name, name=name, segments=16)
     s.set_camera((0.7, -6, 2.5), (0.7, 0.5, 0.5), view_angle=60)
     spec = _line(_plan(s), "specular reflection / refraction: on")
     assert "glossy 'Ball' (Glossy BSDF, roughness 0.2)" in spec, spec
     assert "polished metal 'Gold' (metallic 1, roughness 0.2)" in spec, spec
+    # Brushed (anisotropic) metal says so (newuser45's vase).
+    assert "polished metal 'Brushed' (metallic 1, roughness 0.25, anisotropic 0.6)" in spec, spec
     assert "glossy 'Half'" in spec and "metal 'Half'" not in spec, spec
     assert "metal 'Ball'" not in spec and "metal 'Blurry'" not in spec, spec
     # A rough Glossy BSDF: highlights and blurred reflections, named with its closure.
