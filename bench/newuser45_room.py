@@ -43,7 +43,7 @@ from mathutils import Vector  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import (assign, camera, cube, cylinder, new_material,  # noqa: E402
-                              principled)
+                              principled, world_colour)
 from newuser44_table import arguments, lathe, render  # noqa: E402
 
 
@@ -157,13 +157,7 @@ def room_scene(png, vase_anisotropic=0.6, vase_flat=False):
     pt.data.shadow_soft_size = 0.1
     pt.data.color = (1.0, 0.85, 0.7)
     # Dim evening world, seen through the window.
-    w = bpy.data.worlds.new("World")
-    scene.world = w
-    if bpy.app.version < (5, 0, 0):
-        w.use_nodes = True
-    bg = w.node_tree.nodes["Background"]
-    bg.inputs["Color"].default_value = (0.02, 0.03, 0.06, 1.0)
-    bg.inputs["Strength"].default_value = 1.0
+    world_colour(scene, (0.02, 0.03, 0.06), 1.0)
     camera((0.6, -2.6, 1.35), (-0.5, 1.0, 0.6), lens=24.0)
     return scene
 
