@@ -56,6 +56,9 @@ _RISE = 0.01  # Cycles' height over the surface a mirror direction must keep (bs
 ENABLED = True
 UNGUARD = True
 ESCAPES = True
+# Camera paths (integrator._trace_paths) cross the bent glass by Cycles' rule too
+# (camera_unguarded); False: they keep the guard (as before turnedcamera45, for A/B runs).
+CAMERA = True
 
 
 class TurnedReflections:
@@ -124,6 +127,18 @@ class TurnedReflections:
             g = np.asarray(geo.ng[prim[rows]], np.float64)
             out[rows] = np.abs(np.einsum("ij,ij->i", n, g)) < self.bend_cos
         return out
+
+    def camera_unguarded(self, geo, prim, u, v, material=None) -> np.ndarray | None:
+        """unguarded for a camera path's hits (material (N,): each hit's material row where
+        a Light Path variant replaces its triangle's, engine/raymaterials.py; None: the
+        triangles'), only rows still SMOOTH_GLASS there; None where no row is (the
+        fused plain-table kernel then runs, the same bits as without this module)."""
+        if not CAMERA:
+            return None
+        out = self.unguarded(geo, prim, u, v)
+        if material is not None:
+            out &= self.glass_mat[np.asarray(material)]
+        return out if out.any() else None
 
     @property
     def escapes(self) -> bool:
