@@ -15,7 +15,6 @@ their faces). Image means and the means over the glass's box in the image; ours'
 seconds (one thread) per render. Prints a Markdown table (docs/accuracy.md,
 turnedcamera45).
 """
-import argparse
 import os
 import sys
 import tempfile
@@ -27,8 +26,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 for sub in ("tests/blender", "tests", ""):
     sys.path.insert(0, os.path.join(ROOT, sub))
 import bpy  # noqa: E402
-import addon  # noqa: E402
-addon.register()
+# (registers the add-on in this Blender)
+from bench_turned_light import glass_arguments, glass_cases  # noqa: E402
 from engine import turnedlight  # noqa: E402
 from blender_helpers import cheap, cycles_plain, read_rgba, render_exr  # noqa: E402
 from test_turned_camera_cycles import _glass_box, _side_scene  # noqa: E402
@@ -60,34 +59,24 @@ def _render(engine, shading, water, args, tmp, name):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--photons", type=int, default=20_000)
-    ap.add_argument("--caustic-photons", type=int, default=100_000)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--cycles-spp", type=int, default=1024)
-    ap.add_argument("--glossy", type=int, default=4)
-    ap.add_argument("--shadings", default="smooth,flat")
-    ap.add_argument("--contents", default="water,empty")
+    ap = glass_arguments(16)
     ap.add_argument("--save", default="", help="folder for each render's (H,W,3) .npy")
     args = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         _render("PHOTONMAP", "flat", True, args, tmp, "warm")  # loads the kernels
-        for content in args.contents.split(","):
-            water = content == "water"
-            for shading in args.shadings.split(","):
-                got = {}
-                for mode, on in MODES.items():
-                    turnedlight.CAMERA = on
-                    try:
-                        got[mode] = _render("PHOTONMAP", shading, water, args, tmp,
-                                            f"{content}_{shading}_{on}")
-                    finally:
-                        turnedlight.CAMERA = True
-                cyc = _render("CYCLES", shading, water, args, tmp,
-                              f"cycles_{content}_{shading}_g{args.glossy}")
-                rows.append((content, shading, got, cyc))
+        for content, water, shading in glass_cases(args):
+            got = {}
+            for mode, on in MODES.items():
+                turnedlight.CAMERA = on
+                try:
+                    got[mode] = _render("PHOTONMAP", shading, water, args, tmp,
+                                        f"{content}_{shading}_{on}")
+                finally:
+                    turnedlight.CAMERA = True
+            cyc = _render("CYCLES", shading, water, args, tmp,
+                          f"cycles_{content}_{shading}_g{args.glossy}")
+            rows.append((content, shading, got, cyc))
     print(f"\nours {args.spp} spp, {args.photons} / {args.caustic_photons} photons, seed "
           f"{args.seed}, one thread; Cycles {args.cycles_spp} spp, Glossy {args.glossy}; "
           f"load {os.getloadavg()[0]:.1f}\n")

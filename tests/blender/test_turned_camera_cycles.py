@@ -12,7 +12,6 @@ until turnedcamera45 (engine/turnedlight.py: camera_unguarded).
 Cycles' image means (4096 spp, seed 0) are stored in tests/references/turned_camera.json
 (this file run as a script writes them); the slow test renders them again live.
 """
-import json
 import math
 import os
 
@@ -79,8 +78,8 @@ def _cycles_means(bpy, tmp_path):
 
 
 def _stored_means():
-    with open(REF_PATH) as f:
-        return json.load(f)["means"]
+    from blender_helpers import stored_cycles_means
+    return stored_cycles_means(REF_PATH)
 
 
 def _ratios(bpy, scene, tmp_path, shading):
