@@ -33,6 +33,10 @@ when it is kept: unguarded). With the guard, a gather ray from a table meeting a
 inner side from below (its normals lean up) reflected and refracted about the flat face:
 light that neither Cycles nor the photons have.
 
+Camera paths (integrator._trace_paths) cross such glass by the same rule (camera_unguarded,
+turnedcamera45): they trace their own specular chains and see the sun discs they escape
+into, so they need no escape term, only Cycles' normal at the glass.
+
 Scenes without such glass (no SMOOTH_GLASS triangle whose corner normals bend more than
 the threshold) get None from for_context: no work and the same bits as without this
 module; without a sun with a disc the chains are unguarded but add nothing.
