@@ -5,11 +5,12 @@ scene (16 x 16) at Light Paths Glossy G, with the glass's smooth-shaded sides ch
     PYTHONPATH=$PWD .venv/bin/python bench/bench_glossy0_blocks.py G SIDES water|empty
 
 SIDES: smooth (both sides), outer or inner (the glass's other side flat; the water, if
-any, smooth). Ours 64 spp, 20k / 400k photons, seed 0; Cycles 2048 spp (cycles_plain:
+any, smooth). BLOCK_WALL=1 in the environment: a black card just outside the sun-side
+wall, up to the rim (the sun reaches the cavity through the open top only). Ours 64 spp, 20k / 400k photons, seed 0; Cycles 2048 spp (cycles_plain:
 no clamp, no glossy blur, 12 bounces, read by both). Saves both images as .npy in
 /tmp/turnedcamera45 (made if missing).
 """
-import os, sys
+import math, os, sys
 os.makedirs("/tmp/turnedcamera45", exist_ok=True)
 ROOT = os.getcwd()
 for sub in ("tests/blender", "tests", ""):
@@ -31,6 +32,14 @@ for eng in ("PHOTONMAP", "CYCLES"):
             c = poly.center
             outer = poly.normal.x * c.x + poly.normal.y * c.y > 0
             poly.use_smooth = (outer and shading in ("outer", "smooth")) or (not outer and shading in ("inner", "smooth"))
+    if os.environ.get("BLOCK_WALL"):
+        # a black card just outside the sun-side wall, up to the rim: the sun reaches the
+        # cavity through the open top only
+        bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, -0.41, 0.5),
+                                         rotation=(math.pi / 2, 0.0, 0.0), scale=(2.0, 1.0, 1.0))
+        from blender_helpers import glass_or_diffuse_material
+        bpy.context.object.data.materials.append(
+            glass_or_diffuse_material(bpy, "Black", "diffuse", (0.0,) * 3))
     print("smooth faces", sum(p.use_smooth for p in ob.data.polygons), "of", len(ob.data.polygons))
     cycles_plain(sc, 2048, 12)
     sc.cycles.glossy_bounces = glossy
