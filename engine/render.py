@@ -1146,7 +1146,13 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     shot_radius = [0.0]  # the whole shot's spacing (gather_chain)
 
     def gather_chain(flag):
-        r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area)
+        if s.final_gather or not plan.indirect:
+            r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area)
+        else:
+            # No gather ray reads a map: the global map's radius is measured at the
+            # camera's diffuse hits (other_maps, camera_radius); visual importance's
+            # gather-ray ends (lookup_points: 16 k rays more) would serve nothing.
+            r_global, measured = None, -1
         # The caustic map's cap stays the whole shot's spacing (caustic_radius): a glow of
         # light through a rough metal ball under a low Multiple Scattering sun read 4x
         # noisier with the region's (0.24 m against 0.46 m).
@@ -1312,6 +1318,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     out.update(out_deeper)
     check(stop)
     global_radius = out.pop("global_radius", s.radius or r_global)
+    r_global = r_global or global_radius  # (without final gathering: the camera's)
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
     out["gather_short"] = s.radius or r_global
