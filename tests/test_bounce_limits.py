@@ -329,7 +329,7 @@ def test_unique_counts_are_numpys_unique_rows():
     shot[::97] = pk.BOUNCE_SATURATED
     cases = (np.zeros((0, 4), np.int64), np.tile(np.array([[2, 2, 0, 0]]), (300, 1)), mixed,
              rng.integers(0, 4, (2000, 4)), rng.integers(0, 40000, (200, 4)),
-             rng.integers(-2, 3, (200, 4)), shot, rng.integers(0, 3, (9000, 4)),
+             rng.integers(-2, 3, (200, 4)), shot, rng.integers(0, 3, (9000, 4)).astype(np.uint16),
              np.tile(np.array([[1, 1, 0, 0]], np.uint8), (5000, 1)),
              rng.integers(0, 5000, (6000, 4)), rng.integers(-1, 3, (6000, 4)))
     for c in cases:
