@@ -33,7 +33,8 @@ from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .panelight import panes_for
-from .parallel import Cancelled, run_cancellable, run_tasks
+from .mortontree import KthTree
+from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
                       trace_photons)
 from .resources import check_resources, regather_levels
@@ -1032,7 +1033,7 @@ def _diffuse_area(ctx) -> float:
     return area_sum(ctx.geo, _diffuse_tris(ctx))
 
 
-def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
+def global_search_radius(ctx, shot, diffuse_area: float, tree=None) -> tuple:
     """(radius (m), photons it was measured on; 0: measured at the lookups): the global
     search radius where the estimates are made (lookup_radius, docs/design.md, Photon
     mapping model); without lookups from the global photons' own spacing
@@ -1042,15 +1043,16 @@ def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
     visualimportance.ROI_COVER of the camera's lookups: a sky lights a 40 m ground evenly,
     and the spacing of the 60 % of photons that land beyond the objects (1.2 m against
     0.21 m near them) made the gather map's discs 5x too wide (docs/performance.md,
-    "skynoise")."""
+    "skynoise"). tree: a mortontree.KthTree over shot.position, or None (built here)."""
     k = ctx.settings.k_nearest
     if RADIUS_FROM_LOOKUPS:
-        r = lookup_radius(ctx, shot, k)
+        r = lookup_radius(ctx, shot, k, tree)
         if r is not None:
             # measured 0: the caustic cap keeps the whole shot's spacing (_build_maps).
             return r, 0
     positions = region_photons(shot.position, ctx.importance_region, k)
     return (auto_radius(diffuse_area, len(positions), k, ctx.geo.extent, positions,
+                        tree if tree is not None and len(tree) == len(positions) else None,
                         workers=ctx.settings.threads), len(positions))
 
 
@@ -1063,7 +1065,7 @@ RADIUS_FROM_LOOKUPS = True
 LOOKUP_RADIUS_SCALE = 2.0
 
 
-def lookup_radius(ctx, shot, k: int) -> float | None:
+def lookup_radius(ctx, shot, k: int, tree=None) -> float | None:
     """Global search radius (m) at final gathering's lookups: kth_radius over the
     pre-pass' gather-ray ends (visualimportance.lookup_points: where final gathering's
     rays end on a surface that stores photons) and the photons of `shot` (any kind).
@@ -1073,12 +1075,12 @@ def lookup_radius(ctx, shot, k: int) -> float | None:
     estimate is made there. The points are visual importance's (ctx.lookups, traced once
     by global_emitters) where it ran, else traced here (the same seeded stream: the same
     points). None: no lookup point, or the shot holds at most k photons (then
-    auto_radius, as before)."""
+    auto_radius, as before). tree: kth_radius's."""
     from .visualimportance import lookup_points
     if len(shot) <= k:
         return None
     points = ctx.lookups if ctx.lookups is not None else lookup_points(ctx)
-    return kth_radius(points, shot.position, k, ctx.geo.extent)
+    return kth_radius(points, shot.position, k, ctx.geo.extent, tree)
 
 
 def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
@@ -1095,19 +1097,20 @@ def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
 
 
 def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
-               extent: float) -> float | None:
+               extent: float, tree=None) -> float | None:
     """LOOKUP_RADIUS_SCALE (2) x the median, over `points` (M,3) (where the estimates are
     made; a strided sample of at most photonmap.RADIUS_SAMPLE of them), of the distance to
     the k-th nearest of `positions` (N,3, N > k), in m; at most 0.1 x the scene's
     `extent` (auto_radius's cap). A point far from every photon (a dark place) raises the
     median as any sparse one does. None without points or when the median is not a
-    positive finite distance."""
+    positive finite distance. tree: a mortontree.KthTree over `positions` (the same
+    distances), or None: built here."""
     from .mortontree import KthTree
     from .photonmap import RADIUS_SAMPLE
     if points is None or len(points) == 0:
         return None
     points = points[::max(1, len(points) // RADIUS_SAMPLE)]
-    d = KthTree(positions).kth(points, k)
+    d = (KthTree(positions) if tree is None else tree).kth(points, k)
     r = LOOKUP_RADIUS_SCALE * float(np.median(d))
     if not (r > 0 and math.isfinite(r)):
         return None
@@ -1146,8 +1149,17 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     shot_radius = [0.0]  # the whole shot's spacing (gather_chain)
 
     def gather_chain(flag):
+        # One Morton tree over the shot for the lookups' radius and the shot's own spacing
+        # (the same distances as a tree each; a build was ~0.05 CPU s on Figure 6).
+        tree = None
+        if len(shot) > k:
+            stop = stop_array()
+            tree = KthTree(shot.position, stop)
+            if stop[0]:
+                raise Cancelled()
         if s.final_gather or not plan.indirect:
-            r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area)
+            r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area,
+                                                                    tree)
         else:
             # No gather ray reads a map: the global map's radius is measured at the
             # camera's diffuse hits (other_maps, camera_radius); visual importance's
@@ -1157,7 +1169,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
         # light through a rough metal ball under a low Multiple Scattering sun read 4x
         # noisier with the region's (0.24 m against 0.46 m).
         shot_radius[0] = r_global if measured == len(shot) else auto_radius(
-            diffuse_area, len(shot), k, geo.extent, shot.position, workers=workers)
+            diffuse_area, len(shot), k, geo.extent, shot.position, tree, workers=workers)
+        del tree
         gather_map = None
         if final:
             check(flag)
