@@ -322,7 +322,13 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             on_plan({"light_groups": sum(lightgroups.members(ctx.scene, name) > 0
                                          for name in settings.light_groups)})
         if shoot:
-            shots = shoot_photons(ctx, stats, progress, should_cancel, on_warning, on_plan)
+            # The photon-hit view reads the photons' places and kinds alone: the shots'
+            # other arrays (power, directions, normals, counts, surfaces: 44 B a photon,
+            # the maps hold their own copies) are let go before the camera pass (Figure
+            # 6: -33 MB of its peak, docs/performance.md, mem45).
+            shots = tuple((ph.position, ph.kind) for ph in
+                          shoot_photons(ctx, stats, progress, should_cancel, on_warning,
+                                        on_plan))
         # The photon-hit pass, always: with several workers on its own thread, started
         # when the camera pass's last chunk is handed out (it fills a worker the tail
         # leaves idle, when fewer chunks hold memory), else after the camera pass; its
@@ -1753,20 +1759,21 @@ VIEW_ROWS = 1 << 16  # photons per block of the photon-hit view's projection
 
 
 def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
-    """The photon-hit view of the photons in shots (a sequence of Photons): the photons
+    """The photon-hit view of the photons in shots (a sequence of (position (N,3) float32,
+    kind (N,) uint8) pairs, a shot's Photons.position and kind each): the photons
     stored on surfaces the camera sees directly, thinned to photon_hit_budget and drawn
     as one-pixel dots coloured by kind (PHOTON_KIND_COLORS), on black. The thinning is a
     seeded choice per photon made on the whole image, so tiles (region) agree with a full
     render. Returns (view (height, width, 3) float32 or None when no dot is drawn, dots
     drawn, the share of the photons in the image that was drawn). Queries Embree on the
     calling thread only (Accel.serial), so it may run beside the camera pass."""
-    shots = [ph for ph in shots if len(ph)]
+    shots = [(p, kinds) for p, kinds in shots if len(p)]
     if not shots:
         return None, 0, 1.0
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
-    position = np.concatenate([ph.position for ph in shots])  # float32
+    position = np.concatenate([p for p, _ in shots])  # float32
     pos = cam.position - ctx.geo.offset
     R = cam.rotation
     local = (position.astype(np.float64) - pos) @ R  # camera coordinates
@@ -1839,7 +1846,7 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
     for kind, rgb in PHOTON_KIND_COLORS.items():
         table[kind] = rgb
-    colour = table[np.concatenate([ph.kind for ph in shots])[idx]]
+    colour = table[np.concatenate([kinds for _, kinds in shots])[idx]]
     size = height * width
     count = np.bincount(flat, minlength=size).astype(np.float64)
     buf = np.zeros((size, 3))
