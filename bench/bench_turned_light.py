@@ -56,41 +56,54 @@ def _render(engine, shading, water, args, tmp, name):
     return m, time.process_time() - c0
 
 
-def main():
+def glass_arguments(spp):
+    """The arguments of the glass-of-water benches (this one, bench_turned_camera.py):
+    ours' samples (spp: the default), photons and seed, Cycles' samples, Light Paths
+    Glossy, the shadings and contents to render."""
     ap = argparse.ArgumentParser()
-    ap.add_argument("--spp", type=int, default=4)
+    ap.add_argument("--spp", type=int, default=spp)
     ap.add_argument("--photons", type=int, default=20_000)
     ap.add_argument("--caustic-photons", type=int, default=100_000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--cycles-spp", type=int, default=1024)
     ap.add_argument("--glossy", type=int, default=4)
-    ap.add_argument("--angle", type=float, default=30.0)
     ap.add_argument("--shadings", default="smooth,flat")
     ap.add_argument("--contents", default="water,empty")
+    return ap
+
+
+def glass_cases(args):
+    """[(content, water, shading)]: the glass-of-water cases args (glass_arguments') ask
+    for, contents outer."""
+    return [(content, content == "water", shading) for content in args.contents.split(",")
+            for shading in args.shadings.split(",")]
+
+
+def main():
+    ap = glass_arguments(4)
+    ap.add_argument("--angle", type=float, default=30.0)
     args = ap.parse_args()
     stored = _stored_means()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         _render("PHOTONMAP", "flat", True, args, tmp, "warm")  # loads the kernels
-        for content in args.contents.split(","):
-            water = content == "water"
-            for shading in args.shadings.split(","):
-                got = {}
-                for mode, (on, unguard, escapes) in MODES.items():
-                    turnedlight.ENABLED = on
-                    turnedlight.UNGUARD, turnedlight.ESCAPES = unguard, escapes
-                    try:
-                        got[mode] = _render("PHOTONMAP", shading, water, args, tmp,
-                                            f"{content}_{shading}_{mode}")
-                    finally:
-                        turnedlight.ENABLED = turnedlight.UNGUARD = True
-                        turnedlight.ESCAPES = True
-                if water and args.glossy == 4 and args.angle == 30.0:
-                    cyc = stored[shading]
-                else:
-                    cyc = _render("CYCLES", shading, water, args, tmp,
-                                  f"cycles_{content}_{shading}")[0]
-                rows.append((content, shading, got, cyc))
+        for content, water, shading in glass_cases(args):
+            got = {}
+            for mode, (on, unguard, escapes) in MODES.items():
+                turnedlight.ENABLED = on
+                turnedlight.UNGUARD, turnedlight.ESCAPES = unguard, escapes
+                try:
+                    got[mode] = _render("PHOTONMAP", shading, water, args, tmp,
+                                        f"{content}_{shading}_{mode}")
+                finally:
+                    turnedlight.ENABLED = turnedlight.UNGUARD = True
+                    turnedlight.ESCAPES = True
+            if water and args.glossy == 4 and args.angle == 30.0:
+                cyc = stored[shading]
+            else:
+                cyc = _render("CYCLES", shading, water, args, tmp,
+                              f"cycles_{content}_{shading}")[0]
+            rows.append((content, shading, got, cyc))
     print(f"\nours {args.spp} spp, {args.photons} / {args.caustic_photons} photons, seed "
           f"{args.seed}, one thread; Cycles {args.cycles_spp} spp (stored 4096 for the "
           f"glass of water), Glossy {args.glossy}; load {os.getloadavg()[0]:.1f}\n")

@@ -36,11 +36,15 @@ def rel_mse(x, ref):
     return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
 
 
+def read_masks(path):
+    """(ids (H, W) int, names) of a --masks file and its JSON of object names."""
+    with open(path + ".json") as f:
+        return np.load(path), json.load(f)
+
+
 def main():
     masks_path, ref_path, *others = sys.argv[1:]
-    ids = np.load(masks_path)
-    with open(masks_path + ".json") as f:
-        names = json.load(f)
+    ids, names = read_masks(masks_path)
     ref = read_exr(ref_path)
     imgs = [read_exr(p) for p in others]
     head = " | ".join(f"{os.path.basename(p)} ratio / relMSE" for p in others)

@@ -113,6 +113,18 @@ def empty_scene():
     return scene
 
 
+def world_colour(scene, color, strength=1.0):
+    """A new World of a constant Background colour (RGB, linear) and strength."""
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*color, 1)
+    bg.inputs["Strength"].default_value = strength
+    return world
+
+
 def tile_image(name, n=64):
     """A generated tile pattern (grout lines), packed: an Image Texture a user paints."""
     img = bpy.data.images.new(name, n, n, alpha=False)
@@ -292,13 +304,7 @@ def product():
     key.data.size, key.data.size_y = 0.8, 0.5
     key.data.energy = 25.0
     key.rotation_euler = Vector((0.8, 0.5, -0.75)).to_track_quat("-Z", "Y").to_euler()
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    bg = world.node_tree.nodes["Background"]
-    bg.inputs["Color"].default_value = (0.6, 0.65, 0.7, 1)
-    bg.inputs["Strength"].default_value = 0.15
+    world_colour(scene, (0.6, 0.65, 0.7), 0.15)
     cam = camera((0.2, -1.1, 0.35), (0, 0, 0.17), lens=60)
     cam.data.dof.use_dof = True
     cam.data.dof.focus_object = bpy.data.objects["Bottle"]

@@ -160,22 +160,25 @@ def table_scene(world="sky"):
     return scene
 
 
-def main():
-    ap = argparse.ArgumentParser()
+def arguments(doc=None):
+    """The command line shared with bench/newuser45_room.py: MODE OUT.exr and the options
+    render() reads."""
+    ap = argparse.ArgumentParser(description=doc)
     ap.add_argument("mode")
     ap.add_argument("out")
     ap.add_argument("--res", type=int, nargs=2, default=(160, 120))
     ap.add_argument("--masks")
     ap.add_argument("--save")
-    ap.add_argument("--world", default="sky", choices=("sky", "colour"))
     ap.add_argument("--no-clamp", action="store_true",
                     help="Light Paths > Clamping Direct and Indirect 0 (read by both engines)")
     ap.add_argument("--set", action="append", default=[],
                     help="photonmap.NAME=VALUE (Python literal)")
-    a = ap.parse_args()
-    import addon
-    addon.register()
-    scene = table_scene(a.world)
+    return ap
+
+
+def render(scene, a):
+    """Masks (--masks) or a render of scene by a.mode (ours | cycles:SPP) to a.out, a linear
+    32-bit EXR; prints RESULT with the CPU seconds of the render."""
     r = scene.render
     r.resolution_x, r.resolution_y = a.res
     r.resolution_percentage = 100
@@ -207,6 +210,15 @@ def main():
         print("last_render:", {k: v for k, v in ae.last_render.items()
                                if k in ("width", "height", "cancelled", "error")})
     print(f"RESULT {a.mode} cpu_s={t:.1f} wall_s={wall:.1f}", flush=True)
+
+
+def main():
+    ap = arguments()
+    ap.add_argument("--world", default="sky", choices=("sky", "colour"))
+    a = ap.parse_args()
+    import addon
+    addon.register()
+    render(table_scene(a.world), a)
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .closures.ggx import ALPHA_MIN
+from .closures.principled import M_ANISO
 from .geometry import CAMERA, SHADOW, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
@@ -837,7 +838,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                    + ("each emitting triangle's centre" if li.kind == MESH
                       else f"the centre of '{li.name}'"))
         elif li.kind == MESH:
-            why = f"{len(li.tri_index):,} emitting triangles, picked by a light tree at each point"
+            # Named by their objects: "emissive meshes" alone left a user guessing which
+            # objects glow (newuser45's lamp shade of Emission).
+            owners = [geo.object_names[i] for i in np.unique(geo.object_id[li.tri_index])]
+            why = (f"{len(li.tri_index):,} emitting triangles of "
+                   f"{_quoted(owners, most=REPORT_NAMES_MAX)}, picked by a light tree at "
+                   "each point")
         elif sized:
             rays = n_samples * spp
             why = f"{rays} shadow ray{'s' if rays != 1 else ''} per pixel for '{li.name}'"
@@ -1001,8 +1007,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # Cycles' clamp off). Said as a possibility: where Cycles' paths find the
             # bounce light often enough the clamp cuts nothing (newuser44: a table by a
             # window, Cycles the same with the clamp at 10 and off).
+            # "sunlit" only where a sun shines: newuser45's lamp-lit evening room under a
+            # dim World colour was called a sunlit room.
+            lit = ("sunlit" if any(li.kind == SUN for li in emitting) else
+                   "sky-lit (World)")
             glass_note = ("; Cycles clamps each path sample, and the bounce light of a "
-                          "sunlit room comes to its paths in rare bright samples that the "
+                          f"{lit} room comes to its paths in rare bright samples that the "
                           "clamp cuts, while photon estimates are smooth and seldom reach "
                           "it: such rooms can read brighter here than in Cycles (where the "
                           "clamp cuts anything); set Indirect to 0 in both to compare them")
@@ -1255,8 +1265,12 @@ def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> 
         return f" (Glossy BSDF, roughness {float(np.min(table.roughness[mats[glossy]])):.2g})"
     if kind in ("polished metal", "metal"):
         metal = mats[table.metallic[mats] > METAL_WORDS]
+        # Brushed metal says so (newuser45's vase at Anisotropic 0.6 read as plain metal).
+        aniso = (0.0 if table.closure_params is None else
+                 float(np.max(np.abs(table.closure_params[metal, M_ANISO]))))
         return (f" (metallic {float(np.max(table.metallic[metal])):.2g}, roughness "
-                f"{float(np.min(table.roughness[metal])):.2g})")
+                f"{float(np.min(table.roughness[metal])):.2g}"
+                + (f", anisotropic {aniso:.2g}" if aniso > 0 else "") + ")")
     return ""
 
 

@@ -2786,6 +2786,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     want_glossy = bool(np.any(modes != MODE_CONTINUATION))
     table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
     plain = plain_surfaces(ctx.table)  # no per-hit nodes: surface data and lobes fused
+    # Smooth glass bent past photonkernels.GLASS_ADJOINT_MIN_BEND_DEG (None: none).
+    turned_refl = TurnedReflections.for_context(ctx)
     aniso_on = bool(anisotropic_materials(ctx.table.closure_params).any())
     cam_pos = np.ascontiguousarray(cam_pos, np.float64)  # (view_depth's signature)
     forward = np.ascontiguousarray(forward, np.float64)
@@ -3182,11 +3184,17 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # the chain's glossy / transmission rays may meet a variant; engine/raymaterials.py;
         # None: every hit its triangle's own).
         cls_mat = raymaterials.path_materials(ctx.geo, ctx.table, prim, ray_cls)
-        if plain:
+        # Hits on smooth glass bent past the photons' adjoint threshold keep their shading
+        # normal where it puts the viewer below it: Cycles turns it (principled.
+        # glossy_normals), as the gather chains do (engine/turnedlight.py).
+        unguarded = (None if turned_refl is None
+                     else turned_refl.camera_unguarded(ctx.geo, prim, u, v, cls_mat))
+        if plain and unguarded is None:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
                                         bufs, material=cls_mat)
         else:
-            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat)
+            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat,
+                              unguarded=unguarded)
             per_hit = hit.params is not None
             nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
                              hit.params if per_hit else ctx.table.closure_params, per_hit,

@@ -1079,6 +1079,9 @@ def _warm_up():
             pm.irradiance(q, nq, 0.3, 8, 2, est)
 
 
+_NO_POINTS = np.zeros(0, np.int64)
+
+
 class GatherMap:
     """Precomputed irradiance at a subset of photon positions (Christensen 1999), so a
     final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate.
@@ -1246,10 +1249,12 @@ class GatherMap:
             self.estimating = estimating
             # Its photons' distinct count rows and each photon's (a mask per count is
             # then a take: bounce_usable over every photon cost ~20 ms a call on
-            # Figure 6's 0.7 M, 40 % of its render at 80 x 60).
+            # Figure 6's 0.7 M, 40 % of its render at 80 x 60), in the smallest integer
+            # type; the photons' rows in `photons` are not needed after that.
             from .chaincounts import unique_counts
             rows, which = unique_counts(np.take(bounces, estimating.source, axis=0))
-            self.estimating_classes = (rows, which.astype(np.int32))
+            estimating.source = None
+            self.estimating_classes = (rows, which.astype(np.min_scalar_type(len(rows))))
             self.estimate_args = (k, min_photons, estimator)
             self.counts_cache = {}
         for E in levels:
@@ -1273,16 +1278,19 @@ class GatherMap:
         key = tuple(int(x) for x in camera)
         got = self.counts_cache.get(key)
         if got is None:
-            P = len(self.position)
             rows, which = self.estimating_classes
             # The count's mask once, kept as bits (1/8 B a photon): the take over every
             # estimating photon per call was 2/3 of these calls' CPU on Figure 6.
             bits = np.packbits(np.take(pk.bounce_usable(rows, np.asarray(limits, np.int64),
                                                         key), which))
-            got = self.counts_cache.setdefault(key, (np.zeros((P, 3)), np.zeros(P, bool),
-                                                     bits))
-        E, done, bits = got
-        new = np.unique(points[~done[points]])
+            got = self.counts_cache.setdefault(key, (bits, _NO_POINTS, np.zeros((0, 3))))
+        # A sparse store per count: the points asked so far (ascending) and their E. A
+        # dense (P,3) + (P,) per count held 52 MB on Figure 6 (34 counts, 60 k points)
+        # for 11 k points asked (docs/performance.md, mem45).
+        bits, known, known_E = got
+        at = np.minimum(np.searchsorted(known, points), max(len(known) - 1, 0))
+        found = (np.take(known, at) == points) if len(known) else np.zeros(len(points), bool)
+        new = np.unique(points[~found])
         if len(new):
             k, min_photons, estimator = self.estimate_args
             mask = np.unpackbits(bits, count=len(self.estimating)).view(np.bool_)
@@ -1291,9 +1299,15 @@ class GatherMap:
                 np.take(self.position, new, axis=0), np.take(self.normal, new, axis=0),
                 self.radius, k, min_photons, estimator, masks=mask[None],
                 surface=None if surf is None else np.take(surf, new))
-            E[new] = masked[0]
-            done[new] = True
-        return np.take(E, points, axis=0)
+            merged = np.concatenate([known, new])
+            order = np.argsort(merged, kind="stable")
+            known = merged[order]
+            known_E = np.concatenate([known_E, masked[0]])[order]
+            # (two threads may both add points: the last store wins, the other's are
+            # computed again when asked, the same bits)
+            self.counts_cache[key] = (bits, known, known_E)
+            at = np.searchsorted(known, points)
+        return np.take(known_E, at, axis=0)
 
     def serial(self) -> "GatherMap":
         """The same map, queried on the calling thread only (see PhotonMap.serial)."""

@@ -48,6 +48,10 @@ from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_K
 LOBES = LOBE_NAMES
 
 
+# Photons.usable of at least this many photons reads their count classes.
+USABLE_BY_CLASS = 4096
+
+
 @dataclass
 class Photons:
     position: np.ndarray   # (N,3) float32, re-centred world space
@@ -103,7 +107,31 @@ class Photons:
         limits (4,) (RenderSettings.bounce_limits); every photon without counts."""
         if self.bounces is None:
             return np.ones(len(self), bool)
-        return pk.bounce_usable(self.bounces, limits, camera)
+        if len(self) < USABLE_BY_CLASS:
+            return pk.bounce_usable(self.bounces, limits, camera)
+        # By the photons' distinct count rows (count_classes), the same bits: a map
+        # build asks ~10 counts of a whole shot (bounce_usable over Figure 6's 0.7 M
+        # photons: 23 ms a call, docs/performance.md mem45).
+        rows, which = self.count_classes()
+        return np.take(pk.bounce_usable(rows, limits, camera), which)
+
+    def count_classes(self) -> tuple:
+        """(rows (U,4) int64, which (N,) uint): the distinct rows of self.bounces and each
+        photon's index into them (chaincounts.unique_counts), made on first use and kept
+        while self.bounces is the same array (an array written in place after that is
+        not seen: bounces are written once, by the photon pass)."""
+        from .chaincounts import unique_counts
+        got = self.__dict__.get("_classes")
+        if got is None or got[0] is not self.bounces:
+            rows, which = unique_counts(self.bounces)
+            got = self.__dict__["_classes"] = (
+                self.bounces, rows, which.astype(np.min_scalar_type(max(len(rows) - 1, 0))))
+        return got[1], got[2]
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state.pop("_classes", None)  # (made again where needed)
+        return state
 
 
 def bent_arrival(n_smooth, ns, ng, wi) -> np.ndarray:

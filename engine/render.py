@@ -33,7 +33,8 @@ from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .panelight import panes_for
-from .parallel import Cancelled, run_cancellable, run_tasks
+from .mortontree import KthTree
+from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
                       trace_photons)
 from .resources import check_resources, regather_levels
@@ -321,7 +322,13 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             on_plan({"light_groups": sum(lightgroups.members(ctx.scene, name) > 0
                                          for name in settings.light_groups)})
         if shoot:
-            shots = shoot_photons(ctx, stats, progress, should_cancel, on_warning, on_plan)
+            # The photon-hit view reads the photons' places and kinds alone: the shots'
+            # other arrays (power, directions, normals, counts, surfaces: 44 B a photon,
+            # the maps hold their own copies) are let go before the camera pass (Figure
+            # 6: -33 MB of its peak, docs/performance.md, mem45).
+            shots = tuple((ph.position, ph.kind) for ph in
+                          shoot_photons(ctx, stats, progress, should_cancel, on_warning,
+                                        on_plan))
         # The photon-hit pass, always: with several workers on its own thread, started
         # when the camera pass's last chunk is handed out (it fills a worker the tail
         # leaves idle, when fewer chunks hold memory), else after the camera pass; its
@@ -1032,7 +1039,7 @@ def _diffuse_area(ctx) -> float:
     return area_sum(ctx.geo, _diffuse_tris(ctx))
 
 
-def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
+def global_search_radius(ctx, shot, diffuse_area: float, tree=None) -> tuple:
     """(radius (m), photons it was measured on; 0: measured at the lookups): the global
     search radius where the estimates are made (lookup_radius, docs/design.md, Photon
     mapping model); without lookups from the global photons' own spacing
@@ -1042,15 +1049,16 @@ def global_search_radius(ctx, shot, diffuse_area: float) -> tuple:
     visualimportance.ROI_COVER of the camera's lookups: a sky lights a 40 m ground evenly,
     and the spacing of the 60 % of photons that land beyond the objects (1.2 m against
     0.21 m near them) made the gather map's discs 5x too wide (docs/performance.md,
-    "skynoise")."""
+    "skynoise"). tree: a mortontree.KthTree over shot.position, or None (built here)."""
     k = ctx.settings.k_nearest
     if RADIUS_FROM_LOOKUPS:
-        r = lookup_radius(ctx, shot, k)
+        r = lookup_radius(ctx, shot, k, tree)
         if r is not None:
             # measured 0: the caustic cap keeps the whole shot's spacing (_build_maps).
             return r, 0
     positions = region_photons(shot.position, ctx.importance_region, k)
     return (auto_radius(diffuse_area, len(positions), k, ctx.geo.extent, positions,
+                        tree if tree is not None and len(tree) == len(positions) else None,
                         workers=ctx.settings.threads), len(positions))
 
 
@@ -1063,7 +1071,7 @@ RADIUS_FROM_LOOKUPS = True
 LOOKUP_RADIUS_SCALE = 2.0
 
 
-def lookup_radius(ctx, shot, k: int) -> float | None:
+def lookup_radius(ctx, shot, k: int, tree=None) -> float | None:
     """Global search radius (m) at final gathering's lookups: kth_radius over the
     pre-pass' gather-ray ends (visualimportance.lookup_points: where final gathering's
     rays end on a surface that stores photons) and the photons of `shot` (any kind).
@@ -1073,12 +1081,12 @@ def lookup_radius(ctx, shot, k: int) -> float | None:
     estimate is made there. The points are visual importance's (ctx.lookups, traced once
     by global_emitters) where it ran, else traced here (the same seeded stream: the same
     points). None: no lookup point, or the shot holds at most k photons (then
-    auto_radius, as before)."""
+    auto_radius, as before). tree: kth_radius's."""
     from .visualimportance import lookup_points
     if len(shot) <= k:
         return None
     points = ctx.lookups if ctx.lookups is not None else lookup_points(ctx)
-    return kth_radius(points, shot.position, k, ctx.geo.extent)
+    return kth_radius(points, shot.position, k, ctx.geo.extent, tree)
 
 
 def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
@@ -1095,19 +1103,20 @@ def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
 
 
 def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
-               extent: float) -> float | None:
+               extent: float, tree=None) -> float | None:
     """LOOKUP_RADIUS_SCALE (2) x the median, over `points` (M,3) (where the estimates are
     made; a strided sample of at most photonmap.RADIUS_SAMPLE of them), of the distance to
     the k-th nearest of `positions` (N,3, N > k), in m; at most 0.1 x the scene's
     `extent` (auto_radius's cap). A point far from every photon (a dark place) raises the
     median as any sparse one does. None without points or when the median is not a
-    positive finite distance."""
+    positive finite distance. tree: a mortontree.KthTree over `positions` (the same
+    distances), or None: built here."""
     from .mortontree import KthTree
     from .photonmap import RADIUS_SAMPLE
     if points is None or len(points) == 0:
         return None
     points = points[::max(1, len(points) // RADIUS_SAMPLE)]
-    d = KthTree(positions).kth(points, k)
+    d = (KthTree(positions) if tree is None else tree).kth(points, k)
     r = LOOKUP_RADIUS_SCALE * float(np.median(d))
     if not (r > 0 and math.isfinite(r)):
         return None
@@ -1146,12 +1155,28 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     shot_radius = [0.0]  # the whole shot's spacing (gather_chain)
 
     def gather_chain(flag):
-        r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area)
+        # One Morton tree over the shot for the lookups' radius and the shot's own spacing
+        # (the same distances as a tree each; a build was ~0.05 CPU s on Figure 6).
+        tree = None
+        if len(shot) > k:
+            stop = stop_array()
+            tree = KthTree(shot.position, stop)
+            if stop[0]:
+                raise Cancelled()
+        if s.final_gather or not plan.indirect:
+            r_global, measured = pre_radius or global_search_radius(ctx, shot, diffuse_area,
+                                                                    tree)
+        else:
+            # No gather ray reads a map: the global map's radius is measured at the
+            # camera's diffuse hits (other_maps, camera_radius); visual importance's
+            # gather-ray ends (lookup_points: 16 k rays more) would serve nothing.
+            r_global, measured = None, -1
         # The caustic map's cap stays the whole shot's spacing (caustic_radius): a glow of
         # light through a rough metal ball under a low Multiple Scattering sun read 4x
         # noisier with the region's (0.24 m against 0.46 m).
         shot_radius[0] = r_global if measured == len(shot) else auto_radius(
-            diffuse_area, len(shot), k, geo.extent, shot.position, workers=workers)
+            diffuse_area, len(shot), k, geo.extent, shot.position, tree, workers=workers)
+        del tree
         gather_map = None
         if final:
             check(flag)
@@ -1312,6 +1337,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     out.update(out_deeper)
     check(stop)
     global_radius = out.pop("global_radius", s.radius or r_global)
+    r_global = r_global or global_radius  # (without final gathering: the camera's)
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
     out["gather_short"] = s.radius or r_global
@@ -1733,20 +1759,21 @@ VIEW_ROWS = 1 << 16  # photons per block of the photon-hit view's projection
 
 
 def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
-    """The photon-hit view of the photons in shots (a sequence of Photons): the photons
+    """The photon-hit view of the photons in shots (a sequence of (position (N,3) float32,
+    kind (N,) uint8) pairs, a shot's Photons.position and kind each): the photons
     stored on surfaces the camera sees directly, thinned to photon_hit_budget and drawn
     as one-pixel dots coloured by kind (PHOTON_KIND_COLORS), on black. The thinning is a
     seeded choice per photon made on the whole image, so tiles (region) agree with a full
     render. Returns (view (height, width, 3) float32 or None when no dot is drawn, dots
     drawn, the share of the photons in the image that was drawn). Queries Embree on the
     calling thread only (Accel.serial), so it may run beside the camera pass."""
-    shots = [ph for ph in shots if len(ph)]
+    shots = [(p, kinds) for p, kinds in shots if len(p)]
     if not shots:
         return None, 0, 1.0
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
-    position = np.concatenate([ph.position for ph in shots])  # float32
+    position = np.concatenate([p for p, _ in shots])  # float32
     pos = cam.position - ctx.geo.offset
     R = cam.rotation
     local = (position.astype(np.float64) - pos) @ R  # camera coordinates
@@ -1819,7 +1846,7 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
     for kind, rgb in PHOTON_KIND_COLORS.items():
         table[kind] = rgb
-    colour = table[np.concatenate([ph.kind for ph in shots])[idx]]
+    colour = table[np.concatenate([kinds for _, kinds in shots])[idx]]
     size = height * width
     count = np.bincount(flat, minlength=size).astype(np.float64)
     buf = np.zeros((size, 3))

@@ -51,10 +51,10 @@ measured peak for a set of renders. What each part counts:
   limits can drop photons.
 - gather lookups' photons: where the limits can drop photons (regather_levels), the
   gather map keeps the photons its points' estimates read (photonmap.GatherMap
-  estimating: their kd-tree, power, directions, normals, kinds, surfaces, counts and
-  rows), for the lookups after a chain whose counts drop some of them
-  (chaincounts.subset_irradiance), and the points' irradiance per such count read
-  (24 B a point: a few counts a render).
+  estimating: their kd-tree, power, directions, normals, kinds, surfaces and count
+  classes), for the lookups after a chain whose counts drop some of them
+  (chaincounts.subset_irradiance), and the irradiance of each point and count asked
+  (32 B each, only those asked).
 - regather secondary shares: per regathering level (integrator.MAX_GATHER_LEVEL) the
   secondary-caustic share of every gather point's irradiance (GatherMap.secondary_levels,
   read by the regathered ends: integrator.SECONDARY_FROM_GATHER_POINTS).
@@ -112,8 +112,10 @@ BYTES_PER_INSTANCE = 400  # a shared instance: record, matrices, top-level box a
 # irradiance per point; the boundary flags are the level-0 map's (shared).
 # The estimating photons a gather map keeps for its lookups' subsets (GatherMap
 # estimating, counts_cache): float32 position, power, direction, normal (48 B), kind,
-# surface, source row, counts (17 B) and the kd-tree's share; estimated, not measured.
-BYTES_PER_KEPT_GATHER_PHOTON = 80
+# surface (5 B), the kd-tree's share and a count class (1-2 B), and the sparse per-count
+# answers (32 B an asked point and count): measured 53 B a photon of Figure 6's 658 k
+# estimating photons plus 0.4 MB of answers (docs/performance.md, mem45).
+BYTES_PER_KEPT_GATHER_PHOTON = 64
 GATHER_MAX_POINTS = 60_000
 GATHER_POINT_SPREAD = 1.25
 BYTES_PER_GATHER_POINT_LEVEL = 24

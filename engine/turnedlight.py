@@ -33,6 +33,10 @@ when it is kept: unguarded). With the guard, a gather ray from a table meeting a
 inner side from below (its normals lean up) reflected and refracted about the flat face:
 light that neither Cycles nor the photons have.
 
+Camera paths (integrator._trace_paths) cross such glass by the same rule (camera_unguarded,
+turnedcamera45): they trace their own specular chains and see the sun discs they escape
+into, so they need no escape term, only Cycles' normal at the glass.
+
 Scenes without such glass (no SMOOTH_GLASS triangle whose corner normals bend more than
 the threshold) get None from for_context: no work and the same bits as without this
 module; without a sun with a disc the chains are unguarded but add nothing.
@@ -56,6 +60,9 @@ _RISE = 0.01  # Cycles' height over the surface a mirror direction must keep (bs
 ENABLED = True
 UNGUARD = True
 ESCAPES = True
+# Camera paths (integrator._trace_paths) cross the bent glass by Cycles' rule too
+# (camera_unguarded); False: they keep the guard (as before turnedcamera45, for A/B runs).
+CAMERA = True
 
 
 class TurnedReflections:
@@ -124,6 +131,18 @@ class TurnedReflections:
             g = np.asarray(geo.ng[prim[rows]], np.float64)
             out[rows] = np.abs(np.einsum("ij,ij->i", n, g)) < self.bend_cos
         return out
+
+    def camera_unguarded(self, geo, prim, u, v, material=None) -> np.ndarray | None:
+        """unguarded for a camera path's hits (material (N,): each hit's material row where
+        a Light Path variant replaces its triangle's, engine/raymaterials.py; None: the
+        triangles'), only rows still SMOOTH_GLASS there; None where no row is (the
+        fused plain-table kernel then runs, the same bits as without this module)."""
+        if not CAMERA:
+            return None
+        out = self.unguarded(geo, prim, u, v)
+        if material is not None:
+            out &= self.glass_mat[np.asarray(material)]
+        return out if out.any() else None
 
     @property
     def escapes(self) -> bool:

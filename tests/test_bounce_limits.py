@@ -323,15 +323,42 @@ def test_unique_counts_are_numpys_unique_rows():
     mixed = np.tile(np.array([[1, 1, 0, 0]]), (500, 1))
     mixed[::7, 2] += 1
     mixed[::11, 0] = 1024
+    # (and rows enough for the table of keys: a shot's uint8 counts with saturated
+    # ones, small int64 counts, all-equal rows; counts too large or negative for it)
+    shot = rng.integers(0, 6, (20000, 4)).astype(np.uint8)
+    shot[::97] = pk.BOUNCE_SATURATED
     cases = (np.zeros((0, 4), np.int64), np.tile(np.array([[2, 2, 0, 0]]), (300, 1)), mixed,
              rng.integers(0, 4, (2000, 4)), rng.integers(0, 40000, (200, 4)),
-             rng.integers(-2, 3, (200, 4)))
+             rng.integers(-2, 3, (200, 4)), shot, rng.integers(0, 3, (9000, 4)).astype(np.uint16),
+             np.tile(np.array([[1, 1, 0, 0]], np.uint8), (5000, 1)),
+             rng.integers(0, 5000, (6000, 4)), rng.integers(-1, 3, (6000, 4)))
     for c in cases:
         want_keys, want_which = np.unique(c, axis=0, return_inverse=True)
         keys, which = unique_counts(c)
         assert keys.dtype == np.int64 and which.dtype == np.int64
         np.testing.assert_array_equal(keys, want_keys)
         np.testing.assert_array_equal(which, want_which.reshape(-1))
+
+
+def test_photons_usable_by_count_classes_is_bounce_usable():
+    """Photons.usable of a shot (at least USABLE_BY_CLASS photons) reads its count
+    classes (made once, kept while the bounces are the same array, not pickled): the
+    very mask of bounce_usable over every photon, at any camera counts."""
+    import pickle
+    from engine.photons import USABLE_BY_CLASS, Photons
+    rng = np.random.default_rng(5)
+    n = USABLE_BY_CLASS + 3000
+    b = rng.integers(0, 6, (n, 4)).astype(np.uint8)
+    b[::89] = pk.BOUNCE_SATURATED
+    z = np.zeros((n, 3), np.float32)
+    ph = Photons(z, z, z, z, np.zeros(n, np.uint8), bounces=b)
+    lim = np.array([8, 4, 4, 6])
+    for cam in ((0, 0, 0, 0), (1, 1, 0, 0), (3, 1, 1, 1), (5, 2, 2, 1), (9, 5, 0, 0)):
+        np.testing.assert_array_equal(ph.usable(lim, cam), pk.bounce_usable(b, lim, cam))
+    assert "_classes" not in pickle.loads(pickle.dumps(ph)).__dict__
+    ph.bounces = b2 = b[::-1].copy()  # (a new array: its own classes)
+    np.testing.assert_array_equal(ph.usable(lim, (2, 1, 1, 0)), pk.bounce_usable(b2, lim,
+                                                                                 (2, 1, 1, 0)))
 
 
 def test_gather_counts_decide_as_the_photons_own_sums():

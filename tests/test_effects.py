@@ -604,6 +604,18 @@ def test_world_colour_line_says_what_lights_the_scene_in_plain_words():
     assert "cosine" not in line
 
 
+def test_emissive_meshes_line_names_the_glowing_objects():
+    """The soft-shadows line of the emissive meshes names the objects that glow
+    (newuser45: "soft shadows 'emissive meshes': 64 emitting triangles" for a lamp shade
+    of Emission left the user guessing which object it meant)."""
+    s = _room(Material("white_diffuse_floor", (0.8, 0.8, 0.8)))
+    s.add_material(Material("shade_glow", (0, 0, 0), emission=(4.0, 3.0, 1.8)))
+    s.add_box((1.2, 1.0, 1.2), (0.3, 0.3, 0.3), "shade_glow", name="LampShade")
+    line = _line(_plan(s), "soft shadows 'emissive meshes':")
+    assert line == ("soft shadows 'emissive meshes': on - 12 emitting triangles of "
+                    "'LampShade', picked by a light tree at each point"), line
+
+
 def test_a_glossy_bsdf_is_glossy_and_metal_needs_metallic_above_one_half():
     """A Glossy BSDF ball at roughness 0.2 was named "polished metal" (new-user trial,
     s17): surfaces are named by their closure, with the setting to look for; metal is a
@@ -616,13 +628,17 @@ def test_a_glossy_bsdf_is_glossy_and_metal_needs_metallic_above_one_half():
                          ("Half", Material("half", (0.5, 0.5, 0.5), metallic=0.5,
                                            roughness=0.1, specular=1.0), 1.5),
                          ("Blurry", Material("glossy05", (0.9, 0.9, 0.9), metallic=1.0,
-                                             roughness=0.5, node="glossy"), 3.0)):
+                                             roughness=0.5, node="glossy"), 3.0),
+                         ("Brushed", Material("brushed", (0.9, 0.9, 0.9), metallic=1.0,
+                                              roughness=0.25, anisotropic=0.6), 4.5)):
         s.add_material(mat)
         s.add_sphere((x, 0.5, 0.5), 0.5, mat.name, name=name, segments=16)
     s.set_camera((0.7, -6, 2.5), (0.7, 0.5, 0.5), view_angle=60)
     spec = _line(_plan(s), "specular reflection / refraction: on")
     assert "glossy 'Ball' (Glossy BSDF, roughness 0.2)" in spec, spec
     assert "polished metal 'Gold' (metallic 1, roughness 0.2)" in spec, spec
+    # Brushed (anisotropic) metal says so (newuser45's vase).
+    assert "polished metal 'Brushed' (metallic 1, roughness 0.25, anisotropic 0.6)" in spec, spec
     assert "glossy 'Half'" in spec and "metal 'Half'" not in spec, spec
     assert "metal 'Ball'" not in spec and "metal 'Blurry'" not in spec, spec
     # A rough Glossy BSDF: highlights and blurred reflections, named with its closure.
@@ -706,6 +722,15 @@ def test_report_says_when_clamping_is_on():
     # Why a room reads brighter than Cycles at its default Indirect 10 (newuser40).
     assert "rare bright samples that the clamp cuts" in text
     assert "set Indirect to 0 in both" in text
+    assert "bounce light of a sunlit room" in text
+    # A World colour without a sun: not "sunlit" (newuser45's evening room).
+    sky = PaperScene(width=16, height=16)
+    sky.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+    sky.add_sphere((0, 0, 1), 0.5, "white_diffuse", name="ball")
+    sky.background = (0.2, 0.3, 0.4)
+    sky.set_camera((0, -5, 2), (0, 0, 0.5))
+    text = effects(sky.render(dataclasses.replace(base, clamp_indirect=10.0)))
+    assert "bounce light of a sky-lit (World) room" in text and "sunlit" not in text, text
     # No light at all: a black image, no clamping paragraph.
     dark = PaperScene(width=16, height=16)
     dark.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")

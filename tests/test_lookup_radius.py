@@ -8,6 +8,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 # The module (engine.render is also the package's render function).
 R = importlib.import_module("engine.render")
@@ -133,6 +134,8 @@ def test_a_render_without_final_gathering_reads_the_global_map_at_the_camera_rad
         asked.append(plain(ctx, positions, k))
         return asked[-1]
     monkeypatch.setattr(R, "camera_radius", spy)
+    # No gather ray reads a map: the pre-pass' gather rays are not traced (mem45).
+    monkeypatch.setattr(VI, "lookup_points", lambda *a, **kw: pytest.fail("traced"))
     film = s.render(RenderSettings(photons=20_000, caustic_photons=0, spp=1, seed=1,
                                    workers=1, final_gather=False, k_nearest=16))
     assert len(asked) == 1 and 0 < asked[0] < 0.1 * 2.0 * math.sqrt(3.0)

@@ -158,3 +158,30 @@ def test_only_glass_bent_past_the_threshold_takes_part(bend_deg, expect, monkeyp
         assert no_disc is not None and no_disc.suns == []
         monkeypatch.setattr(turnedlight, "ENABLED", False)
         assert turnedlight.TurnedReflections.for_context(_slab_context(bend_deg)) is None
+
+
+def test_camera_paths_unguard_the_same_hits_as_the_gather_chains(monkeypatch):
+    """camera_unguarded (integrator._trace_paths' rows that keep their shading normal,
+    turnedcamera45) is unguarded's rows, minus rows whose Light Path material variant is
+    not smooth glass; None where no row is (the fused kernel then runs: the same bits)
+    and with turnedlight.CAMERA off (the guard as before)."""
+    ctx = _slab_context(20.0)
+    tr = turnedlight.TurnedReflections.for_context(ctx)
+    top = np.flatnonzero(tr.glass_tri)
+    prim = np.repeat(top, 50)
+    rng = np.random.default_rng(5)
+    u, v = rng.random((2, len(prim)))
+    flip = u + v > 1.0
+    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+    want = tr.unguarded(ctx.geo, prim, u, v)
+    assert want.any()
+    np.testing.assert_array_equal(tr.camera_unguarded(ctx.geo, prim, u, v), want)
+    mats = np.asarray(ctx.geo.material)[prim].copy()
+    other = int(np.flatnonzero(~tr.glass_mat)[0])  # a material that is not smooth glass
+    mats[::2] = other
+    got = tr.camera_unguarded(ctx.geo, prim, u, v, mats)
+    np.testing.assert_array_equal(got, want & (np.arange(len(prim)) % 2 == 1))
+    flat = np.flatnonzero(~tr.glass_tri)[:4]
+    assert tr.camera_unguarded(ctx.geo, flat, u[:4], v[:4]) is None
+    monkeypatch.setattr(turnedlight, "CAMERA", False)
+    assert tr.camera_unguarded(ctx.geo, prim, u, v) is None

@@ -132,6 +132,13 @@ def store_cycles_means(path, means_of, **about):
         f.write("\n")
 
 
+def stored_cycles_means(path):
+    """The "means" that store_cycles_means wrote to path (JSON)."""
+    import json
+    with open(path) as f:
+        return json.load(f)["means"]
+
+
 def cycles_plain(scene, spp, bounces):
     """Cycles' sampling as the tests compare against it: CPU, seed 0, `spp` samples, no
     denoising, no adaptive sampling, no clamping, no glossy blur, `bounces` as Light
