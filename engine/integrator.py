@@ -1626,8 +1626,11 @@ def lobe_choice(albedo, tp):
 # escapes adds nothing; a ray that meets a surface adds that surface's light less the
 # world's). The continuation's own noise (the lobe's f cos / pdf weights, the Russian
 # roulette of choose_lobes) then stays only on the rays that meet something
-# (docs/performance.md "worldfast45"). False: the continuation alone, as Cycles.
-WORLD_CONTROL_VARIATE = True
+# (docs/performance.md "worldfast45"). Off by default: a pixel can read below 0 (a
+# probe escaped, the reflection met a dark surface), which the stability suite's
+# non-negative passes forbid; on where that is acceptable (tests/test_world_control.py).
+# False: the continuation alone, as Cycles.
+WORLD_CONTROL_VARIATE = False
 # Its weight at a hit from further, independent reflections' escapes (world_probe);
 # False: 1 at every hit.
 WORLD_CONTROL_PROBE = True
