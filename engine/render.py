@@ -1410,7 +1410,8 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
                      f"{stats['glow_photons_emitted']:,} traced for the "
                      f"{stats.get('glow_words', 'soft glow')} (the light those surfaces, "
                      "which focus none, send onto diffuse ones; not aimed at), lighter "
-                     "photons of their own, stored in the Caustic pass")
+                     "photons of their own, stored in the Caustic pass"
+                     + _glow_blur_words(settings, stats))
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
     if stats.get("photon_portals"):
@@ -1425,6 +1426,34 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
     est = (f"estimator {ESTIMATOR_LABELS.get(settings.estimator, settings.estimator)}"
            + (", paper mode" if settings.paper_mode else ""))
     return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
+
+
+# The glow's rms share of the seen diffuse light (visualimportance.glow_share) from which
+# the maps line says that Cycles' Filter Glossy dims it. tableroom45 (docs/accuracy.md):
+# a window-lit room whose Principled floor, table and mug (roughness 0.3-0.6) throw the
+# sun's glow onto the walls, rms share 0.060: Cycles' walls at Filter Glossy 1 read
+# 0.978-0.988 of its own at 0 (ours 0.997-1.003 of the latter), so the blur took about a
+# fifth to a third of that glow; at 0.03 that is about 1 % of a surface's light.
+FILTER_GLOSSY_GLOW_SHARE = 0.03
+
+
+def _glow_blur_words(settings: RenderSettings, stats: dict) -> str:
+    """The maps line's words after the glow shot where Cycles' Filter Glossy (the
+    scene's, read by the add-on) is on and the glow carries at least
+    FILTER_GLOSSY_GLOW_SHARE of the light the camera sees: Cycles widens those rough
+    lobes after a diffuse bounce (effects.filter_glossy_alpha: GGX alpha 0.41-0.5, so
+    roughness below ~0.7) and dims that light; ours does not blur. The effects' "glossy
+    blur" line names only strong reflectors (a dielectric layer reflects ~4 %), which
+    left a new user's walls 1-2 % brighter than Cycles' unexplained. "" otherwise."""
+    share = stats.get("glow_share")
+    fg = getattr(settings, "cycles_filter_glossy", 0.0)
+    if not fg or share is None or not math.isfinite(share) or share < FILTER_GLOSSY_GLOW_SHARE:
+        return ""
+    return (f"; that glow is {100 * share:.0f} % (rms) of the diffuse light the camera "
+            f"sees, and Cycles' Light Paths > Caustics > Filter Glossy ({fg:g}) widens those "
+            "lobes after a diffuse bounce and dims it, so the surfaces it lights read "
+            "brighter here than in Cycles (by about a fifth to a third of the glow): set "
+            "Filter Glossy 0 in Cycles to compare")
 
 
 def _caustic_radius_words(settings: RenderSettings, stats: dict, held: str) -> str:

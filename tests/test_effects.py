@@ -555,6 +555,29 @@ def test_scene_files_and_the_cli_keep_max_depth(tmp_path):
         assert f"Max Ray Depth {want} stops camera paths sooner" in _line(plan, "bounce limits:")
 
 
+def test_maps_line_says_filter_glossy_dims_a_large_glow():
+    """Cycles' Filter Glossy widens the rough specular layers' lobes after a diffuse
+    bounce and dims their glow; ours does not blur (tableroom45: a window-lit room's walls
+    1.2-2.3 % brighter than Cycles at Filter Glossy 1, within 0.3 % of it at 0, glow rms
+    share 0.060). The maps line says so where the glow's share reaches
+    FILTER_GLOSSY_GLOW_SHARE and Filter Glossy is on; not below it, nor at Filter Glossy 0."""
+    from engine.render import FILTER_GLOSSY_GLOW_SHARE, photon_map_report
+    stats = dict(global_photons=400_000, radius_global=0.14, caustic_photons=45_000,
+                 radius_caustic=0.13, glow_photons_emitted=2_000_000,
+                 glow_label="glossy photons", glow_words="soft glow off rough specular layers")
+
+    def line(fg, share):
+        return photon_map_report(RenderSettings(cycles_filter_glossy=fg),
+                                 dict(stats, glow_share=share))[0]
+    said = line(1.0, 0.06)
+    assert ("that glow is 6 % (rms) of the diffuse light the camera sees, and Cycles' Light "
+            "Paths > Caustics > Filter Glossy (1) widens those lobes after a diffuse bounce "
+            "and dims it") in said, said
+    assert "set Filter Glossy 0 in Cycles to compare" in said, said
+    for fg, share in ((0.0, 0.06), (1.0, FILTER_GLOSSY_GLOW_SHARE * 0.9), (1.0, None)):
+        assert "Filter Glossy" not in line(fg, share), (fg, share)
+
+
 def test_glow_only_caustic_map_is_not_called_caustic_photons():
     """Beside "caustics: off - nothing focuses light" the maps line read "17,878 caustic
     photons stored" (new-user trial, s15): a contradiction to a student. The plan marks
