@@ -2083,6 +2083,12 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
                                footprint, _caustic_per_pixel(ctx),
                                every=scattered, counts=extra, clamp_tp=clamp_tp)
+    if getattr(ctx, "glow_map", None) is not None:
+        # The glow shot's map beside the aimed one (render.GLOW_MAP_APART): as smooth
+        # within a pixel as a glow-only map, so as many estimates a pixel.
+        _smooth_estimate(ctx, ctx.glow_map, ctx.glow_radius, hit, f, sample_id, footprint,
+                         getattr(ctx, "glow_per_pixel", 0) or GLOW_SAMPLES_PER_PIXEL,
+                         every=scattered, into=caustic, counts=extra, clamp_tp=clamp_tp)
     if ctx.gather_map is not None:
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra)
