@@ -208,11 +208,18 @@ def _caustic_map_power(scene, **kw):
         ctx.accel.close()
     # The photons stored, without their images across open edges (engine/edgeimages.py:
     # appended after them, estimator support that copies their power).
-    ph = ctx.caustic_map.photons
-    stored = len(ph) - stats.get("caustic_images", 0)
-    power = ph.power[:stored].astype(np.float64).mean(axis=1)
-    wall = ph.normal[:stored, 1] < -0.9  # the wall faces -y; floor photons face +z
-    return power.sum(), power[wall].sum(), ctx.plan
+    # Beside an aimed map the glow shot's photons have a map of their own
+    # (render.GLOW_MAP_APART): both maps' photons.
+    total = wall_total = 0.0
+    for pmap, stored in ((ctx.caustic_map, len(ctx.caustic_map) - stats.get("caustic_images", 0)),
+                         (ctx.glow_map, stats.get("glow_photons", 0))):
+        if pmap is None:
+            continue
+        ph = pmap.photons
+        power = ph.power[:stored].astype(np.float64).mean(axis=1)
+        wall = ph.normal[:stored, 1] < -0.9  # the wall faces -y; floor photons face +z
+        total, wall_total = total + power.sum(), wall_total + power[wall].sum()
+    return total, wall_total, ctx.plan
 
 
 def test_caustic_paths_split_between_aimed_and_global_photons_keep_their_power():
