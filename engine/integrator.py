@@ -1798,6 +1798,9 @@ GLOW_LEAST_PER_PIXEL = 2
 # CAUSTIC_SAMPLES_PER_PIXEL of them (_trace_paths; False: the stride everywhere, as before:
 # bench/bench_accuracy_ab.py's @integrator.CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE=False).
 CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE = True
+# The glow map beside an aimed caustic map (render.GLOW_MAP_APART) likewise at hits past a
+# rough bounce (its estimate at every such sample); False: at its stride everywhere.
+GLOW_EVERY_SAMPLE_PAST_BOUNCE = True
 
 
 def hit_surfaces(ctx, prim):
@@ -2088,7 +2091,8 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         # within a pixel as a glow-only map, so as many estimates a pixel.
         _smooth_estimate(ctx, ctx.glow_map, ctx.glow_radius, hit, f, sample_id, footprint,
                          getattr(ctx, "glow_per_pixel", 0) or GLOW_SAMPLES_PER_PIXEL,
-                         every=scattered, into=caustic, counts=extra, clamp_tp=clamp_tp)
+                         every=scattered if GLOW_EVERY_SAMPLE_PAST_BOUNCE else None,
+                         into=caustic, counts=extra, clamp_tp=clamp_tp)
     if ctx.gather_map is not None:
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra)
