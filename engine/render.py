@@ -58,6 +58,9 @@ class Context:
     lights: list
     global_map: PhotonMap | None = None
     caustic_map: PhotonMap | None = None
+    # The glow shot's photons beside an aimed caustic map (GLOW_MAP_APART): their own
+    # estimate, cap glow_radius (None: none, or held in caustic_map).
+    glow_map: PhotonMap | None = None
     gather_map: GatherMap | None = None
     secondary_map: PhotonMap | None = None  # caustic light after one diffuse bounce
     # The maps final gathering's regathers read at level 1, 2, ... (integrator._regather):
@@ -76,6 +79,7 @@ class Context:
     global_radius: float = 0.0
     secondary_radius: float = 0.0  # search radius of the secondary map (its own spacing)
     caustic_radius: float = 0.0
+    glow_radius: float = 0.0  # glow_map's cap (glow_radius)
     # visualimportance.Region of an aimed global shot lit by a light at infinity (None:
     # the shot is natural, or no such light): the global radius is taken from the
     # photons inside it (_build_maps, global_emitters).
@@ -126,7 +130,8 @@ class Context:
         def one(m):
             return None if m is None else m.serial()
         return replace(self, accel=self.accel.serial(), global_map=one(self.global_map),
-                       caustic_map=one(self.caustic_map), gather_map=one(self.gather_map),
+                       caustic_map=one(self.caustic_map), glow_map=one(self.glow_map),
+                       gather_map=one(self.gather_map),
                        secondary_map=one(self.secondary_map),
                        regather_maps=tuple(one(m) for m in self.regather_maps),
                        regather_secondary=tuple(one(m) for m in self.regather_secondary))
@@ -273,6 +278,7 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     decides which; 0 when it leaves the photon pass out), so a progress bar can size
     the photon stage (None: nobody)."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
+    ctx.glow_map = None
     ctx.regather_maps = ctx.regather_secondary = ()
     ctx.gather_counts = None
     ctx.gather_rays = ctx.glow_per_pixel = ctx.secondary_per_pixel = 0
@@ -781,6 +787,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             stats["glow_words"] = plan.glow_words or " and ".join(
                 GLOW_KIND_WORDS[k] for k in plan.glow_label.split("/") if k) or "soft glow"
     caustic = Photons.empty()
+    glow_apart = None  # the glow shot as a map of its own (GLOW_MAP_APART)
     if use_caustic_shot:
         if targets is None:
             ccounts = allocate_photons(ctx.lights, s.caustic_photons)
@@ -794,6 +801,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             # The caustic paths the aimed shot leaves out, from the global shot (or from
             # the glow shot where that one is aimed by visual importance).
             rest = glow if glow is not None else shot.select(shot.kind == CAUSTIC)
+            if glow is not None and GLOW_MAP_APART:
+                glow_apart, rest = glow, Photons.empty()
             emitted = caustic.emitted
             caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
                                 for f in ("position", "power", "direction", "normal", "kind")),
@@ -816,11 +825,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
     # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
     maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
-                                                    stop, pre_radius), should_cancel)
+                                                    stop, pre_radius, glow_apart),
+                           should_cancel)
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
     images = maps.pop("caustic_images", 0)
+    glow_images = maps.pop("glow_images", 0)
     spacing = maps.pop("radius_spacing", 0.0)
     if spacing:
         stats["radius_spacing"] = spacing
@@ -834,6 +845,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     stats["caustic_photons"] = len(ctx.caustic_map) - images if ctx.caustic_map is not None \
         else 0
     stats["caustic_images"] = images
+    if ctx.glow_map is not None:
+        stats["glow_photons"] = len(ctx.glow_map) - glow_images
+        stats["radius_glow"] = ctx.glow_radius
     stats["radius_global"] = ctx.global_radius
     stats["radius_caustic"] = ctx.caustic_radius
     if s.radius is not None and plan.indirect:
@@ -913,7 +927,8 @@ def smooth_counts(ctx, shot, stats) -> None:
     radius = ctx.settings.radius or ctx.global_radius
     if not (len(shot) and radius > 0):
         return
-    if ctx.plan.caustics_glow_only and ctx.caustic_map is not None and len(ctx.caustic_map):
+    if (ctx.plan.caustics_glow_only and ctx.caustic_map is not None
+            and len(ctx.caustic_map)) or ctx.glow_map is not None:
         if "glow_share" not in stats:
             stats["glow_share"] = glow_share(ctx, shot, radius)
         ctx.glow_per_pixel = smooth_per_pixel(GLOW_SAMPLES_PER_PIXEL, stats["glow_share"],
@@ -1123,7 +1138,8 @@ def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
     return float(min(r, 0.1 * extent))
 
 
-def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> dict:
+def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
+                glow=None) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
     global_photons. stop() is asked between the steps (raises Cancelled).
 
@@ -1132,7 +1148,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
     final gathering, the global) map beside them. Each map is gathered from the shot once,
     straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
     what it computes alone, so the maps are the same for any thread count. pre_radius:
-    global_search_radius's answer for this shot where the photon pass has it, else None."""
+    global_search_radius's answer for this shot where the photon pass has it, else None.
+    glow: the glow shot's Photons for a map of their own (GLOW_MAP_APART), else None."""
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     diffuse_tris = _diffuse_tris(ctx)
     diffuse_area = area_sum(geo, diffuse_tris)
@@ -1276,6 +1293,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
         if plan.caustics:
             source = (caustic, np.flatnonzero(caustic.usable(limits))) if use_caustic_shot \
                 else (shot, np.flatnonzero((shot.kind == CAUSTIC) & at_hit))
+            if glow is not None:
+                out["glow_source"] = (glow, np.flatnonzero(glow.usable(limits)))
             if EDGE_IMAGES:
                 out["caustic_source"] = source  # built with its images below
             else:
@@ -1366,8 +1385,21 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None) -> 
         photons = _with_images(photons, images)
         out["caustic_map"] = _counted_map(photons, workers, None)
         out["caustic_images"] = len(images)
-    if out.get("caustic_map") is not None:
-        out["caustic_map"].lookup = s.caustic_lookup  # engine/causticcache.py
+    if "glow_source" in out:
+        check(stop)
+        src, rows = out.pop("glow_source")
+        photons = src.take(rows)
+        out["glow_radius"] = s.radius or glow_radius(
+            out["caustic_radius"], diffuse_area, photons.position, k, geo.extent, workers)
+        images = (edge_images(photons, geo, diffuse_tris, ctx.accel, out["glow_radius"])
+                  if EDGE_IMAGES else None)
+        if images is not None:
+            photons = _with_images(photons, images)
+            out["glow_images"] = len(images)
+        out["glow_map"] = _counted_map(photons, workers, None)
+    for name in ("caustic_map", "glow_map"):
+        if out.get(name) is not None:
+            out[name].lookup = s.caustic_lookup  # engine/causticcache.py
     out["diffuse_area"] = diffuse_area
     return out
 
@@ -1436,7 +1468,8 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
                      f"{stats['glow_photons_emitted']:,} traced for the "
                      f"{stats.get('glow_words', 'soft glow')} (the light those surfaces, "
                      "which focus none, send onto diffuse ones; not aimed at), lighter "
-                     "photons of their own, stored in the Caustic pass")
+                     "photons of their own, stored in the Caustic pass"
+                     + _glow_blur_words(settings, stats))
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
     if stats.get("photon_portals"):
@@ -1451,6 +1484,34 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
     est = (f"estimator {ESTIMATOR_LABELS.get(settings.estimator, settings.estimator)}"
            + (", paper mode" if settings.paper_mode else ""))
     return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
+
+
+# The glow's rms share of the seen diffuse light (visualimportance.glow_share) from which
+# the maps line says that Cycles' Filter Glossy dims it. tableroom45 (docs/accuracy.md):
+# a window-lit room whose Principled floor, table and mug (roughness 0.3-0.6) throw the
+# sun's glow onto the walls, rms share 0.060: Cycles' walls at Filter Glossy 1 read
+# 0.978-0.988 of its own at 0 (ours 0.997-1.003 of the latter), so the blur took about a
+# fifth to a third of that glow; at 0.03 that is about 1 % of a surface's light.
+FILTER_GLOSSY_GLOW_SHARE = 0.03
+
+
+def _glow_blur_words(settings: RenderSettings, stats: dict) -> str:
+    """The maps line's words after the glow shot where Cycles' Filter Glossy (the
+    scene's, read by the add-on) is on and the glow carries at least
+    FILTER_GLOSSY_GLOW_SHARE of the light the camera sees: Cycles widens those rough
+    lobes after a diffuse bounce (effects.filter_glossy_alpha: GGX alpha 0.41-0.5, so
+    roughness below ~0.7) and dims that light; ours does not blur. The effects' "glossy
+    blur" line names only strong reflectors (a dielectric layer reflects ~4 %), which
+    left a new user's walls 1-2 % brighter than Cycles' unexplained. "" otherwise."""
+    share = stats.get("glow_share")
+    fg = getattr(settings, "cycles_filter_glossy", 0.0)
+    if not fg or share is None or not math.isfinite(share) or share < FILTER_GLOSSY_GLOW_SHARE:
+        return ""
+    return (f"; that glow is {100 * share:.0f} % (rms) of the diffuse light the camera "
+            f"sees, and Cycles' Light Paths > Caustics > Filter Glossy ({fg:g}) widens those "
+            "lobes after a diffuse bounce and dims it, so the surfaces it lights read "
+            "brighter here than in Cycles (by about a fifth to a third of the glow): set "
+            "Filter Glossy 0 in Cycles to compare")
 
 
 def _caustic_radius_words(settings: RenderSettings, stats: dict, held: str) -> str:
@@ -1654,7 +1715,28 @@ GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one 
 # sky, a world colour or an area light 0.02-0.03, where the 4x shot (2.0-2.4M photons to
 # store 1.5-7k) was 40 % of a 16-spp render's CPU (docs/performance.md, "exterior42").
 GLOW_SHARE_FULL = 0.08
+# Beside an aimed caustic map, the glow shot's photons make a map of their own
+# (Context.glow_map), estimated at the glow's samples a pixel (integrator.smooth_per_pixel)
+# and capped at glow_radius; False: held in the caustic map with the aimed photons, under
+# its cap, as before (A/B: bench/bench_accuracy_ab.py's @render.GLOW_MAP_APART=False).
+GLOW_MAP_APART = True
 GLOW_SHARE_EXTENT_CAP = False  # True: glow_share capped at 0.1 x the extent, as before (A/B)
+
+
+def glow_radius(caustic_cap: float, diffuse_area: float, positions: np.ndarray, k: int,
+                extent: float, workers: int = 1) -> float:
+    """Max search radius (m) of the glow map's k-NN estimates (GLOW_MAP_APART): the glow
+    photons' own spacing (photonmap.auto_radius over positions (N,3), twice their median
+    k-NN distance, at most 0.1 x extent), as the secondary map's, never below the caustic
+    map's cap caustic_cap (the global photons' spacing). Light off rough specular layers
+    comes through lobes of GGX alpha 0.09 and more and spreads over much of a room; under
+    the global spacing the few, unevenly heavy glow photons of a wall made blotches
+    (tableroom45, docs/accuracy.md: 4 photons, 1.9 effective, a disc on the back wall;
+    5 x 5-pixel means up to 1.10 of Cycles' where Cycles 256 spp reads 1.06)."""
+    if len(positions) == 0:
+        return caustic_cap
+    return max(caustic_cap, auto_radius(diffuse_area, len(positions), k, extent, positions,
+                                        workers=workers))
 
 
 def glow_split(share: float | None) -> float:

@@ -67,9 +67,10 @@ from .worldmedium import table_materials
 PREVIEW_SCALES = (4, 2)        # reduced resolutions before the first full-size pass
 PHOTON_CACHE_BYTES = 256 << 20  # photon maps kept for view changes (per session)
 # Photon-map fields of a Context that one pass's photon stage fills.
-_MAP_FIELDS = ("global_map", "caustic_map", "gather_map", "secondary_map",
+_MAP_FIELDS = ("global_map", "caustic_map", "glow_map", "gather_map", "secondary_map",
                "regather_maps", "regather_secondary", "gather_counts",
-               "global_radius", "secondary_radius", "caustic_radius", "gather_short")
+               "global_radius", "secondary_radius", "caustic_radius", "glow_radius",
+               "gather_short")
 _PHOTON_STATS = ("photons_emitted", "caustic_photons_emitted", "global_photons",
                  "caustic_photons", "radius_global", "radius_caustic", "radius_spacing",
                  "photon_bytes")

@@ -208,11 +208,18 @@ def _caustic_map_power(scene, **kw):
         ctx.accel.close()
     # The photons stored, without their images across open edges (engine/edgeimages.py:
     # appended after them, estimator support that copies their power).
-    ph = ctx.caustic_map.photons
-    stored = len(ph) - stats.get("caustic_images", 0)
-    power = ph.power[:stored].astype(np.float64).mean(axis=1)
-    wall = ph.normal[:stored, 1] < -0.9  # the wall faces -y; floor photons face +z
-    return power.sum(), power[wall].sum(), ctx.plan
+    # Beside an aimed map the glow shot's photons have a map of their own
+    # (render.GLOW_MAP_APART): both maps' photons.
+    total = wall_total = 0.0
+    for pmap, stored in ((ctx.caustic_map, len(ctx.caustic_map) - stats.get("caustic_images", 0)),
+                         (ctx.glow_map, stats.get("glow_photons", 0))):
+        if pmap is None:
+            continue
+        ph = pmap.photons
+        power = ph.power[:stored].astype(np.float64).mean(axis=1)
+        wall = ph.normal[:stored, 1] < -0.9  # the wall faces -y; floor photons face +z
+        total, wall_total = total + power.sum(), wall_total + power[wall].sum()
+    return total, wall_total, ctx.plan
 
 
 def test_caustic_paths_split_between_aimed_and_global_photons_keep_their_power():
@@ -553,6 +560,29 @@ def test_scene_files_and_the_cli_keep_max_depth(tmp_path):
         assert over["max_depth"] == want
         plan = _plan(scene, **{k: v for k, v in over.items() if k not in ("workers", "photons")})
         assert f"Max Ray Depth {want} stops camera paths sooner" in _line(plan, "bounce limits:")
+
+
+def test_maps_line_says_filter_glossy_dims_a_large_glow():
+    """Cycles' Filter Glossy widens the rough specular layers' lobes after a diffuse
+    bounce and dims their glow; ours does not blur (tableroom45: a window-lit room's walls
+    1.2-2.3 % brighter than Cycles at Filter Glossy 1, within 0.3 % of it at 0, glow rms
+    share 0.060). The maps line says so where the glow's share reaches
+    FILTER_GLOSSY_GLOW_SHARE and Filter Glossy is on; not below it, nor at Filter Glossy 0."""
+    from engine.render import FILTER_GLOSSY_GLOW_SHARE, photon_map_report
+    stats = dict(global_photons=400_000, radius_global=0.14, caustic_photons=45_000,
+                 radius_caustic=0.13, glow_photons_emitted=2_000_000,
+                 glow_label="glossy photons", glow_words="soft glow off rough specular layers")
+
+    def line(fg, share):
+        return photon_map_report(RenderSettings(cycles_filter_glossy=fg),
+                                 dict(stats, glow_share=share))[0]
+    said = line(1.0, 0.06)
+    assert ("that glow is 6 % (rms) of the diffuse light the camera sees, and Cycles' Light "
+            "Paths > Caustics > Filter Glossy (1) widens those lobes after a diffuse bounce "
+            "and dims it") in said, said
+    assert "set Filter Glossy 0 in Cycles to compare" in said, said
+    for fg, share in ((0.0, 0.06), (1.0, FILTER_GLOSSY_GLOW_SHARE * 0.9), (1.0, None)):
+        assert "Filter Glossy" not in line(fg, share), (fg, share)
 
 
 def test_glow_only_caustic_map_is_not_called_caustic_photons():
