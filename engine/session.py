@@ -66,11 +66,14 @@ from .worldmedium import table_materials
 
 PREVIEW_SCALES = (4, 2)        # reduced resolutions before the first full-size pass
 PHOTON_CACHE_BYTES = 256 << 20  # photon maps kept for view changes (per session)
-# Photon-map fields of a Context that one pass's photon stage fills.
+# Photon-map fields of a Context that one pass's photon stage fills (render.shoot_photons),
+# the samples a pixel its maps' estimates take among them: a pass whose maps are reused
+# reads its own (the glow map's stride from its shot's glow share, render.smooth_counts),
+# not the last shot pass's.
 _MAP_FIELDS = ("global_map", "caustic_map", "glow_map", "gather_map", "secondary_map",
                "regather_maps", "regather_secondary", "gather_counts",
                "global_radius", "secondary_radius", "caustic_radius", "glow_radius",
-               "gather_short")
+               "gather_short", "gather_rays", "glow_per_pixel", "secondary_per_pixel")
 _PHOTON_STATS = ("photons_emitted", "caustic_photons_emitted", "global_photons",
                  "caustic_photons", "radius_global", "radius_caustic", "radius_spacing",
                  "photon_bytes")

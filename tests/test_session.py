@@ -350,3 +350,32 @@ def test_a_displacement_edit_merges_the_triangles_again(box):
         assert delta(before, snapshot(session))["geometry"] == 0
     finally:
         session.stop()
+
+
+def test_reused_maps_bring_back_every_field_the_photon_stage_sets(box):
+    """A pass whose photons are reused (a view change) gets back every Context field the
+    photon stage (render.shoot_photons) sets, its samples a pixel included (gather_rays,
+    glow_per_pixel, secondary_per_pixel: the camera pass reads them, and a reused pass
+    read the last shot pass's). The fields come from the real stage: each field set to a
+    marker first, the ones it writes are those whose marker is gone."""
+    from dataclasses import fields
+
+    from engine.render import prepare_context, shoot_photons
+    from engine.session import _MAP_FIELDS
+    ctx = prepare_context(_scene_with(box), replace(SETTINGS, photon_mapping=False,
+                                                    workers=1))
+    try:
+        marker = object()
+        owned = ("scene", "settings", "geo", "table", "accel", "lights", "plan",
+                 "packed_lights", "links")
+        marked = [f.name for f in fields(ctx) if f.name not in owned
+                  and (getattr(ctx, f.name) is None or getattr(ctx, f.name) == ()
+                       or isinstance(getattr(ctx, f.name), (int, float)))]
+        for name in marked:
+            setattr(ctx, name, marker)
+        shoot_photons(ctx, {})
+        written = {name for name in marked if getattr(ctx, name) is not marker}
+    finally:
+        ctx.accel.close()
+    assert {"glow_map", "gather_rays", "glow_per_pixel", "secondary_per_pixel"} <= written
+    assert written <= set(_MAP_FIELDS), written - set(_MAP_FIELDS)
