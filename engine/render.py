@@ -266,7 +266,8 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
                   on_warning=None, on_plan=None) -> tuple:
     """The photon pass alone: (re)fills ctx's photon maps for ctx.settings and records
     its counts in stats. Returns the stored photons (for the photon-hit pass) as a tuple
-    of Photons, one per shot (global, caustic; empty without photon mapping). Its
+    of Photons, one per shot (global, caustic; global, glow, caustic where the glow shot
+    makes a map of its own, GLOW_MAP_APART; empty without photon mapping). Its
     warnings (a hand-set search radius that does wrong: radius_warnings) go into
     stats["warnings"] and, as soon as the maps are built, to on_warning(text) (None:
     nowhere), on the calling thread, before the camera pass. Raises
@@ -886,9 +887,12 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
     smooth_counts(ctx, shot, stats)
     stats["time_photon_map"] = time.perf_counter() - t0
-    stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    # For the photon-hit pass (_photon_hit_view), always filled.
-    return (shot, caustic)
+    # (The glow shot's photons beside an aimed map are the glow map's: counted, and
+    # drawn in the photon-hit view, as when they were the caustic map's.)
+    stats["photon_bytes"] = shot.nbytes + caustic.nbytes + (
+        glow_apart.nbytes if glow_apart is not None else 0)
+    # For the photon-hit pass (_photon_hit_view), always filled (the caustic shot last).
+    return (shot, caustic) if glow_apart is None else (shot, glow_apart, caustic)
 
 
 # The indirect light's share of the seen diffuse irradiance at and above which final

@@ -45,8 +45,8 @@ def _maps(apart, monkeypatch):
         photons=20_000, caustic_photons=5_000, seed=2, workers=1))
     try:
         stats = {}
-        shoot_photons(ctx, stats)
-        return ctx, stats
+        shots = shoot_photons(ctx, stats)
+        return ctx, stats, shots
     finally:
         ctx.accel.close()
 
@@ -59,8 +59,8 @@ def _photons(pmap):
 
 
 def test_the_glow_map_holds_the_glow_photons_the_caustic_map_held(monkeypatch):
-    one, st_one = _maps(False, monkeypatch)
-    two, st_two = _maps(True, monkeypatch)
+    one, st_one, shots_one = _maps(False, monkeypatch)
+    two, st_two, shots_two = _maps(True, monkeypatch)
     assert st_one.get("glow_photons_emitted") and st_two.get("glow_photons_emitted")
     assert one.glow_map is None and two.glow_map is not None
     assert st_two["glow_photons"] > 0 and st_two["caustic_photons"] > 0
@@ -78,6 +78,13 @@ def test_the_glow_map_holds_the_glow_photons_the_caustic_map_held(monkeypatch):
     assert st_two["radius_caustic"] == st_one["radius_caustic"]
     assert two.glow_radius >= two.caustic_radius
     assert two.glow_radius <= 0.1 * two.geo.extent + 1e-12
+    # The photons the pass returns for the photon-hit view, and the bytes it counts: the
+    # same with the glow photons in a map of their own (global, glow, caustic shots).
+    assert len(shots_one) == 2 and len(shots_two) == 3
+    assert len(shots_two[1]) >= st_two["glow_photons"] > 0
+    assert sum(map(len, shots_two)) == sum(map(len, shots_one))
+    assert st_two["photon_bytes"] == st_one["photon_bytes"] == sum(
+        ph.nbytes for ph in shots_two)
 
 
 def test_glow_radius_is_the_own_spacing_between_the_caustic_cap_and_the_scene_bound():
