@@ -42,7 +42,7 @@ def _maps(apart, monkeypatch):
     monkeypatch.setattr(render_mod, "EDGE_IMAGES", False)  # (the photons alone)
     monkeypatch.setattr(render_mod, "PHOTONS_SHARE_FULL", 0.0)  # every global photon
     ctx = prepare_context(_yard_with_ball(), RenderSettings(
-        photons=20_000, caustic_photons=5_000, seed=2, workers=1))
+        photons=8_000, caustic_photons=2_000, seed=2, workers=1))
     try:
         stats = {}
         shots = shoot_photons(ctx, stats)
