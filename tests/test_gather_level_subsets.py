@@ -109,6 +109,38 @@ def test_counts_irradiance_sparse_store_is_the_dense_maps_bits():
     assert g.counts_irradiance(np.zeros(0, np.int64), LIMITS, key).shape == (0, 3)
 
 
+
+def test_counts_irradiance_from_two_threads_reads_the_dense_maps_bits():
+    """The camera pass's workers share a map's counts_cache (engine/parallel.py): two
+    threads asking the same count at once, in overlapping pieces, each read the bits of
+    the map built for that count; the store they leave holds only points asked, each
+    with its own E (a store one thread overwrote loses points, never mixes them)."""
+    import threading
+    ph, _ = _corner(np.random.default_rng(5))
+    g = _maps(ph)
+    key = (4, 2, 1, 1)
+    dense = GatherMap(ph, *ARGS, max_points=4000, keep=ph.usable(LIMITS, camera=key)).E
+    P = len(g.position)
+    asks = [np.random.default_rng(s).integers(0, P, (6, 150)) for s in (11, 12)]
+    wrong, start = [], threading.Barrier(2)
+
+    def ask(pieces, view):
+        start.wait()
+        for pts in pieces:
+            if not np.array_equal(view.counts_irradiance(pts, LIMITS, key), dense[pts]):
+                wrong.append(pts)
+    threads = [threading.Thread(target=ask, args=(a, v))
+               for a, v in zip(asks, (g, g.subset_maps[0]))]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert not wrong
+    _, known, known_E = g.counts_cache[key]
+    assert np.all(np.diff(known) > 0) and np.isin(known, np.concatenate(
+        [a.ravel() for a in asks])).all()
+    assert np.array_equal(known_E, dense[known])
+
 def _wall_lookups(g, rng, n=400):
     """Lookups in the wall's interior: (Ey, boundary, point) of GatherMap.lookup."""
     p = np.c_[np.zeros(n), 0.25 + 0.5 * rng.random((n, 2))]
