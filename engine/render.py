@@ -1473,7 +1473,7 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
                      f"{stats.get('glow_words', 'soft glow')} (the light those surfaces, "
                      "which focus none, send onto diffuse ones; not aimed at), lighter "
                      "photons of their own, stored in the Caustic pass"
-                     + _glow_blur_words(settings, stats))
+                     + _glow_apart_words(stats) + _glow_blur_words(settings, stats))
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
     if stats.get("photon_portals"):
@@ -1488,6 +1488,16 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
     est = (f"estimator {ESTIMATOR_LABELS.get(settings.estimator, settings.estimator)}"
            + (", paper mode" if settings.paper_mode else ""))
     return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
+
+
+def _glow_apart_words(stats: dict) -> str:
+    """The maps line's words after the glow shot where its photons make a map of their
+    own (GLOW_MAP_APART: stats glow_photons, radius_glow): how many, and their estimates'
+    own cap, not the caustic photons' radius said before them. "" otherwise."""
+    if "glow_photons" not in stats:
+        return ""
+    return (f" ({stats['glow_photons']:,} of them, in a map of their own: search radius "
+            f"at most {stats.get('radius_glow', 0.0):.4g} m)")
 
 
 # The glow's rms share of the seen diffuse light (visualimportance.glow_share) from which

@@ -85,6 +85,12 @@ def test_the_glow_map_holds_the_glow_photons_the_caustic_map_held(monkeypatch):
     assert sum(map(len, shots_two)) == sum(map(len, shots_one))
     assert st_two["photon_bytes"] == st_one["photon_bytes"] == sum(
         ph.nbytes for ph in shots_two)
+    # The maps line says how many are in the glow map and its own cap.
+    settings = RenderSettings()
+    line = render_mod.photon_map_report(settings, st_two)[0]
+    assert (f"stored in the Caustic pass ({st_two['glow_photons']:,} of them, in a map of "
+            f"their own: search radius at most {two.glow_radius:.4g} m)") in line, line
+    assert "in a map of their own" not in render_mod.photon_map_report(settings, st_one)[0]
 
 
 def test_glow_radius_is_the_own_spacing_between_the_caustic_cap_and_the_scene_bound():
