@@ -125,7 +125,10 @@ def _photons_emitted(stats) -> int:
 
 
 def _photons_stored(stats) -> int:
-    return int(stats.get("global_photons", 0) or 0) + int(stats.get("caustic_photons", 0) or 0)
+    """The photons a render's maps store: global, caustic and, where the glow shot makes
+    a map of its own (render.GLOW_MAP_APART), glow (before, held in the caustic map)."""
+    return sum(int(stats.get(name, 0) or 0)
+               for name in ("global_photons", "caustic_photons", "glow_photons"))
 
 
 def _render_timed(scene, settings, progress, should_cancel, prefix, part=(0, 1)):

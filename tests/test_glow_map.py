@@ -85,6 +85,9 @@ def test_the_glow_map_holds_the_glow_photons_the_caustic_map_held(monkeypatch):
     assert sum(map(len, shots_two)) == sum(map(len, shots_one))
     assert st_two["photon_bytes"] == st_one["photon_bytes"] == sum(
         ph.nbytes for ph in shots_two)
+    # The stored photons the teaching table counts: the same (glow ones included).
+    from engine.teaching import _photons_stored
+    assert _photons_stored(st_two) == _photons_stored(st_one) > st_one["global_photons"]
     # The maps line says how many are in the glow map and its own cap.
     settings = RenderSettings()
     line = render_mod.photon_map_report(settings, st_two)[0]
