@@ -74,9 +74,11 @@ _MAP_FIELDS = ("global_map", "caustic_map", "glow_map", "gather_map", "secondary
                "regather_maps", "regather_secondary", "gather_counts",
                "global_radius", "secondary_radius", "caustic_radius", "glow_radius",
                "gather_short", "gather_rays", "glow_per_pixel", "secondary_per_pixel")
-_PHOTON_STATS = ("photons_emitted", "caustic_photons_emitted", "global_photons",
-                 "caustic_photons", "radius_global", "radius_caustic", "radius_spacing",
-                 "photon_bytes")
+# (photons_emitted_all: every shot's, the glow shot's included, as PassMerger counts a
+# pass's photons; glow_photons / radius_glow: the glow map's, GLOW_MAP_APART)
+_PHOTON_STATS = ("photons_emitted", "caustic_photons_emitted", "photons_emitted_all",
+                 "global_photons", "caustic_photons", "glow_photons", "radius_global",
+                 "radius_caustic", "radius_glow", "radius_spacing", "photon_bytes")
 
 
 @dataclass(frozen=True)

@@ -379,3 +379,25 @@ def test_reused_maps_bring_back_every_field_the_photon_stage_sets(box):
         ctx.accel.close()
     assert {"glow_map", "gather_rays", "glow_per_pixel", "secondary_per_pixel"} <= written
     assert written <= set(_MAP_FIELDS), written - set(_MAP_FIELDS)
+
+
+def test_session_counts_every_shots_photons_as_a_progressive_render():
+    """A pass's photons in the session's frame are every shot's, the glow shot's included
+    (photons_emitted_all, as render_progressive's PassMerger counts them): a yard of
+    rough metal under a sun, with a glass ball, traces a global, a glow and an aimed
+    shot; the session counted the global and aimed shots alone."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_glow_map import _yard_with_ball
+    scene = _scene_with(_yard_with_ball())
+    settings = RenderSettings(spp=1, photons=8000, caustic_photons=2000, seed=2, workers=1)
+    film = render_progressive(scene, settings, Budget(passes=1))
+    st = film.stats
+    session = Session(scene, settings, passes=1, preview_scales=()).start()
+    try:
+        frame = idle(session)
+    finally:
+        session.stop()
+    assert frame.photons == st["photons_total"]
+    np.testing.assert_array_equal(frame.rgba[..., :3], film.combined)
