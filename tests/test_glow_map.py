@@ -106,3 +106,33 @@ def test_glow_radius_is_the_own_spacing_between_the_caustic_cap_and_the_scene_bo
     assert render_mod.glow_radius(2.0, 16.0, pos, 64, 20.0) == 2.0   # the caustic cap
     assert render_mod.glow_radius(0.05, 16.0, pos, 64, 4.0) == pytest.approx(0.4)
     assert render_mod.glow_radius(0.07, 16.0, pos[:0], 64, 20.0) == 0.07
+
+
+@pytest.mark.parametrize("kept", [0, 3])
+def test_a_glow_shot_of_none_or_few_stored_photons_renders(kept, monkeypatch):
+    """A glow shot that stores none (or 3) photons still makes its map: no photon, the
+    image of the caustic map alone, bit for bit (GLOW_MAP_APART off holds the same
+    photons in one map), its cap the caustic one; 3 photons, a finite, non-negative image
+    whose glow cap is auto_radius's area-based one (fewer photons than k), at most 0.1 x
+    the scene's extent."""
+    traced = render_mod.trace_photons
+
+    def few(*a, **kw):
+        ph = traced(*a, **kw)
+        return ph.take(np.arange(min(kept, len(ph)))) if kw.get("stream") == \
+            render_mod.GLOW_STREAM else ph
+    monkeypatch.setattr(render_mod, "trace_photons", few)
+    settings = RenderSettings(photons=8_000, caustic_photons=2_000, seed=2, workers=1, spp=1)
+    films = {}
+    for apart in (True, False):
+        monkeypatch.setattr(render_mod, "GLOW_MAP_APART", apart)
+        films[apart] = _yard_with_ball().render(settings)
+    st = films[True].stats
+    assert st["glow_photons"] == kept and st["glow_photons_emitted"] > 1000
+    img = np.asarray(films[True].combined)
+    assert np.isfinite(img).all() and img.min() >= 0.0
+    if kept == 0:
+        assert st["radius_glow"] == st["radius_caustic"]
+        np.testing.assert_array_equal(img, np.asarray(films[False].combined))
+    else:
+        assert st["radius_caustic"] < st["radius_glow"] <= 0.1 * st["extent"] + 1e-12
