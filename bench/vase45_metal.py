@@ -70,7 +70,7 @@ def build(a):
         lt.data.energy = 60.0
         lt.data.shadow_soft_size = 0.1 if a.light == "point" else 0.0
     elif a.light == "spot":
-        bpy.ops.object.light_add(type="SPOT", location=(-0.3, -0.4, 2.0) if a.high
+        bpy.ops.object.light_add(type="SPOT", location=(-0.3, -0.4, 2.0) if a.high or a.top
                                  else (-0.8, -1.0, 2.0))
         lt = bpy.context.active_object
         lt.data.energy = 150.0
@@ -97,7 +97,9 @@ def build(a):
         q.rotation_euler = (Vector((0, 0, 0)) - q.location).to_track_quat(
             "Z", "Y").to_euler()
         assign(q, m)
-    if a.high:  # from above, as newuser45's camera sees the vase's top (its cap, lip)
+    if a.top:  # straight down onto the cap: no pixel views its leaning normals from below
+        camera((0.0, -0.05, 3.5), (0.0, 0.0, 0.0), lens=50.0)
+    elif a.high:  # from above, as newuser45's camera sees the vase's top (its cap, lip)
         camera((0.0, -2.6, 2.2), (0.0, 0.0, 0.1), lens=50.0)
     else:
         camera((0.0, -3.2, 0.3), (0.0, 0.0, 0.0), lens=50.0)
@@ -155,6 +157,7 @@ def main():
     ap.add_argument("--terminator", type=float,
                     help="the object's Shadow Terminator Geometry Offset (Blender's 0.1)")
     ap.add_argument("--spot-radius", type=float, help="the Spot's radius (0.05 m)")
+    ap.add_argument("--top", action="store_true", help="camera straight above, spot as --high")
     ap.add_argument("--high", action="store_true",
                     help="camera and spot from above (the vase's top cap and lip in view)")
     ap.add_argument("--lift", type=float, default=0.0, help="the vase's foot above the floor (m)")
@@ -178,7 +181,7 @@ def main():
     lr, lo = lum(ref)[mask], lum(ours)[mask]
     hi = lr > np.percentile(lr, 85)
     tag = (f"{a.shape}{' room' if a.room else ''} {a.light} {'flat' if a.flat else 'smooth'} rough={a.rough} "
-           f"aniso={a.aniso}{' high' if a.high else ''} spot_radius={a.spot_radius} terminator={a.terminator} scale={a.scale} lift={a.lift} wall_spec={a.wall_spec} metallic={a.metallic} diffuse_bounces={a.diffuse_bounces}"
+           f"aniso={a.aniso}{' high' if a.high else ''}{' top' if a.top else ''} spot_radius={a.spot_radius} terminator={a.terminator} scale={a.scale} lift={a.lift} wall_spec={a.wall_spec} metallic={a.metallic} diffuse_bounces={a.diffuse_bounces}"
            f"{' no-reflective-caustics' if a.no_reflective_caustics else ''} {a.set}"
            f" filter_glossy={a.filter_glossy}")
     print(f"VASE45 {tag}: all {lo.sum() / lr.sum():.4f}  bright15% "
