@@ -4,14 +4,17 @@ the vase's pixels (all, and those Cycles reads bright / dim).
 
     PYTHONPATH=. .venv/bin/python bench/vase45_metal.py LIGHT [--flat] [--rough R]
         [--aniso A] [--spp N] [--cycles-spp N] [--res W H] [--shape vase|sphere]
-        [--set NAME=VALUE] [--keep DIR]
+        [--set NAME=VALUE] [--keep DIR] [--room] [--lift M] [--wall-spec S]
+        [--high | --top] [--spot-radius R] [--terminator T] [--scale K] [--metallic M]
+        [--diffuse-bounces N] [--filter-glossy F] [--no-reflective-caustics]
 
 LIGHT: point (60 W, radius 0.1 m) | point0 (radius 0) | spot (150 W, 50 deg, blend 0.3,
 radius 0.05) | mesh (an emissive quad, strength 4) | world (a uniform World colour 0.5)
 | sun. --room: a diffuse 8 x 8 x 4 m box round it (walls 0.8). The object: newuser45's lathed vase profile scaled x4 (6 rings, 32 steps,
 Shade Smooth unless --flat), Principled Metallic 1, base (0.9, 0.88, 0.85), or a
 UV sphere (16 x 8). World black unless LIGHT is world. Cycles: no denoise, no adaptive
-sampling, clamp off (both engines), seed 0.
+sampling, clamp off (both engines), seed 0. The Light Paths options set scene.cycles,
+which both engines read. Findings and commands: docs/accuracy.md "vase45".
 """
 from __future__ import annotations
 
