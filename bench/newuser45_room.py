@@ -5,7 +5,7 @@ add-on's default settings) and with Cycles.
 
     PYTHONPATH=. .venv/bin/python bench/newuser45_room.py MODE OUT.exr [--res W H]
         [--masks MASKS.npy] [--save FILE.blend] [--set NAME=VALUE] [--no-clamp]
-        [--vase-anisotropic A] [--vase-flat]
+        [--vase-anisotropic A] [--vase-flat] [--filter-glossy F]
 
 The room: 5 x 4 x 2.6 m, a window (1.6 x 1.1 m hole, no pane) in the back (+Y) wall
 onto a dim blue evening world colour (0.02, 0.03, 0.06); a Spot light (150 W, 50 deg,
@@ -167,11 +167,17 @@ def main():
     ap.add_argument("--vase-anisotropic", type=float, default=0.6,
                     help="the vase's Principled Anisotropic (0: isotropic)")
     ap.add_argument("--vase-flat", action="store_true", help="the vase Shade Flat")
+    ap.add_argument("--filter-glossy", type=float,
+                    help="Light Paths > Caustics > Filter Glossy (Cycles' default 1; read "
+                         "by both engines, ours does not blur: docs/accuracy.md vase45)")
     a = ap.parse_args()
     import addon
     addon.register()
     png = os.path.join(os.path.dirname(os.path.abspath(a.out)), "newuser45_wood.png")
-    render(room_scene(wood_png(png), a.vase_anisotropic, a.vase_flat), a)
+    scene = room_scene(wood_png(png), a.vase_anisotropic, a.vase_flat)
+    if a.filter_glossy is not None:
+        scene.cycles.blur_glossy = a.filter_glossy
+    render(scene, a)
 
 
 if __name__ == "__main__":
