@@ -8,35 +8,18 @@ from engine import turnedglossy
 from engine.closures import principled as pr
 
 
-def _metal_slab(bend_deg, metallic=1.0, node="principled"):
-    """A 2 x 2 x 0.5 m slab (its top face's corner normals leaning bend_deg outwards, a
-    pillow; other faces flat) over a diffuse floor: the prepared Context."""
+def _metal_slab(bend_deg, metallic=1.0):
+    """tests/test_glass_adjoint.py's slab (its top face's corner normals leaning bend_deg
+    outwards) in a Principled metal (roughness 0.25; Metallic metallic): the Context."""
+    from test_glass_adjoint import _slab
     from engine import RenderSettings
     from engine.accel import Accel
-    from engine.api import PaperScene, box_mesh
     from engine.geometry import prepare
     from engine.lights import prepare_lights
     from engine.render import Context
     from engine.scene import Material
-    s = PaperScene(width=8, height=8)
-    s.add_material(Material("metal", (0.9, 0.88, 0.85), metallic=metallic, roughness=0.25,
-                            node=node))
-    s.add_material(Material("floor", (0.8, 0.8, 0.8)))
-    v, f = box_mesh((0.0, 0.0, 0.75), (2.0, 2.0, 0.5))
-    normals = np.zeros((len(f), 3, 3))
-    tilt = math.radians(bend_deg)
-    for i, face in enumerate(f):
-        e = np.cross(v[face[1]] - v[face[0]], v[face[2]] - v[face[0]])
-        normals[i] = e / np.linalg.norm(e)
-        if normals[i, 0, 2] > 0.9:
-            for c, vi in enumerate(face):
-                out = v[vi, :2] / np.linalg.norm(v[vi, :2])
-                normals[i, c] = (math.sin(tilt) * out[0], math.sin(tilt) * out[1],
-                                 math.cos(tilt))
-    s.add_triangles(v, f, "metal", name="Slab", normals=normals)
-    s.add_plane((0, 0, 0), (0, 0, 1), 3.0, "floor", name="Floor")
-    s.add_sun(direction=(-0.5, 0.0, -math.sqrt(0.75)), strength=3.0)
-    s.set_camera((0, -6, 3), (0, 0, 1))
+    s = _slab(bend_deg, Material("metal", (0.9, 0.88, 0.85), metallic=metallic,
+                                 roughness=0.25))
     s.validate()
     geo, table = prepare(s)
     lights = prepare_lights(s, geo, table)
