@@ -44,6 +44,7 @@ from .anisotropy import anisotropic_materials, set_hit_tangents
 from .closures import principled as pr
 from .coincident import CoincidentSurfaces
 from .turnedlight import TurnedReflections
+from . import turnedglossy
 from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -3205,6 +3206,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # glossy_normals), as the gather chains do (engine/turnedlight.py).
         unguarded = (None if turned_refl is None
                      else turned_refl.camera_unguarded(ctx.geo, prim, u, v, cls_mat))
+        # So do glossy-only hits (metal), where the guard would replace their normal
+        # (engine/turnedglossy.py, glossyguard45).
+        glossy_kept = turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d, cls_mat)
+        if glossy_kept is not None:
+            unguarded = glossy_kept if unguarded is None else unguarded | glossy_kept
         if plain and unguarded is None:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
                                         bufs, material=cls_mat)

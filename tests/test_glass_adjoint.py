@@ -181,13 +181,15 @@ def test_where_no_turn_is_possible_the_adjoint_sends_photons_mains_ways(bend_deg
 MAX_DEPTH = 8
 
 
-def _slab(bend_deg):
+def _slab(bend_deg, material=None):
     """A 2 x 2 x 0.5 m glass slab over a floor under a sun 30 degrees off the vertical; the slab's top face smooth-shaded with its
-    corner normals leaning bend_deg outwards (a pillow), its other faces flat."""
+    corner normals leaning bend_deg outwards (a pillow), its other faces flat. material:
+    the slab's (an engine.scene.Material) instead of the glass."""
     from engine.api import PaperScene, box_mesh
     from engine.scene import Material
     s = PaperScene(width=8, height=8)
-    s.add_material(Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=IOR))
+    slab = material or Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=IOR)
+    s.add_material(slab)
     s.add_material(Material("floor", (0.8, 0.8, 0.8)))
     v, f = box_mesh((0.0, 0.0, 0.75), (2.0, 2.0, 0.5))
     normals = np.zeros((len(f), 3, 3))
@@ -200,7 +202,7 @@ def _slab(bend_deg):
                 out = v[vi, :2] / np.linalg.norm(v[vi, :2])
                 normals[i, c] = (math.sin(tilt) * out[0], math.sin(tilt) * out[1],
                                  math.cos(tilt))
-    s.add_triangles(v, f, "glass", name="Slab", normals=normals)
+    s.add_triangles(v, f, slab.name, name="Slab", normals=normals)
     s.add_plane((0, 0, 0), (0, 0, 1), 3.0, "floor", name="Floor")
     s.add_sun(direction=(-0.5, 0.0, -math.sqrt(0.75)), strength=3.0)
     s.set_camera((0, -6, 3), (0, 0, 1))

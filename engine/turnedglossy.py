@@ -1,0 +1,85 @@
+"""Camera paths at smooth-shaded glossy-only surfaces: Cycles' turned normal, not Veach's
+guard (glossyguard45).
+
+camerakernels.face_shading_normals replaces a shading normal that puts the viewer below
+the surface by the face's normal (Veach's guard). Cycles keeps the interpolated normal
+and turns only the glossy closures' normal (ensure_valid_specular_reflection,
+kernel/closure/bsdf_util.h), which principled.glossy_normals does whenever the normal is
+kept. On a leaning smooth cap (a lathe's top, seen from above: docs/accuracy.md, vase45)
+the guard made the metal reflect like the flat face, towards a light above it: 1.22 of
+Cycles there.
+
+Here a camera path's hits on materials whose lobes are all glossy (Principled Metallic 1
+or a Glossy BSDF: no diffuse, sheen, translucent or transmission lobe) keep their shading
+normal where the guard would replace it (bsdf.surface_hit's `unguarded` rows).
+Materials with a diffuse lobe keep the guard: Cycles' diffuse closure keeps N as it is
+(no turn), which the guard avoids on purpose (black rings); smooth glass follows
+turnedlight.camera_unguarded (the photons' adjoint threshold). Rows where the guard
+would not act are never marked, so a batch with no such hit returns None and the fused
+plain-table kernel runs: the same bits as without this module.
+
+Not covered: instanced geometry (None), texture-driven Metallic (the material's table
+row decides), the final-gather chains and the photon pass (they keep the guard).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .closures import principled as pr
+
+# False: camera paths keep the guard at glossy-only hits (as before glossyguard45; A/B runs).
+ENABLED = True
+_GUARD_EPS = 1e-6  # face_shading_normals' threshold on wo . ns
+
+
+def glossy_only(params: np.ndarray) -> np.ndarray:
+    """(M,) bool per material row of params (MaterialTable.closure_params (M, N_MAT)):
+    Principled with Metallic >= 1 or a Glossy BSDF node, without transmission, sheen or
+    translucency (every lobe is one principled.glossy_normals turns)."""
+    params = np.asarray(params)
+    node = params[:, pr.M_NODE]
+    metal = (((node == pr.NODE_PRINCIPLED) & (params[:, pr.M_METALLIC] >= 1.0))
+             | (node == pr.NODE_GLOSSY))
+    return (metal & (params[:, pr.M_TRANS] <= 0.0) & (params[:, pr.M_SHEEN_W] <= 0.0)
+            & (params[:, pr.M_TL] <= 0.0))
+
+
+def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | None:
+    """(N,) bool: camera-path hits (triangles prim (N,), barycentrics u, v (N,), ray
+    directions d (N,3); material (N,) the Light Path variant rows or None: the
+    triangles') on glossy_only materials whose interpolated shading normal puts the
+    viewer wo = -d below it (wo . ns <= 1e-6 on the ray's side: where
+    face_shading_normals would use the face normal); None where no row is."""
+    if not ENABLED or getattr(geo, "instances", None) is not None:
+        return None
+    cn = getattr(geo, "corner_normals", None)
+    if cn is None or not len(cn):
+        return None
+    key = "_glossy_only"
+    ok = table.__dict__.get(key) if hasattr(table, "__dict__") else None
+    if ok is None:
+        ok = glossy_only(table.closure_params)
+        try:
+            table.__dict__[key] = ok
+        except (AttributeError, TypeError):
+            pass
+    if not ok.any():
+        return None
+    prim = np.asarray(prim, np.int64)
+    mat = np.asarray(geo.material)[prim] if material is None else np.asarray(material)
+    rows = np.flatnonzero(ok[mat])
+    if not len(rows):
+        return None
+    p = prim[rows]
+    ns = geo.shading_normals(p, np.asarray(u, np.float64)[rows],
+                             np.asarray(v, np.float64)[rows])
+    ng = np.asarray(geo.ng[p], np.float64)
+    dd = np.asarray(d, np.float64)[rows]
+    # The ray's side of the winding normal (hit_geometry's front), then the guard's test.
+    side = np.where(np.einsum("ij,ij->i", dd, ng) < 0.0, 1.0, -1.0)
+    below = side * np.einsum("ij,ij->i", ns, -dd) <= _GUARD_EPS
+    if not below.any():
+        return None
+    out = np.zeros(len(prim), bool)
+    out[rows[below]] = True
+    return out

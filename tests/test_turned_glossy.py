@@ -1,0 +1,81 @@
+"""engine/turnedglossy.py: camera paths keep the smooth shading normal at glossy-only
+hits (metal) where Veach's guard would replace it, as Cycles does (glossyguard45)."""
+import math
+
+import numpy as np
+
+from engine import turnedglossy
+from engine.closures import principled as pr
+
+
+def _metal_slab(bend_deg, metallic=1.0):
+    """tests/test_glass_adjoint.py's slab (its top face's corner normals leaning bend_deg
+    outwards) in a Principled metal (roughness 0.25; Metallic metallic): the Context."""
+    from test_glass_adjoint import _slab
+    from engine import RenderSettings
+    from engine.accel import Accel
+    from engine.geometry import prepare
+    from engine.lights import prepare_lights
+    from engine.render import Context
+    from engine.scene import Material
+    s = _slab(bend_deg, Material("metal", (0.9, 0.88, 0.85), metallic=metallic,
+                                 roughness=0.25))
+    s.validate()
+    geo, table = prepare(s)
+    lights = prepare_lights(s, geo, table)
+    return Context(s, RenderSettings(photons=1000, seed=0), geo, table,
+                   Accel(geo.vertices32, geo.faces32, 1), lights)
+
+
+def test_glossy_only_is_metal_and_glossy_nodes_without_other_lobes():
+    p = np.zeros((7, pr.N_MAT))
+    p[:, pr.M_NODE] = pr.NODE_PRINCIPLED
+    p[0, pr.M_METALLIC] = 1.0                      # metal: yes
+    p[1, pr.M_METALLIC] = 0.5                      # half diffuse: no
+    p[2, pr.M_NODE] = pr.NODE_GLOSSY               # Glossy BSDF: yes
+    p[3, [pr.M_METALLIC, pr.M_SHEEN_W]] = 1.0, 0.2  # sheen keeps N in Cycles: no
+    p[4, [pr.M_METALLIC, pr.M_TRANS]] = 1.0, 1.0   # transmission: turnedlight's rule
+    p[5, pr.M_NODE] = pr.NODE_GLASS                # glass node: no
+    # row 6: plain diffuse: no
+    np.testing.assert_array_equal(turnedglossy.glossy_only(p),
+                                  [True, False, True, False, False, False, False])
+
+
+def _top_hits(ctx, n=200, seed=4):
+    g = np.cross(np.asarray(ctx.geo.e1), np.asarray(ctx.geo.e2))
+    g /= np.linalg.norm(g, axis=1)[:, None]
+    top = np.flatnonzero((g[:, 2] > 0.9) & (np.asarray(ctx.geo.material)
+                                               == ctx.table.names.index("metal")))
+    assert len(top) == 2  # the slab's top face
+    prim = np.repeat(top.astype(np.int64), n // len(top))
+    rng = np.random.default_rng(seed)
+    u, v = rng.random((2, len(prim)))
+    flip = u + v > 1.0
+    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+    return prim, u, v
+
+
+def test_camera_unguarded_marks_exactly_the_rows_the_guard_replaces(monkeypatch):
+    """Rows marked are those on glossy-only material whose interpolated normal puts the
+    viewer below it (face_shading_normals' test); a view from straight above marks none
+    (None: the fused kernel runs, the same bits); a diffuse material, the module off:
+    None."""
+    ctx = _metal_slab(50.0)
+    prim, u, v = _top_hits(ctx)
+    ns = ctx.geo.shading_normals(prim, u, v)
+    # Grazing views from -y, 30 degrees over the face: the far (+y) half leans away.
+    d = np.tile([0.0, math.cos(math.radians(30)), -math.sin(math.radians(30))], (len(prim), 1))
+    want = np.einsum("ij,ij->i", ns, -d) <= 1e-6
+    assert want.any() and not want.all()
+    np.testing.assert_array_equal(
+        turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d), want)
+    down = np.tile([0.0, 0.0, -1.0], (len(prim), 1))
+    assert turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, down) is None
+    mats = np.asarray(ctx.geo.material)[prim].copy()
+    mats[::2] = ctx.table.names.index("floor")  # a Light Path variant that is diffuse: those rows keep the guard
+    got = turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d, mats)
+    np.testing.assert_array_equal(got, want & (np.arange(len(prim)) % 2 == 1))
+    plain = _metal_slab(50.0, metallic=0.0)
+    assert turnedglossy.camera_unguarded(plain.geo, plain.table, prim, u, v, d) is None
+    monkeypatch.setattr(turnedglossy, "ENABLED", False)
+    assert turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d) is None
