@@ -55,14 +55,7 @@ def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | N
     cn = getattr(geo, "corner_normals", None)
     if cn is None or not len(cn):
         return None
-    key = "_glossy_only"
-    ok = table.__dict__.get(key) if hasattr(table, "__dict__") else None
-    if ok is None:
-        ok = glossy_only(table.closure_params)
-        try:
-            table.__dict__[key] = ok
-        except (AttributeError, TypeError):
-            pass
+    ok = glossy_only(table.closure_params)  # (a few comparisons a material row)
     if not ok.any():
         return None
     prim = np.asarray(prim, np.int64)
