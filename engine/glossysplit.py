@@ -40,16 +40,23 @@ ENABLED = True
 LAMBERT_PDF_MAX = 1.0 / math.pi
 
 
-def split_filter_glossy(ctx) -> float:
-    """The Filter Glossy the split applies in this render (RenderSettings
-    cycles_filter_glossy), or 0.0 where it is off: ENABLED false, no photon mapping or
-    no final gathering (the gather map), or Filter Glossy at most LAMBERT_PDF_MAX."""
-    s = ctx.settings
-    fg = float(getattr(s, "cycles_filter_glossy", 0.0) or 0.0)
-    if (not ENABLED or not s.photon_mapping or getattr(ctx, "gather_map", None) is None
-            or not fg > LAMBERT_PDF_MAX):
+def settings_filter_glossy(settings) -> float:
+    """The Filter Glossy the split applies with these RenderSettings
+    (cycles_filter_glossy), or 0.0 where it is off: ENABLED false, no photon mapping or
+    no final gathering, or Filter Glossy at most LAMBERT_PDF_MAX."""
+    fg = float(getattr(settings, "cycles_filter_glossy", 0.0) or 0.0)
+    if (not ENABLED or not settings.photon_mapping
+            or not getattr(settings, "final_gather", True) or not fg > LAMBERT_PDF_MAX):
         return 0.0
     return fg
+
+
+def split_filter_glossy(ctx) -> float:
+    """settings_filter_glossy of the render's settings, 0.0 also where the render has no
+    gather map (no final gathering: nothing to carry the maps' light)."""
+    if getattr(ctx, "gather_map", None) is None:
+        return 0.0
+    return settings_filter_glossy(ctx.settings)
 
 
 def maps_blurred(ctx) -> bool:
