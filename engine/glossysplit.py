@@ -13,10 +13,10 @@ lobe's sample has no density under the blurred one), so:
 - the final-gather chains from D (gather_indirect -> continue_specular, vertices since
   D all non-diffuse) blur their lobes by the chain's own min_pdf (starting at D's pdf of
   the gather direction, cos / pi) and add, at every blurred vertex, the light the maps
-  now leave out: light sampling through the blurred reflective lobes (in full: the
-  reflected continuations count no emission) and the emitters the continuation meets
-  through the transmitting lobes (in full: light sampling takes none through them).
-  The same predicate on the same path decides both sides: each path is counted once.
+  now leave out: light sampling through the blurred lobes, reflective and refractive
+  (in full), and what the continued rays meet of the emitters light sampling leaves to
+  them (a constant world). The same predicate on the same path decides both sides: each
+  path is counted once.
 
 Built here for Filter Glossy above 1 / pi (Cycles' default 1.0 among them) with D's pdf
 its Lambert lobe's, cos / pi <= 1 / pi: every path is blurred, so the maps' estimates at
@@ -83,25 +83,30 @@ def raise_rows(prm, min_pdf, filter_glossy) -> None:
 class GatherChains:
     """One level-0 gather_indirect call's chain state for the split: per gathering hit
     row, the min_pdf (1/sr) of its current ray's chain (D's cos / pi, then the minimum
-    with each continuation's pdf). fg: split_filter_glossy(ctx) > 0. E (n,3) is the
-    gather's irradiance sum (tp pi L / G per ray, as the lookups add). added: the same
-    sum of what the chains add here alone (a bench and the tests read it)."""
+    with each continuation's pdf) and whether the vertex its ray left was blurred. fg:
+    split_filter_glossy(ctx) > 0. E (n,3) is the gather's irradiance sum (tp pi L / G per
+    ray, as the lookups add). added: the same sum of what the chains add here alone.
+
+    The light the maps leave out is found by light sampling alone at each blurred
+    vertex (its reflective lobes and its rough refraction, both in full: no multiple
+    importance sampling), so the continued rays count only the emitters light sampling
+    leaves to the continuation (integrator.MODE_CONTINUATION: a constant world, a light
+    without shadow rays) and the mesh sides no shadow ray samples. A delta lamp through
+    a blurred glass ball is then found, as Cycles finds it (figure8_caustic's spot)."""
 
     def __init__(self, ctx, n: int, fg: float):
         from . import integrator as it
         self.ctx, self.fg = ctx, fg
         self.min_pdf = np.full(n, np.inf)
+        self.from_blurred = np.zeros(n, bool)
         self.added = np.zeros((n, 3))
         self.modes = it.light_modes(ctx)
-        # The lights the reflected continuations meet in full: those light sampling
-        # leaves to the continuation (MODE_CONTINUATION: a constant world, a lamp
-        # without shadow rays).
+        # The lights the continuations meet in full (those light sampling leaves to them).
         self.continuation_lights = [li for li, m in enumerate(self.modes)
                                     if m == it.MODE_CONTINUATION]
-        self.world_light = any(light.kind == it.WORLD for light in ctx.lights)
-        self.world_on_reflection = not any(
-            light.kind == it.WORLD and self.modes[li] != it.MODE_CONTINUATION
-            for li, light in enumerate(ctx.lights))
+        self.world = not any(light.kind == it.WORLD and self.modes[li] != it.MODE_CONTINUATION
+                             for li, light in enumerate(ctx.lights))
+        self.unsampled = it._unsampled_meshes(ctx)
 
     def start(self, idx, d, ns):
         """The gather rays (hit rows idx (K,), directions d (K,3)) leave D (shading
@@ -113,62 +118,79 @@ class GatherChains:
         """At chain hits y (the rows that continue: their hit rows rows_idx (M,), ray
         throughputs tp (M,3)): blur y's lobes by the chains' min_pdf (y.prm raised in
         place after the closures' set-up, the albedos kept), add light sampling through
-        the blurred reflective lobes (radiance towards y.wo, in full) to E, and return
-        the continuation's lobe choice (integrator.lobe_choice of the unblurred albedos)
-        for continue_specular."""
+        the blurred lobes (radiance towards y.wo) at the blurred rows to E, and return the
+        continuation's lobe choice (integrator.lobe_choice of the unblurred albedos) for
+        continue_specular."""
         from . import integrator as it
         from .bsdf import closures
+        from .glasslight import rough_transmission_rows, transmitted_light
         ctx = self.ctx
         prm, albedo = closures(ctx.table, y, ctx.geo)
-        raise_rows(prm, np.ascontiguousarray(self.min_pdf[rows_idx]), self.fg)
+        mp = np.ascontiguousarray(self.min_pdf[rows_idx])
+        raise_rows(prm, mp, self.fg)
         choice = it.lobe_choice(albedo, tp)
-        if len(rows_idx):
-            n = len(rows_idx)
-            # Light sampling by the blurred reflective lobes alone (no diffuse f: the
-            # lookups read those), weighted in full (sel 0: the continuation's pdf 0 in
-            # the power heuristic), so the reflected continuations count no emission.
-            L = it.direct_irradiance(ctx, y, rng, counters, bsdf=(
-                np.zeros((n, 3)), prm, np.zeros_like(choice[0])))
-            add = np.asarray(tp, np.float64) * (math.pi / G) * L
-            np.add.at(E, rows_idx, add)
-            np.add.at(self.added, rows_idx, add)
+        blurred = np.flatnonzero(mp < self.fg)
+        if not len(blurred):
+            return choice
+        sub = y if len(blurred) == len(mp) else y.take(blurred)
+        if sub is not y:
+            sub.prm = np.ascontiguousarray(prm[blurred])
+        n = len(blurred)
+        # Light sampling by the blurred reflective lobes alone (no diffuse f: the lookups
+        # read those), weighted in full (sel 0: the continuation's pdf 0 in the power
+        # heuristic).
+        no_sel = np.zeros((n, choice[0].shape[1]))
+        L = it.direct_irradiance(ctx, sub, rng, counters, bsdf=(np.zeros((n, 3)), sub.prm,
+                                                               no_sel))
+        # ... and by their rough refraction (engine/glasslight.py), in full as well.
+        gl = rough_transmission_rows(sub.prm, np.arange(n, dtype=np.int64))
+        if len(gl):
+            samples = it.light_sample_list(ctx, len(gl), rng, modes=self.modes)
+            L[gl] += transmitted_light(ctx, sub, gl, sub.prm, no_sel, np.ones(n),
+                                       self.modes, samples, counters)
+        rows = rows_idx[blurred]
+        add = np.take(np.asarray(tp, np.float64), blurred, axis=0) * (math.pi / G) * L
+        np.add.at(E, rows, add)
+        np.add.at(self.added, rows, add)
         return choice
 
     def continued(self, rows_idx, pdf):
         """The continued rays' chains (hit rows rows_idx (K,), continuation pdfs (K,),
-        inf for mirror-like lobes and refractions): min_pdf lowered."""
+        inf for mirror-like lobes and refractions): whether the vertex they left was
+        blurred, then min_pdf lowered."""
+        self.from_blurred[rows_idx] = self.min_pdf[rows_idx] < self.fg
         self.min_pdf[rows_idx] = np.minimum(self.min_pdf[rows_idx], pdf)
 
     def emission(self, rows_idx, o, d, tp, cls, E, G):
-        """The emitters the continued rays (hit rows rows_idx (K,), origins o, directions
-        d (K,3), throughputs tp (K,3), ray classes cls (K,)) meet: through a transmitting
-        lobe (TRANSMISSION) every lamp surface, emitting mesh and the world; through a
-        reflective one only the lights light sampling left to the continuation. Added
-        to E in full (tp pi Le / G)."""
+        """The emitters that the continued rays (hit rows rows_idx (K,), origins o,
+        directions d (K,3), throughputs tp (K,3), ray classes cls (K,)) leaving a blurred
+        vertex meet and light sampling leaves to them: the lights of MODE_CONTINUATION
+        (lamp surfaces, sun discs, the world where no shadow ray samples it) and the
+        mesh sides no shadow ray samples. Added to E in full (tp pi Le / G)."""
         from . import integrator as it
         from .bsdf import surface_hit
         from . import worldmedium
         ctx = self.ctx
-        k = len(rows_idx)
-        if k == 0:
+        if not self.continuation_lights and not self.world and not self.unsampled:
             return
-        cls = np.broadcast_to(np.asarray(cls, np.int64), (k,))
-        trans = cls == it.TRANSMISSION
-        if not trans.any() and not self.continuation_lights and not (
-                self.world_on_reflection and self.world_light):
+        go = np.flatnonzero(self.from_blurred[rows_idx])
+        if not len(go):
             return
-        o = np.ascontiguousarray(o, np.float64)
-        d = np.ascontiguousarray(d, np.float64)
-        t, prim, u, v = ctx.accel.intersect(o, d, cls=np.ascontiguousarray(cls))
+        rows_idx = rows_idx[go]
+        k = len(go)
+        cls = np.ascontiguousarray(np.broadcast_to(np.asarray(cls, np.int64), (len(d),))[go])
+        o = np.ascontiguousarray(np.take(o, go, axis=0), np.float64)
+        d = np.ascontiguousarray(np.take(d, go, axis=0), np.float64)
+        tp = np.take(np.asarray(tp, np.float64), go, axis=0)
+        t, prim, u, v = ctx.accel.intersect(o, d, cls=cls)
         t = np.where(prim >= 0, t, np.inf)
         Le = np.zeros((k, 3))
         at_lamp = np.zeros(k, bool)
-        for li, light in enumerate(ctx.lights):
+        for li in self.continuation_lights:
+            light = ctx.lights[li]
             if not light.has_surface:
                 continue
             sees = (cls & light.ray_kinds) != 0
-            if li not in self.continuation_lights:
-                sees = sees & trans
             if not sees.any():
                 continue
             mask, tl, L = light.intersect(o, d, t)
@@ -179,26 +201,21 @@ class GatherChains:
                 Le[mask] += L[mask]
                 t = np.where(mask, tl, t)
                 at_lamp |= mask
-        surf = np.flatnonzero((prim >= 0) & trans & ~at_lamp)
-        if len(surf):
+        surf = np.flatnonzero((prim >= 0) & ~at_lamp)
+        if len(surf) and self.unsampled:
             y = surface_hit(ctx.geo, ctx.table, prim[surf], u[surf], v[surf], d[surf])
-            if y.emission is not None:
-                Le[surf] += y.emission
+            if y.emission is not None and np.any(y.emission > 0):
+                Le[surf] += it.unsampled_emission(ctx, self.unsampled, prim[surf], d[surf],
+                                                  np.asarray(y.emission, np.float64))
         miss = np.flatnonzero((prim < 0) & ~at_lamp)
         if len(miss):
             dm = np.take(d, miss, axis=0)
-            tm = trans[miss]
-            env = worldmedium.background(ctx.scene, dm)
-            if not self.world_on_reflection:
-                env = env * tm[:, None]
-            Le[miss] += env
-            for li, light in enumerate(ctx.lights):
-                sun = light.seen_at_infinity(dm)
-                if sun is None:
-                    continue
-                if li not in self.continuation_lights:
-                    sun = sun * tm[:, None]
-                Le[miss] += sun
-        add = np.asarray(tp, np.float64) * (math.pi / G) * Le
+            if self.world:
+                Le[miss] += worldmedium.background(ctx.scene, dm)
+            for li in self.continuation_lights:
+                sun = ctx.lights[li].seen_at_infinity(dm)
+                if sun is not None:
+                    Le[miss] += sun
+        add = tp * (math.pi / G) * Le
         np.add.at(E, rows_idx, add)
         np.add.at(self.added, rows_idx, add)
