@@ -85,7 +85,7 @@ class GatherChains:
     row, the min_pdf (1/sr) of its current ray's chain (D's cos / pi, then the minimum
     with each continuation's pdf) and whether the vertex its ray left was blurred. fg:
     split_filter_glossy(ctx) > 0. E (n,3) is the gather's irradiance sum (tp pi L / G per
-    ray, as the lookups add). added: the same sum of what the chains add here alone.
+    ray, as the lookups add).
 
     The light the maps leave out is found by light sampling alone at each blurred
     vertex (its reflective lobes and its rough refraction, both in full: no multiple
@@ -99,7 +99,6 @@ class GatherChains:
         self.ctx, self.fg = ctx, fg
         self.min_pdf = np.full(n, np.inf)
         self.from_blurred = np.zeros(n, bool)
-        self.added = np.zeros((n, 3))
         self.modes = it.light_modes(ctx)
         # The lights the continuations meet in full (those light sampling leaves to them).
         self.continuation_lights = [li for li, m in enumerate(self.modes)
@@ -151,7 +150,6 @@ class GatherChains:
         rows = rows_idx[blurred]
         add = np.take(np.asarray(tp, np.float64), blurred, axis=0) * (math.pi / G) * L
         np.add.at(E, rows, add)
-        np.add.at(self.added, rows, add)
         return choice
 
     def continued(self, rows_idx, pdf):
@@ -218,4 +216,3 @@ class GatherChains:
                     Le[miss] += sun
         add = tp * (math.pi / G) * Le
         np.add.at(E, rows_idx, add)
-        np.add.at(self.added, rows_idx, add)
