@@ -58,18 +58,10 @@ def main(argv=None):
         f0, s0 = ours(name, 0.0, a.spp, a.seed)
         f1, s1 = ours(name, 1.0, a.spp, a.seed)
         cyc = {fg: bfg.render(name, a.cycles_spp, fg, 1)[0] for fg in (0.0, 1.0)}
-        regions = {"image": np.ones(f0.combined.shape[:2], bool)}
-        lab = acc.load_labels(name) or acc.object_labels(name, samples=16)
-        if lab is not None:
-            labels, names = lab
-            for i, n in enumerate(names):
-                m = labels == i + 1
-                if m.any():
-                    regions[n] = m
         L = {k: np.asarray(v, np.float64)[..., :3] @ LUM for k, v in (
             ("o0", f0.combined), ("o1", f1.combined), ("c0", cyc[0.0]), ("c1", cyc[1.0]),
             ("drop", f0.caustic), ("i0", f0.indirect), ("i1", f1.indirect))}
-        for r, m in regions.items():
+        for r, m in bfg.regions(name, f0.combined.shape[:2]).items():
             v = {k: float(x[m].mean()) for k, x in L.items()}
             print(f"| {name} | {r} | {v['o0']:.5g} | {v['o1']:.5g} | {v['o1'] / v['o0']:.4f} | "
                   f"{v['c0']:.5g} | {v['c1']:.5g} | {v['c1'] / v['c0']:.4f} | "
