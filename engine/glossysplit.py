@@ -103,8 +103,6 @@ class GatherChains:
         # The lights the continuations meet in full (those light sampling leaves to them).
         self.continuation_lights = [li for li, m in enumerate(self.modes)
                                     if m == it.MODE_CONTINUATION]
-        self.world = not any(light.kind == it.WORLD and self.modes[li] != it.MODE_CONTINUATION
-                             for li, light in enumerate(ctx.lights))
         self.unsampled = it._unsampled_meshes(ctx)
 
     def start(self, idx, d, ns):
@@ -163,13 +161,14 @@ class GatherChains:
         """The emitters that the continued rays (hit rows rows_idx (K,), origins o,
         directions d (K,3), throughputs tp (K,3), ray classes cls (K,)) leaving a blurred
         vertex meet and light sampling leaves to them: the lights of MODE_CONTINUATION
-        (lamp surfaces, sun discs, the world where no shadow ray samples it) and the
-        mesh sides no shadow ray samples. Added to E in full (tp pi Le / G)."""
+        (lamp surfaces, sun discs, a constant world) and the mesh sides no shadow ray
+        samples. Added to E in full (tp pi Le / G). A background that is no light (no
+        photons either) is not counted."""
         from . import integrator as it
         from .bsdf import surface_hit
         from . import worldmedium
         ctx = self.ctx
-        if not self.continuation_lights and not self.world and not self.unsampled:
+        if not self.continuation_lights and not self.unsampled:
             return
         go = np.flatnonzero(self.from_blurred[rows_idx])
         if not len(go):
@@ -208,10 +207,11 @@ class GatherChains:
         miss = np.flatnonzero((prim < 0) & ~at_lamp)
         if len(miss):
             dm = np.take(d, miss, axis=0)
-            if self.world:
-                Le[miss] += worldmedium.background(ctx.scene, dm)
             for li in self.continuation_lights:
-                sun = ctx.lights[li].seen_at_infinity(dm)
+                light = ctx.lights[li]
+                # (the world's light is the background itself; a sun's, its disc)
+                sun = (worldmedium.background(ctx.scene, dm) if light.kind == it.WORLD
+                       else light.seen_at_infinity(dm))
                 if sun is not None:
                     Le[miss] += sun
         add = tp * (math.pi / G) * Le
