@@ -8,8 +8,8 @@ the gather chains add, each from its own pass.
 Ours: the add-on's export (tools/accuracy_scenes.export_ours), only
 cycles_filter_glossy changed between the two renders. "dropped" is the caustic pass at
 Filter Glossy 0 (the caustic and glow maps' estimates, which the split leaves out at 1);
-"added" is the indirect pass at 1 less the indirect pass at 0 (the chains' light
-sampling and emission; the lookups' own light is the same both times up to noise).
+"chains" is the caustic pass at 1 (the gather chains' light sampling and emission,
+which the split puts there).
 Cycles: the bpy wheel, tools/accuracy_scenes.set_cycles (bench/bench_filter_glossy.py's
 renders). Mean Rec. 709 luminance over the pixels each object covers fully.
 """
@@ -52,7 +52,7 @@ def main(argv=None):
     print(f"ours {a.spp} spp seed {a.seed}; Cycles {a.cycles_spp} spp; load "
           f"{os.getloadavg()[0]:.1f}")
     print("| scene | region | ours FG0 | ours FG1 | ours 1/0 | Cycles FG0 | Cycles FG1 | "
-          "Cycles 1/0 | ours FG1 / Cycles FG1 | dropped / FG0 | added / FG0 |")
+          "Cycles 1/0 | ours FG1 / Cycles FG1 | dropped / FG0 | chains / FG0 |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.only.split(","):
         f0, s0 = ours(name, 0.0, a.spp, a.seed)
@@ -60,13 +60,13 @@ def main(argv=None):
         cyc = {fg: bfg.render(name, a.cycles_spp, fg, 1)[0] for fg in (0.0, 1.0)}
         L = {k: np.asarray(v, np.float64)[..., :3] @ LUM for k, v in (
             ("o0", f0.combined), ("o1", f1.combined), ("c0", cyc[0.0]), ("c1", cyc[1.0]),
-            ("drop", f0.caustic), ("i0", f0.indirect), ("i1", f1.indirect))}
+            ("drop", f0.caustic), ("chains", f1.caustic))}
         for r, m in bfg.regions(name, f0.combined.shape[:2]).items():
             v = {k: float(x[m].mean()) for k, x in L.items()}
             print(f"| {name} | {r} | {v['o0']:.5g} | {v['o1']:.5g} | {v['o1'] / v['o0']:.4f} | "
                   f"{v['c0']:.5g} | {v['c1']:.5g} | {v['c1'] / v['c0']:.4f} | "
                   f"{v['o1'] / v['c1']:.4f} | {v['drop'] / v['o0']:.4f} | "
-                  f"{(v['i1'] - v['i0']) / v['o0']:.4f} |", flush=True)
+                  f"{v['chains'] / v['o0']:.4f} |", flush=True)
         print(f"<!-- {name}: ours FG0 {s0:.0f} CPU s, FG1 {s1:.0f} CPU s -->", flush=True)
 
 
