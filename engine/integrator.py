@@ -3240,12 +3240,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             hit.prm = prm
         w_diffuse = None
         if fgblur is not None:
-            # Each hit's diffuse lobe weight (max3 of its albedo, as choose_lobes' lobe
-            # weights; 0 on the rows not shaded): Cycles' MIS pdf of the continuation
+            # Each hit's diffuse lobe weight (its albedo's mean channel, Cycles' sample
+            # weight; 0 on the rows not shaded): Cycles' MIS pdf of the continuation
             # counts the Lambert lobe too (filterglossy.mis_pdf).
             w_diffuse = np.zeros(n)
             if nd:
-                w_diffuse[dsel[:nd]] = np.max(wd[:nd], axis=1)
+                w_diffuse[dsel[:nd]] = (wd[:nd, 0] + wd[:nd, 1] + wd[:nd, 2]) / 3.0
         if medium is not None:
             # The medium each hit point is in: its shadow and gather rays start there
             # (directlight.direct_light's medium_sigma, gather_indirect).
