@@ -62,20 +62,6 @@ acc.SCENES["glass_on_metal"] = (_glass_on_metal, "specular")
 SCENES = ("principled_spheres", "glass_on_metal")
 
 
-def regions(name, shape):
-    out = {"image": np.ones(shape, bool)}
-    lab = acc.load_labels(name)
-    if lab is None:
-        lab = acc.object_labels(name, samples=16)
-    if lab is not None:
-        labels, names = lab
-        for i, n in enumerate(names):
-            m = labels == i + 1
-            if m.any():
-                out[n] = m
-    return out
-
-
 def cpu_seconds():
     t = os.times()
     return t.user + t.system
@@ -115,7 +101,7 @@ def main(argv=None):
         if a.cycles_spp > 0:
             cyc = {fg: bfg.render(name, a.cycles_spp, fg, 0)[0].astype(np.float64)
                    for fg in (0.0, 1.0)}
-        regs = regions(name, img[0.0][0].shape[:2])
+        regs = bfg.regions(name, img[0.0][0].shape[:2])
         rec = record[name] = {}
         for r, m in regs.items():
             o0, o1 = (float(bfg.lum(img[fg][0])[m].mean()) for fg in (0.0, 1.0))
