@@ -2,7 +2,7 @@
 Filter Glossy 1 against 0, and against Cycles at 1 and 0, per region.
 
     PYTHONPATH=$PWD .venv/bin/python bench/fgcamera46.py [--spp 64] [--seeds 0,1]
-        [--cycles-spp 1024] [--only principled_spheres,glass_on_metal] [--json OUT]
+        [--cycles-spp 1024] [--only principled_spheres,glass_on_metal] [--fg 1.0] [--json OUT]
 
 Scenes: principled_spheres (issue 14's row of Principled balls, 160 x 120: the metals
 reflect their neighbours' lobes after their own rough bounce, Cycles FG 1 / FG 0 0.978 /
@@ -16,7 +16,9 @@ Glossy 1 samples the ball as rough glass and finds the lamp through it) and glos
 Cycles (the bpy wheel, CPU, tools/accuracy_scenes.set_cycles' comparison settings, only
 blur_glossy changed) at --cycles-spp (0: skipped). Regions: the whole image and the
 pixels each object covers fully (the stored labels, else Cycles coverage renders).
-Prints a Markdown table; --json writes the region means.
+--fg: the Filter Glossy compared with 0 (0.3: only bounces of pdf below 0.3, a Lambert
+bounce within 18 degrees of grazing, blur). Prints a Markdown table; --json writes the
+region means.
 """
 from __future__ import annotations
 
@@ -84,37 +86,40 @@ def main(argv=None):
     p.add_argument("--seeds", default="0,1")
     p.add_argument("--cycles-spp", type=int, default=1024)
     p.add_argument("--only", default=",".join(SCENES))
+    p.add_argument("--fg", type=float, default=1.0)
     p.add_argument("--json", default=None)
     a = p.parse_args(argv)
     seeds = [int(s) for s in a.seeds.split(",")]
     ensure_compiled()
     print(f"ours {a.spp} spp x seeds {seeds}, one thread; Cycles {a.cycles_spp} spp seed 0; "
           f"load {os.getloadavg()[0]:.1f}")
-    print("| scene | region | pixels | ours FG 1 / FG 0 | Cycles FG 1 / FG 0 | ours / Cycles FG 0 "
-          "| ours / Cycles FG 1 |")
+    f = f"FG {a.fg:g}"
+    print(f"| scene | region | pixels | ours {f} / FG 0 | Cycles {f} / FG 0 | ours / Cycles FG 0 "
+          f"| ours / Cycles {f} |")
     print("|---|---|---:|---:|---:|---:|---:|")
     record = {}
     for name in a.only.split(","):
-        img = {fg: ours(name, a.spp, seeds, fg) for fg in (0.0, 1.0)}
+        fgs = (0.0, a.fg)
+        img = {fg: ours(name, a.spp, seeds, fg) for fg in fgs}
         cyc = {}
         w0 = time.perf_counter()
         if a.cycles_spp > 0:
             cyc = {fg: bfg.render(name, a.cycles_spp, fg, 0)[0].astype(np.float64)
-                   for fg in (0.0, 1.0)}
+                   for fg in fgs}
         regs = bfg.regions(name, img[0.0][0].shape[:2])
         rec = record[name] = {}
         for r, m in regs.items():
-            o0, o1 = (float(bfg.lum(img[fg][0])[m].mean()) for fg in (0.0, 1.0))
+            o0, o1 = (float(bfg.lum(img[fg][0])[m].mean()) for fg in fgs)
             rec[r] = {"pixels": int(m.sum()), "ours_fg0": o0, "ours_fg1": o1}
             cells = [f"{o1 / o0:.4f}"]
             if cyc:
-                c0, c1 = (float(bfg.lum(cyc[fg])[m].mean()) for fg in (0.0, 1.0))
+                c0, c1 = (float(bfg.lum(cyc[fg])[m].mean()) for fg in fgs)
                 rec[r].update(cycles_fg0=c0, cycles_fg1=c1)
                 cells += [f"{c1 / c0:.4f}", f"{o0 / c0:.4f}", f"{o1 / c1:.4f}"]
             else:
                 cells += ["-", "-", "-"]
             print(f"| {name} | {r} | {int(m.sum())} | " + " | ".join(cells) + " |", flush=True)
-        print(f"<!-- {name}: ours CPU s FG 0 {img[0.0][1]:.0f}, FG 1 {img[1.0][1]:.0f}; Cycles "
+        print(f"<!-- {name}: ours CPU s FG 0 {img[0.0][1]:.0f}, {f} {img[a.fg][1]:.0f}; Cycles "
               f"{time.perf_counter() - w0:.0f} s wall -->", flush=True)
     if a.json:
         with open(a.json, "w") as f:
