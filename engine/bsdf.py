@@ -17,6 +17,7 @@ import numpy as np
 
 from .anisotropy import set_hit_tangents
 from .camerakernels import face_shading_normals, hit_closures, hit_geometry, surface_lobes
+from .filterglossy import NO_BLUR
 from .closures import principled as pr
 from . import raymaterials
 from .displacement import DisplacedNormals
@@ -239,14 +240,15 @@ def plain_surfaces(table: MaterialTable) -> bool:
 
 
 def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, want_glossy,
-                      out, material=None) -> tuple[SurfaceHit, int]:
+                      out, material=None, blur=None) -> tuple[SurfaceHit, int]:
     """surface_hit and camerakernels.shade_lobes on N hits in one kernel
     (camerakernels.surface_lobes), for tables with plain_surfaces: (the SurfaceHit, with
     prm set to out's packed lobes, K the number of rows to shade). tp (N,3) throughputs,
     want_glossy as shade_lobes; out = (prm, sel, p, q, psum, glossy, rows, wd) the
     arrays shade_lobes writes (integrator.BounceBuffers.take(N)), written as it writes
     them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py).
-    material: as surface_hit's."""
+    material: as surface_hit's; blur (N,) Cycles' Filter Glossy alpha per hit
+    (engine/filterglossy.py) or None: none."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
     p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
@@ -257,7 +259,8 @@ def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, wa
     k = surface_lobes(idx, u, v, d, *tabs, table.base_color, table.closure_params,
                       np.ascontiguousarray(table.alpha, np.float64),
                       np.ascontiguousarray(tp, np.float64), bool(want_glossy), p, ng, ns, wo,
-                      front, mat, base, offset, bary, prm, sel, q, pw, psum, glossy, rows, wd)
+                      front, mat, base, offset, bary, prm, sel, q, pw, psum, glossy, rows, wd,
+                      NO_BLUR if blur is None else np.ascontiguousarray(blur, np.float64))
     _offset_floor(geo, prim, p, ng, offset)
     if table.emission.any():
         emission = hit_emission(table, ShadingGeometry(geo, ns, wo, ~front), mat, prim, u, v)
@@ -283,7 +286,7 @@ def closures(table: MaterialTable, hit: SurfaceHit, geo=None):
         hit_closures(hit.ns, hit.ng, hit.wo, hit.mat,
                      hit.params if per_hit else table.closure_params, per_hit, hit.base,
                      hit.front, np.ascontiguousarray(table.alpha, np.float64), alpha, prm,
-                     albedo)
+                     albedo, NO_BLUR)
         if geo is not None:
             set_hit_tangents(geo, hit.params if per_hit else table.closure_params, hit, prm)
         hit.prm, hit.lobe_albedo = prm, albedo

@@ -48,6 +48,7 @@ import numpy as np
 from .closures import ggx
 from .closures import principled as pr
 from .directlight import _npmax, _to_world
+from .filterglossy import raise_alphas
 from .jit import kernel, register_warm_up
 from .rayoffset import G32_PLANE, G64, TINY32, U32, tilt32, winding_normal
 
@@ -210,7 +211,7 @@ def _view_cosine(ns, wo, i):
 
 @kernel
 def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha,
-                 prm, albedo):
+                 prm, albedo, blur):
     """The lobes of N hits (bsdf.closures), in one pass: the view cosine ns . wo, Cycles'
     glossy normal (principled.glossy_normals, for every glossy lobe, glass included:
     principled.raised_rough_glass), the closures' set-up (principled.setup) and the
@@ -220,6 +221,9 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
     closure rows, or (N, N_MAT) one row per hit when per_hit (texture-driven scalar
     inputs); base (N,3) base colour; front (N,) bool; table_alpha (M,) the materials'
     alpha; hit_alpha (N,) per-hit alpha (alpha textures) or (0,): the materials'.
+    blur (N,) float64: Cycles' Filter Glossy alpha of each hit (engine/filterglossy.py:
+    the microfacet alphas raised to it after the set-up, the albedos left), or (0,):
+    none (0 also changes no bit).
     Out: prm (N, N_PACK), albedo (N, N_LOBES, 3). Same operations in the same order as
     the numpy set-up it replaced (tests/test_camera_kernels.py)."""
     n = ns.shape[0]
@@ -236,6 +240,9 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
         rows[i] = r
         alpha[i] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
     pr.setup(rows, params, base, cos_o, front, alpha, prm, albedo)
+    if blur.shape[0] > 0:
+        for i in range(n):
+            raise_alphas(prm, i, blur[i])
     for i in range(n):
         for c in range(3):
             prm[i, pr.P_GN + c] = local[i, c]
@@ -269,12 +276,14 @@ def _max3(a, b, c):
 
 @kernel
 def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha, tp,
-                want_glossy, prm, sel, q, p, psum, glossy, rows, wd):
+                want_glossy, prm, sel, q, p, psum, glossy, rows, wd, blur):
     """One camera bounce's lobes over N hits in one call (hit_closures, choose_lobes, the
     glossy rows of integrator.light_modes and the rows the diffuse stage shades), writing
     to memory only what the bounce reads.
 
-    Inputs as hit_closures takes them, plus tp (N,3) path throughputs and want_glossy
+    Inputs as hit_closures takes them (blur included: Filter Glossy's alphas, applied
+    after the set-up, so the lobe choice keeps the unblurred albedos and a blurred mirror
+    or smooth glass is a glossy row), plus tp (N,3) path throughputs and want_glossy
     (bool: some light takes glossy shadow rays; else no row is glossy).
     Hits whose material has the diffuse and pass lobes alone (_diffuse_only, read once a
     material) skip the closures' set-up: their lobe choice is computed from the two
@@ -326,6 +335,9 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
     prm_c = np.empty((nc, pr.N_PACK))
     w_c = np.empty((nc, pr.N_LOBES, 3))
     pr.setup(rows_c, params, base_c, cos_c, front_c, alpha_c, prm_c, w_c)
+    if blur.shape[0] > 0:
+        for j in range(nc):
+            raise_alphas(prm_c, j, blur[at[j]])
     # 2. Every hit in order: its packed row, lobe choice, glossy flag and diffuse row.
     m = np.empty(k_lobes)
     any_glossy = False
@@ -420,7 +432,7 @@ SURFACE_BLOCK = 512
 @kernel
 def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color, params,
                   table_alpha, tp, want_glossy, p, ng, ns, wo, front, mat, base, offset, bary,
-                  prm, sel, q, pw, psum, glossy, rows, wd):
+                  prm, sel, q, pw, psum, glossy, rows, wd, blur):
     """hit_geometry, the shading normals turned to the ray's side (face_shading_normals,
     no row exempt), wo = -d and shade_lobes over N hits in one call, block by block
     (SURFACE_BLOCK hits: each block's surface data is still in cache when its lobes are
@@ -431,7 +443,7 @@ def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_colo
     rows, table_alpha (M,)); out: hit_geometry's p, ng, ns, front, mat, base, offset, bary,
     wo (N,3), and shade_lobes' prm, sel, q, pw (its p), psum, glossy, rows, wd with the
     same rows written (when some row of the batch is glossy, every block's unread rows
-    are filled in as shade_lobes fills them). Returns K, the number of shaded rows.
+    are filled in as shade_lobes fills them); blur (N,) or (0,) as shade_lobes'. Returns K, the number of shaded rows.
     The same kernels on slices: the same bits (tests/test_fused_camera.py)."""
     n = prim.shape[0]
     none_exempt = np.zeros(SURFACE_BLOCK, np.bool_)
@@ -450,7 +462,8 @@ def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_colo
         face_shading_normals(ns[a:b], ng[a:b], front[a:b], d[a:b], none_exempt[:b - a])
         kb = shade_lobes(ns[a:b], ng[a:b], wo[a:b], mat[a:b], params, False, base[a:b],
                          front[a:b], table_alpha, no_alpha, tp[a:b], want_glossy, prm[a:b],
-                         sel[a:b], q[a:b], pw[a:b], psum[a:b], glossy[a:b], rows[k:], wd[k:])
+                         sel[a:b], q[a:b], pw[a:b], psum[a:b], glossy[a:b], rows[k:], wd[k:],
+                         blur[a:b] if blur.shape[0] > 0 else blur)
         for j in range(k, k + kb):
             rows[j] += a
         k += kb
@@ -927,18 +940,18 @@ def _warm_up():
                       off, np.empty((1, 2)), np.empty((1, pr.N_PACK)),
                       np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
                       np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
-                      np.empty((1, 3)))
+                      np.empty((1, 3)), np.zeros(0))
     for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
         hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
                      np.ones(1), hit_alpha, np.empty((1, pr.N_PACK)),
-                     np.empty((1, pr.N_LOBES, 3)))
+                     np.empty((1, pr.N_LOBES, 3)), np.zeros(0))
     for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
         for params in (np.zeros((1, pr.N_MAT)), np.full((1, pr.N_MAT), 0.5)):
             shade_lobes(ns, ng, -d, mat, params, per_hit, base, front, np.ones(1), hit_alpha,
                         np.ones((1, 3)), True, np.empty((1, pr.N_PACK)),
                         np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
                         np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
-                        np.empty((1, 3)))
+                        np.empty((1, 3)), np.zeros(0))
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
                 np.empty((1, 3)))
     i64 = np.zeros(1, np.int64)

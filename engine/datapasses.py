@@ -294,7 +294,7 @@ def lobe_albedo(table, hit):
     hit_closures(c(hit.ns, np.float64), c(hit.ng, np.float64), c(hit.wo, np.float64),
                  c(hit.mat, np.int32), hit.params if per_hit else table.closure_params,
                  per_hit, c(hit.base, np.float64), c(hit.front, np.bool_),
-                 c(table.alpha, np.float64), alpha, prm, albedo)
+                 c(table.alpha, np.float64), alpha, prm, albedo, _NO_ALPHA)
     return prm, albedo
 
 

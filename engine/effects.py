@@ -185,11 +185,10 @@ def filter_glossy_alpha(filter_glossy, diffuse_pdf) -> np.ndarray:
     Lambert bounce, so at most 1/pi): 0.5 sqrt(1 - pdf / filter_glossy) where
     pdf / filter_glossy < 1, else 0 (Cycles' surface_shader_prepare_closures: blur_pdf =
     min_ray_pdf / Filter Glossy, bsdf_blur raises alpha to max(alpha, blur_roughness)).
-    At Filter Glossy 1, after a Lambert bounce: 0.41 (a normal bounce) to 0.5 (grazing)."""
-    fg = np.asarray(filter_glossy, np.float64)
-    ratio = np.asarray(diffuse_pdf, np.float64) / np.where(fg > 0, fg, 1.0)
-    return np.where((fg > 0) & (ratio < 1.0), 0.5 * np.sqrt(np.clip(1.0 - ratio, 0.0, 1.0)),
-                    0.0)
+    At Filter Glossy 1, after a Lambert bounce: 0.41 (a normal bounce) to 0.5 (grazing).
+    The camera paths' own formula (engine/filterglossy.py blur_alpha, over arrays)."""
+    from .filterglossy import blur_alphas
+    return blur_alphas(filter_glossy, diffuse_pdf)
 
 
 def _strong_reflector(geo: Geometry, table: MaterialTable, oid: int) -> bool:

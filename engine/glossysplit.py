@@ -30,7 +30,6 @@ import math
 
 import numpy as np
 
-from .closures import principled as pr
 
 # The split on (Filter Glossy above LAMBERT_PDF_MAX, photon mapping with final gathering);
 # False: the maps and chains as without it (Cycles at Filter Glossy 0), whatever the
@@ -67,17 +66,11 @@ def maps_blurred(ctx) -> bool:
 
 def raise_rows(prm, min_pdf, filter_glossy) -> None:
     """prm (N, principled.N_PACK) hits' packed lobes, in place: each row's microfacet
-    alphas raised as filterglossy.raise_alphas raises them, to blur_alpha(filter_glossy,
-    min_pdf[i]) (min_pdf (N,) 1/sr); the same values, in numpy (no kernel here: this
-    module's edits keep the kernels' cache)."""
-    from .effects import filter_glossy_alpha
-    blur = np.asarray(filter_glossy_alpha(filter_glossy, min_pdf), np.float64)
-    for col in (pr.P_SPEC_ALPHA, pr.P_METAL_ALPHA, pr.P_GLASS_ALPHA, pr.P_COAT_ALPHA):
-        np.maximum(prm[:, col], blur, out=prm[:, col])
-    aniso = prm[:, pr.P_AX] > 0.0
-    if aniso.any():
-        for col in (pr.P_AX, pr.P_AY):
-            prm[aniso, col] = np.maximum(prm[aniso, col], blur[aniso])
+    alphas raised by filterglossy.raise_alphas to blur_alpha(filter_glossy, min_pdf[i])
+    (min_pdf (N,) 1/sr)."""
+    from .filterglossy import blur_alphas, raise_alphas_rows
+    blur = np.ascontiguousarray(blur_alphas(filter_glossy, min_pdf), np.float64)
+    raise_alphas_rows(prm, blur)
 
 
 class GatherChains:

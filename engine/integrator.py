@@ -47,6 +47,7 @@ from .turnedlight import TurnedReflections
 from . import turnedglossy
 from . import glossysplit
 from .console import short_count
+from .filterglossy import NO_BLUR, PathBlur
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
@@ -2881,6 +2882,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # everywhere).
     may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
                  if SPLIT_GLASS_HITS > 0 else None)
+    # Cycles' Filter Glossy (engine/filterglossy.py; None: 0, nothing blurs): each path's
+    # min_ray_pdf, and from it the blur of the microfacet lobes at its next hit.
+    fgblur = PathBlur.for_settings(s, len(o))
     # Materials with a glass or translucent lobe (the rows whose packed lobes glasslight
     # reads; a diffuse-only hit's are left unwritten by shade_lobes).
     glass_mat = _transmitting(np.asarray(ctx.table.closure_params))
@@ -3169,6 +3173,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 shade_from = shade_from[kept]
             if may_split is not None:
                 may_split = may_split[kept]
+            if fgblur is not None:
+                fgblur.take(kept)
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
             single, first = single[kept], first[kept]
@@ -3249,9 +3255,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         glossy_kept = turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d, cls_mat)
         if glossy_kept is not None:
             unguarded = glossy_kept if unguarded is None else unguarded | glossy_kept
+        # The Filter Glossy alpha of each hit (None: none blurs; a camera ray's first hit
+        # never does): the microfacet lobes widened after their set-up, so a blurred mirror
+        # or smooth glass is a rough lobe from here on (light sampling, a finite pdf).
+        blur = None
+        if fgblur is not None and bounce > 0:
+            blur = fgblur.blur()
+            blur = blur if len(blur) else None
         if plain and unguarded is None:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs, material=cls_mat)
+                                        bufs, material=cls_mat, blur=blur)
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat,
                               unguarded=unguarded)
@@ -3260,8 +3273,17 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                              hit.params if per_hit else ctx.table.closure_params, per_hit,
                              hit.base, hit.front, table_alpha,
                              _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64),
-                             tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
+                             tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd,
+                             NO_BLUR if blur is None else blur)
             hit.prm = prm
+        w_diffuse = None
+        if fgblur is not None:
+            # Each hit's diffuse lobe weight (its albedo's mean channel, Cycles' sample
+            # weight; 0 on the rows not shaded): Cycles' MIS pdf of the continuation
+            # counts the Lambert lobe too (filterglossy.mis_pdf).
+            w_diffuse = np.zeros(n)
+            if nd:
+                w_diffuse[dsel[:nd]] = (wd[:nd, 0] + wd[:nd, 1] + wd[:nd, 2]) / 3.0
         if medium is not None:
             # The medium each hit point is in: its shadow and gather rays start there
             # (directlight.direct_light's medium_sigma, gather_indirect).
@@ -3516,6 +3538,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 if may_split is not None:
                     cont = cont[:6] + (np.concatenate((cont[6],
                                                        np.zeros(len(extra[0]), bool))),)
+        if fgblur is not None:
+            # Each path's min_ray_pdf after this bounce: the continued direction's MIS pdf
+            # (a pass, a mirror, smooth glass: inf, never the minimum).
+            fgblur.continued(keep, pdf_b, choice[1], choice[3], w_diffuse, hit.ns, d)
         if medium is not None:
             # Refracted or passed into a medium, or out of it (engine/media.py): out of
             # an object's medium into the world volume's, if any.

@@ -251,8 +251,8 @@ def ensure_compiled(progress=None) -> float:
 
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
-    from . import (camerakernels, camerarays, directlight, gatherkernels,  # noqa: F401
-                   hashgrid, normalmap,
+    from . import (camerakernels, camerarays, directlight, filterglossy,  # noqa: F401
+                   gatherkernels, hashgrid, normalmap,
                    kdtree, majorant, media, panekernels, photonkernels, photonmap,  # (warm-ups)
                    photonvisibility,
                    procedural, rayoffset, shadowtransmittance, subsurfacewalk, toplevel,

@@ -266,7 +266,8 @@ def test_lean_materials_are_one_lambert_lobe():
     base = np.take(table.base_color, mat, axis=0)
     prm, albedo = np.empty((n, pr.N_PACK)), np.empty((n, pr.N_LOBES, 3))
     hit_closures(ns, ng, wo, mat, table.closure_params, False, base, front,
-                 np.ascontiguousarray(table.alpha, np.float64), np.zeros(0), prm, albedo)
+                 np.ascontiguousarray(table.alpha, np.float64), np.zeros(0), prm, albedo,
+                 np.zeros(0))
     sel, q, p, psum = np.empty((n, pr.N_LOBES)), np.empty(n), np.empty((n, pr.N_LOBES - 1)), \
         np.empty(n)
     choose_lobes(albedo, np.ones((n, 3)), sel, q, p, psum)

@@ -43,7 +43,8 @@ def _hit(material, ns, ng, wo, front=True):
     prm = np.empty((1, pr.N_PACK))
     alb = np.empty((1, pr.N_LOBES, 3))
     hit_closures(ns, ng, wo, np.zeros(1, np.int64), params, False, np.ones((1, 3)),
-                 np.full(1, front), params[:, pr.M_ALPHA].copy(), np.zeros(0), prm, alb)
+                 np.full(1, front), params[:, pr.M_ALPHA].copy(), np.zeros(0), prm, alb,
+                 np.zeros(0))
     return params, prm
 
 

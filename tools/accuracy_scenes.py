@@ -332,6 +332,10 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
     for owner in (pm, cycles):
         if owner is not None and hasattr(owner, "sample_clamp_indirect"):
             owner.sample_clamp_direct = owner.sample_clamp_indirect = 0.0
+    # No glossy blur, as set_cycles renders the references (the add-on reads Cycles'
+    # Filter Glossy, default 1, which our camera paths follow: engine/filterglossy.py).
+    if cycles is not None and hasattr(cycles, "blur_glossy"):
+        cycles.blur_glossy = 0.0
 
 
 def render_rgba(scene):
