@@ -1634,6 +1634,9 @@ def lobe_choice(albedo, tp):
 # of the continuation is q / (q + K), each probe's 1 / (q + K).
 # 0: the continuation alone, as Cycles (which samples no light for a constant world).
 WORLD_PROBES = 2
+# The probes' directions from the first hit's stratified sampler (dimensions ("probe", j),
+# after every other: no other stream moves); False: plain random numbers.
+PROBES_STRATIFIED = True
 # The lobes probed: reflective, sampled with a density or a mirror, continued as GLOSSY
 # rays; the pass, glass and translucent lobes (which leave the surface's far side) never.
 # (Not sheen's: Cycles counts its bounce as diffuse, so its world light would belong to
@@ -1677,7 +1680,7 @@ def probe_rows(p, psum, over=None):
     return np.flatnonzero(ok)
 
 
-def world_probes(ctx, hit, tp, choice, rows, world, rng, counters):
+def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None):
     """The escaping world light of WORLD_PROBES further reflections at the hits rows (K,)
     (of hit, throughputs tp (N,3)), each sampled again from the hit's lobe choice
     (continue_specular with every row surviving, from rng, a stream of its own) and
@@ -1685,16 +1688,18 @@ def world_probes(ctx, hit, tp, choice, rows, world, rng, counters):
     GLOSSY; the surfaces of lamps glossy rays see stop it too). Returns (hit rows (M,),
     light (M,3) with its throughput: world x tp x f cos / pdf / P(lobe) / (q + K), q the
     hit's survival probability, K = WORLD_PROBES), the rows of escaped probes, a row
-    once per probe; every value >= 0."""
+    once per probe; every value >= 0. uv: a function of the probe's index j giving its
+    stratified numbers (u1, u2) (N,) (continue_specular's uv), or None: random ones."""
     n = len(tp)
     q = np.asarray(choice[1], np.float64)
     k = WORLD_PROBES
     go_u = np.full(n, 2.0)  # (not probed: fails u < q)
     go_u[rows] = 0.0
     out_rows, out_L = [], []
-    for _ in range(k):
+    for j in range(k):
         keep, o, d, tpk = continue_specular(ctx, hit, tp, rng, GLOSSY, choice=choice,
-                                            go_u=go_u)[:4]
+                                            go_u=go_u,
+                                            uv=None if uv is None else functools.partial(uv, j))[:4]
         if not len(keep):
             continue
         escaped = ~ctx.accel.occluded(o, d, None, cls=GLOSSY)
@@ -2425,6 +2430,8 @@ def _camera_pass_dimensions(ctx) -> SampleDimensions:
     lens = [("lens",)] if ctx.scene.camera.has_dof else []
     if volumescatter.scattering_tables(ctx.table) is not None:
         lens = lens + [("volume",)] + [("gather-volume", g) for g in range(s.gather_rays)]
+    # Then the world probes' (world_probes), after every other: none of them moves.
+    lens = lens + [("probe", j) for j in range(max(WORLD_PROBES, 0))]
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
@@ -3420,8 +3427,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 if probe_rng is None:
                     probe_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
                                  else np.random.default_rng(rng.integers(1 << 62)))
+                puv = None
+                if sampler is not None and PROBES_STRATIFIED:
+                    puv = (lambda j, smp=sampler, r=probe_rng: smp.uv(("probe", j), rng=r))
                 er, Le = world_probes(ctx, hit, tp_in, choice, prow, probe_world, probe_rng,
-                                      counters)
+                                      counters, puv)
                 acc.add("specular", pix, Le, None, er)
                 if lpass is not None:  # (the world met one glossy bend on)
                     lpass.shaded(pix, Le, None, er, lightpasses.GLOSSY_DIRECT)
