@@ -1697,9 +1697,9 @@ def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None):
     go_u[rows] = 0.0
     out_rows, out_L = [], []
     for j in range(k):
+        uv_j = None if uv is None else functools.partial(uv, j)
         keep, o, d, tpk = continue_specular(ctx, hit, tp, rng, GLOSSY, choice=choice,
-                                            go_u=go_u,
-                                            uv=None if uv is None else functools.partial(uv, j))[:4]
+                                            go_u=go_u, uv=uv_j)[:4]
         if not len(keep):
             continue
         escaped = ~ctx.accel.occluded(o, d, None, cls=GLOSSY)
