@@ -1645,40 +1645,37 @@ def lobe_choice(albedo, tp):
     return sel, q, p, psum
 
 
-# A constant world's light through the camera's first hits' reflective lobes by a control
-# variate (world_control): the lobes' albedo x the world's radiance added at the hit, the
-# world's radiance subtracted from each continued ray wherever it goes (so a ray that
-# escapes adds nothing; a ray that meets a surface adds that surface's light less the
-# world's). The continuation's own noise (the lobe's f cos / pdf weights, the Russian
-# roulette of choose_lobes) then stays only on the rays that meet something
-# (docs/performance.md "worldfast45"). Off by default: a pixel can read below 0 (a
-# probe escaped, the reflection met a dark surface), which the stability suite's
-# non-negative passes forbid; on where that is acceptable (tests/test_world_control.py).
-# False: the continuation alone, as Cycles.
-WORLD_CONTROL_VARIATE = False
-# Its weight at a hit from further, independent reflections' escapes (world_probe);
-# False: 1 at every hit.
-WORLD_CONTROL_PROBE = True
-# Probes a hit (beta: the share of them that escapes, 0, 1/2 or 1): with 2 the yard's
-# variance fell 9 % more than with 1 for +5 % CPU (product: 1 %, +2 %), a window-lit
-# room's stayed the plain continuation's (docs/performance.md "worldfast45").
-WORLD_CONTROL_PROBES = 2
-# The lobes the control variate takes: reflective, sampled with a density or a mirror,
-# continued as GLOSSY rays; the pass, glass and translucent lobes (which leave the
-# surface's far side) never.
+# A constant world's light through the camera's first hits' reflective lobes, its escaping
+# part by splitting (world_probes): the reflected light is W int f cos 1_escape (the world
+# W where the reflection meets nothing) plus int f cos L 1_meets (the surfaces it meets).
+# The first part is estimated by the mean over the real continuation and WORLD_PROBES
+# further reflections sampled from the same lobe choice (each an independent, unbiased
+# sample of W f cos / pdf 1_escape), the second by the continuation alone, as before. Every
+# term is >= 0; each part keeps its mean and its light pass (Glossy Direct), and the
+# continuation's weight and roulette noise on the world is shared out over WORLD_PROBES + 1
+# samples (docs/performance.md "cvpositive46"). The continuation counts as q samples (q its
+# Russian roulette's survival probability; the probes always go on): the escape's share
+# of the continuation is q / (q + K), each probe's 1 / (q + K).
+# 0: the continuation alone, as Cycles (which samples no light for a constant world).
+WORLD_PROBES = 2
+# The probes' directions from the first hit's stratified sampler (dimensions ("probe", j),
+# after every other: no other stream moves); False: plain random numbers.
+PROBES_STRATIFIED = True
+# The lobes probed: reflective, sampled with a density or a mirror, continued as GLOSSY
+# rays; the pass, glass and translucent lobes (which leave the surface's far side) never.
 # (Not sheen's: Cycles counts its bounce as diffuse, so its world light would belong to
 # the Diffuse light passes, and its lobe is seldom alone.)
-_CONTROL_LOBES = np.array([name in ("metal", "spec", "coat") for name in SPEC_LOBES])
+_PROBED_LOBES = np.array([name in ("metal", "spec", "coat") for name in SPEC_LOBES])
 
 
-def world_control(ctx, modes, clamping, medium, world_row, links, catchers):
+def probed_world(ctx, modes, clamping, medium, world_row, links, catchers):
     """(3,) float64 the radiance of a constant world that the camera's first hits'
     reflective lobes meet only by their continuation (MODE_CONTINUATION: no shadow rays),
-    for the control variate (WORLD_CONTROL_VARIATE; _trace_paths); None where it does not
-    apply: no such world, an environment map, light portals, a world volume or any
-    medium, Light Linking, shadow catchers, Cycles' clamps (which hold each sample's
-    light, which it changes). Cycles' light passes take its terms as Glossy Direct."""
-    if not WORLD_CONTROL_VARIATE or clamping or medium is not None \
+    for the probes (WORLD_PROBES; _trace_paths); None where they do not apply: no such
+    world, an environment map (its own light sampling), light portals, a world volume or
+    any medium, Light Linking, shadow catchers, Cycles' clamps (which hold each sample's
+    light, which a split changes)."""
+    if WORLD_PROBES <= 0 or clamping or medium is not None \
             or world_row >= 0 or links is not None or catchers is not None:
         return None
     worlds = [li for li, light in enumerate(ctx.lights) if light.kind == WORLD]
@@ -1695,68 +1692,57 @@ def world_control(ctx, modes, clamping, medium, world_row, links, catchers):
     return bg.copy() if np.all(np.isfinite(bg)) and np.any(bg > 0) else None
 
 
-def control_rows(p, psum):
+def probe_rows(p, psum, over=None):
     """(K,) int64: the hits (rows of choose_lobes' p (N, len(SPEC_LOBES)), psum (N,))
-    whose continued lobes are all _CONTROL_LOBES (some weight, none elsewhere): every ray
-    they continue is a reflection whose expected weight is the lobes' albedo."""
+    whose continued lobes are all _PROBED_LOBES (some weight, none elsewhere): every ray
+    they continue is a GLOSSY reflection. over (N,) bool: hits past a bounce limit (no
+    continuation), left out."""
     p = np.asarray(p)
-    other = (p[:, ~_CONTROL_LOBES] > 0).any(axis=1)
-    return np.flatnonzero((np.asarray(psum) > 0) & ~other)
+    ok = (np.asarray(psum) > 0) & ~(p[:, ~_PROBED_LOBES] > 0).any(axis=1)
+    if over is not None:
+        ok &= ~np.asarray(over, bool)
+    return np.flatnonzero(ok)
 
 
-def _grey_lobes(params) -> np.ndarray:
-    """(M,) bool per row of closure parameters (M, N_MAT): its reflective lobes other than
-    the metal lobe reflect grey (the specular tint grey; a coat and a sheen absent or
-    grey), so each such lobe's albedo is its weight p (choose_lobes: the max channel) in
-    every channel."""
-    grey = lambda c: (params[:, c] == params[:, c + 1]) & (params[:, c] == params[:, c + 2])
-    return (grey(pr.M_STINT) & ((params[:, pr.M_COAT_W] <= 0) | grey(pr.M_CTINT))
-            & ((params[:, pr.M_SHEEN_W] <= 0) | grey(pr.M_SHEEN_TINT)))
-
-
-_METAL_COL = SPEC_LOBES.index("metal")
-
-
-def control_albedo(ctx, hit, rows, p):
-    """(K,3): the _CONTROL_LOBES' summed albedo at the hits rows (K,) (bsdf.closures'
-    estimates). From the lobe weights p (N, len(SPEC_LOBES)) that choose_lobes already
-    holds where they are grey (no metal lobe, _grey_lobes, the materials' own parameters),
-    else from bsdf.closures (a second set-up of those hits' closures: ~0.3 us a hit)."""
-    p = np.asarray(p)
-    A = np.repeat(p[rows][:, _CONTROL_LOBES].sum(axis=1)[:, None], 3, axis=1)
-    if getattr(hit, "params", None) is None:
-        params = np.asarray(ctx.table.closure_params)
-        fast = np.take(_grey_lobes(params), np.take(hit.mat, rows)) & (p[rows, _METAL_COL] <= 0)
-    else:
-        fast = np.zeros(len(rows), bool)
-    if not fast.all():
-        slow = np.flatnonzero(~fast)
-        alb = np.take(closures(ctx.table, hit, ctx.geo)[1], np.take(rows, slow), axis=0)
-        A[slow] = alb[:, 1:, :][:, _CONTROL_LOBES, :].sum(axis=1)
-    return A
-
-
-def world_probe(ctx, hit, tp, ray_cls, choice, rows, rng, counters) -> np.ndarray:
-    """(K,) bool for the hits rows (K,): a reflection sampled again from the hit's lobes
-    (continue_specular with every row surviving, from rng, a stream of its own) escapes
-    to the world (an occlusion ray of class GLOSSY). The control variate's weight beta
-    at the hit: with beta drawn independently of the continuation, beta (L_w A - L_w tp')
-    has mean 0 whatever beta is, so the estimate stays unbiased, and with one probe
-    (beta 0 or 1) its variance is u Var((L - L_w) tp') + (1 - u) Var(L tp'), u the
-    probe's chance to escape: the control variate's where the lobe sees the world, the
-    plain continuation's where it sees surfaces (a glossy floor under a dark table:
-    L_w tp' alone there would add the world's noise to a dark reflection); the mean of
-    WORLD_CONTROL_PROBES probes follows u more closely. Rows whose probe is not
-    continued read False."""
+def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None):
+    """The escaping world light of WORLD_PROBES further reflections at the hits rows (K,)
+    (of hit, throughputs tp (N,3)), each sampled again from the hit's lobe choice
+    (continue_specular with every row surviving, from rng, a stream of its own) and
+    tested for escape as the continuation's ray would meet it (an occlusion ray of class
+    GLOSSY; the surfaces of lamps glossy rays see stop it too). Returns (hit rows (M,),
+    light (M,3) with its throughput: world x tp x f cos / pdf / P(lobe) / (q + K), q the
+    hit's survival probability, K = WORLD_PROBES), the rows of escaped probes, a row
+    once per probe; every value >= 0. uv: a function of the probe's index j giving its
+    stratified numbers (u1, u2) (N,) (continue_specular's uv), or None: random ones."""
     n = len(tp)
-    cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice,
-                             go_u=np.zeros(n))
-    keep, o, d = cont[0], cont[1], cont[2]
-    escaped = np.zeros(n, bool)
-    if len(keep):
-        escaped[keep] = ~ctx.accel.occluded(o, d, None, cls=GLOSSY)
+    q = np.asarray(choice[1], np.float64)
+    k = WORLD_PROBES
+    go_u = np.full(n, 2.0)  # (not probed: fails u < q)
+    go_u[rows] = 0.0
+    out_rows, out_L = [], []
+    for j in range(k):
+        uv_j = None if uv is None else functools.partial(uv, j)
+        keep, o, d, tpk = continue_specular(ctx, hit, tp, rng, GLOSSY, choice=choice,
+                                            go_u=go_u, uv=uv_j)[:4]
+        if not len(keep):
+            continue
+        escaped = ~ctx.accel.occluded(o, d, None, cls=GLOSSY)
         counters.shadow_rays += len(keep)
-    return np.take(escaped, rows)
+        for light in ctx.lights:
+            if light.has_surface and light.ray_kinds & GLOSSY and escaped.any():
+                met, _, L = light.intersect(o, d, np.full(len(o), np.inf))
+                if L is not None:
+                    escaped &= ~met
+        sel = np.flatnonzero(escaped)
+        r = keep[sel]
+        # (continue_specular divides by q; a probe always goes on: times q, over q + K)
+        qr = q[r]
+        w = tpk[sel] * (qr / (qr + k))[:, None]
+        out_rows.append(r)
+        out_L.append(w * world)
+    if not out_rows:
+        return np.zeros(0, np.int64), np.zeros((0, 3))
+    return np.concatenate(out_rows), np.concatenate(out_L)
 
 
 def passes_past_limit(table, hit, over, d, tp, ray_cls):
@@ -2483,6 +2469,8 @@ def _camera_pass_dimensions(ctx) -> SampleDimensions:
     lens = [("lens",)] if ctx.scene.camera.has_dof else []
     if volumescatter.scattering_tables(ctx.table) is not None:
         lens = lens + [("volume",)] + [("gather-volume", g) for g in range(s.gather_rays)]
+    # Then the world probes' (world_probes), after every other: none of them moves.
+    lens = lens + [("probe", j) for j in range(max(WORLD_PROBES, 0))]
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
@@ -2923,12 +2911,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # Cycles' light passes (engine/lightpasses.py): each path's class and bends.
     lpass = acc.light = (lightpasses.PathPasses(acc, len(o)) if "light" in want_data
                          else None)
-    # A constant world through the first hits' reflective lobes (world_control; None: not
-    # here); cv_rows: the continued rays that carry its subtraction into the next bounce.
-    cv_world = (world_control(ctx, modes, clamping, medium, world_row, links, catchers)
-                if depth_limit > 0 else None)
-    cv_rows = cv_beta = None
-    cv_rng = None  # world_probe's numbers, made when first needed
+    # A constant world through the first hits' reflective lobes, its escaping part shared
+    # with further reflections (probed_world; None: not here); world_share (N,): the
+    # world's weight where the continued rays escape (None: 1).
+    probe_world = (probed_world(ctx, modes, clamping, medium, world_row, links, catchers)
+                   if depth_limit > 0 else None)
+    world_share = None
+    probe_rng = None  # world_probes' numbers, made when first needed
     first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
              else np.zeros(len(o), bool))
     for bounce in range(depth_limit + 1):
@@ -2938,15 +2927,6 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             raise Cancelled()
         target = "emission" if bounce == 0 else "specular"
         counters.count("paths", bounce, len(o))
-        if cv_rows is not None:
-            # The control variate's other half: each reflected ray less the world's
-            # radiance, wherever it ends (an escaping ray then adds world - world = 0).
-            if len(cv_rows):
-                minus = -cv_beta[:, None] * cv_world
-                acc.add("specular", pix, minus, tp, cv_rows)
-                if lpass is not None:  # (one bend on: the path's Glossy Direct)
-                    lpass.met(pix, minus, tp, cv_rows, lightpasses.ENVIRONMENT)
-            cv_rows = None
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         if bounce > 0 and coincident is not None:
             # Rays leaving a glass face that another surface touches (a bottle standing
@@ -3071,6 +3051,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                       np.take(org_p, missed, axis=0),
                                                       _link_sets(ctx, link_prim,
                                                                  missed))[:, None]
+                full = None
+                if world_share is not None:
+                    # Reflections of the first hits that probes share (world_probes): their
+                    # share of the world's light; the data passes keep it whole.
+                    full = radiance
+                    radiance = radiance * np.take(world_share, missed)[:, None]
                 env = radiance  # (the world's part; the suns' discs are added below)
                 for li, light in enumerate(ctx.lights):
                     # A sun's disc is seen by camera rays only when its light is visible
@@ -3093,12 +3079,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                         _link_sets(ctx, link_prim,
                                                                    missed))[:, None]
                             radiance = radiance + sun
+                            if full is not None:
+                                full = full + sun
                 raw = radiance
                 if clamping:
                     radiance = sampleclamp.clamp(radiance, tp, missed, sampleclamp.bounce_limits(
                         s, np.take(chain[:, 0], missed) - 1))
                 acc.add(target, pix, radiance, tp, missed)
-                datapasses.add_light(acc, pix, missed, tp, ftp, feat, radiance)
+                datapasses.add_light(acc, pix, missed, tp, ftp, feat,
+                                     radiance if full is None else full)
                 if lpass is not None:
                     # The world into Environment, the suns' discs into Emission (Cycles'
                     # distant lights), a clamp shared in proportion.
@@ -3488,40 +3477,27 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,
                                  uv=uv, split=None if may_split is None else may_split > 0)
         keep, o, d, tp, ray_cls, pdf_b = cont[:6]
-        if cv_world is not None and bounce == 0:
-            # The control variate's constant: the world x the reflective lobes' albedo
-            # (bsdf.closures', Cycles' estimates: the expected f cos / pdf of the rays
-            # continue_specular reflects, roulette and choice included), at the hits
-            # whose continued lobes are all reflective.
-            cvh = control_rows(choice[2], choice[3])
-            if len(cvh):
-                # Its weight beta a hit: the share of WORLD_CONTROL_PROBES further,
-                # independent reflections that escape (world_probe); 0 keeps the
-                # continuation alone where the lobe sees surfaces darker than the world.
-                if cv_rng is None:
-                    cv_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
-                              else np.random.default_rng(rng.integers(1 << 62)))
-                beta = None
-                if WORLD_CONTROL_PROBE:
-                    beta = np.zeros(len(cvh))
-                    for _ in range(WORLD_CONTROL_PROBES):
-                        beta += world_probe(ctx, hit, tp_in, cls_in, choice, cvh, cv_rng,
-                                            counters)
-                    beta /= WORLD_CONTROL_PROBES
-                    on = beta > 0
-                    cvh, beta = cvh[on], beta[on]
-            if len(cvh):
-                Lc = control_albedo(ctx, hit, cvh, choice[2]) * cv_world
-                if beta is not None:
-                    Lc = Lc * beta[:, None]
-                acc.add("specular", pix, Lc, tp_in, cvh)
+        share = None
+        if probe_world is not None and bounce == 0:
+            # The world's light through the reflective lobes where it escapes: from the
+            # continuation and WORLD_PROBES further reflections (world_probes), each its
+            # share; the continuation alone where it meets a surface.
+            prow = probe_rows(choice[2], choice[3], over)
+            if len(prow):
+                if probe_rng is None:
+                    probe_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
+                                 else np.random.default_rng(rng.integers(1 << 62)))
+                puv = None
+                if sampler is not None and PROBES_STRATIFIED:
+                    puv = (lambda j, smp=sampler, r=probe_rng: smp.uv(("probe", j), rng=r))
+                er, Le = world_probes(ctx, hit, tp_in, choice, prow, probe_world, probe_rng,
+                                      counters, puv)
+                acc.add("specular", pix, Le, None, er)
                 if lpass is not None:  # (the world met one glossy bend on)
-                    lpass.shaded(pix, Lc, tp_in, cvh, lightpasses.GLOSSY_DIRECT)
-                weight = np.zeros(len(tp_in))
-                weight[cvh] = 1.0 if beta is None else beta
-                w_keep = np.take(weight, keep)
-                cv_rows = np.flatnonzero(w_keep > 0)
-                cv_beta = w_keep[cv_rows]
+                    lpass.shaded(pix, Le, None, er, lightpasses.GLOSSY_DIRECT)
+                share = np.ones(len(tp_in))
+                qp = choice[1][prow]
+                share[prow] = qp / (qp + WORLD_PROBES)
         if over is not None:
             # Past a limit: no bounce from here (the numbers drawn as for every path).
             go = ~over[keep]
@@ -3603,6 +3579,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             passages.step(prim, d_in, hit.p, keep, d, pdf_in, org_ns_in, org_p_in, pdf_b,
                           org_ns, org_p)
         pix = pix[keep]
+        world_share = None if share is None else np.take(share, keep)
         sample_id = sample_id[keep]
         travelled = travelled[keep]
         if feat is not None:
