@@ -733,6 +733,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # span with no estimate: newuser33).
     global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
     emitters = counts = g_emitters = g_counts = pre_radius = None
+    camera_map_radius = [None]  # (without final gathering: _camera_map_radius's)
     if global_shot:
         # (n: settings.photons, fewer where a pilot finds the indirect share small)
         memo = {}  # (the pilot's region of interest: the same camera pre-pass)
@@ -761,10 +762,18 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             # Capped by the global radius (computed once, here, for the maps too): with
             # 0.1 x the scene's extent (4 m in a 40 m yard) its two k-NN estimates searched
             # thousands of photons a hit, 0.5 CPU s (docs/performance.md "worldfast43").
-            if s.radius is None:
-                pre_radius = global_search_radius(ctx, shot, _diffuse_area(ctx))
+            # Without final gathering the global map is read at the camera's diffuse hits:
+            # its radius there (camera_radius, reused by the maps) is the cap; the
+            # pre-pass' gather rays (lookup_points) would serve nothing (fast46).
+            cap = None
+            if s.radius is None and not GLOW_SHARE_EXTENT_CAP:
+                if s.final_gather or not plan.indirect:
+                    pre_radius = global_search_radius(ctx, shot, _diffuse_area(ctx))
+                    cap = pre_radius[0]
+                else:
+                    cap, camera_map_radius[0] = _camera_map_radius(ctx, shot)
             g_share = glow_share(ctx, shot, s.radius or (
-                0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else pre_radius[0]))
+                0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else cap))
             g_split = glow_split(g_share)
             stats["glow_share"], stats["glow_split"] = g_share, g_split
             g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n),
@@ -826,7 +835,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
     # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
     maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
-                                                    stop, pre_radius, glow_apart),
+                                                    stop, pre_radius, glow_apart,
+                                                    camera_map_radius[0]),
                            should_cancel)
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
@@ -1108,6 +1118,30 @@ def lookup_radius(ctx, shot, k: int, tree=None) -> float | None:
     return kth_radius(points, shot.position, k, ctx.geo.extent, tree)
 
 
+def _global_map_rows(shot, at_hit: np.ndarray) -> np.ndarray:
+    """(M,) int64: the rows of `shot` the global map holds without final gathering (its
+    INDIRECT and CAUSTIC_DIFFUSE photons usable at the camera's hit, at_hit (N,) bool)."""
+    return np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
+
+
+def _camera_map_radius(ctx, shot) -> tuple:
+    """(the glow share's cap (m) without final gathering, camera_radius's answer or
+    None): camera_radius over the photons the global map will hold (_global_map_rows; the
+    k-NN distances do not depend on their order, so _build_maps reuses the answer), else
+    those photons' own spacing (auto_radius) or, with at most k of them, the whole
+    shot's."""
+    k = ctx.settings.k_nearest
+    positions = np.take(shot.position, _global_map_rows(
+        shot, shot.usable(ctx.settings.bounce_limits)), axis=0)
+    r = (RADIUS_FROM_LOOKUPS and camera_radius(ctx, positions, k)) or None
+    if r is not None:
+        return r, r
+    if len(positions) <= k:
+        positions = shot.position
+    return auto_radius(_diffuse_area(ctx), len(positions), k, ctx.geo.extent, positions,
+                       workers=ctx.settings.threads), None
+
+
 def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
     """Global search radius (m) without final gathering, where the global map is read at
     the camera's diffuse hits: kth_radius over the pre-pass' camera paths' diffuse hits
@@ -1143,7 +1177,7 @@ def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
-                glow=None) -> dict:
+                glow=None, camera_map_radius=None) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
     global_photons. stop() is asked between the steps (raises Cancelled).
 
@@ -1153,7 +1187,9 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
     what it computes alone, so the maps are the same for any thread count. pre_radius:
     global_search_radius's answer for this shot where the photon pass has it, else None.
-    glow: the glow shot's Photons for a map of their own (GLOW_MAP_APART), else None."""
+    glow: the glow shot's Photons for a map of their own (GLOW_MAP_APART), else None.
+    camera_map_radius: without final gathering, camera_radius's answer for the global
+    map's photons where the photon pass measured it (_camera_map_radius), else None."""
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     diffuse_tris = _diffuse_tris(ctx)
     diffuse_area = area_sum(geo, diffuse_tris)
@@ -1178,8 +1214,13 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     def gather_chain(flag):
         # One Morton tree over the shot for the lookups' radius and the shot's own spacing
         # (the same distances as a tree each; a build was ~0.05 CPU s on Figure 6).
+        # Built where a radius is measured over the shot here: not where the photon
+        # pass' radius was measured over the whole shot (fast46).
         tree = None
-        if len(shot) > k:
+        needs_tree = len(shot) > k and not (
+            pre_radius is not None and pre_radius[1] == len(shot)
+            and (s.final_gather or not plan.indirect))
+        if needs_tree:
             stop = stop_array()
             tree = KthTree(shot.position, stop)
             if stop[0]:
@@ -1345,12 +1386,14 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                 deeper.append(last[0])
             out["regather_secondary"] = tuple(deeper)
         elif plan.indirect and not s.final_gather:
-            rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
+            rows = _global_map_rows(shot, at_hit)
             out["global_map"] = pm = _counted_map(shot, workers, rows)
             # Read at the camera's diffuse hits: the k-NN distance there
-            # (camera_radius); the photons' own spacing (auto_radius) without any.
-            out["global_radius"] = s.radius or (
-                RADIUS_FROM_LOOKUPS and camera_radius(ctx, pm.photons.position, k)) or \
+            # (camera_radius, measured once: the photon pass' where it has it); the
+            # photons' own spacing (auto_radius) without any.
+            measured = camera_map_radius if camera_map_radius is not None else (
+                RADIUS_FROM_LOOKUPS and camera_radius(ctx, pm.photons.position, k))
+            out["global_radius"] = s.radius or measured or \
                 auto_radius(diffuse_area, len(pm), k, geo.extent, pm.photons.position,
                             pm.tree, workers=workers)
         return out
