@@ -299,6 +299,23 @@ def diffuse_camera_hits(ctx, rays: int, rng) -> tuple:
     return tuple(np.concatenate([h[i] for h in hits]) for i in range(3))
 
 
+def _cells_of(key: np.ndarray) -> tuple:
+    """np.unique(key, axis=0, return_inverse=True, return_counts=True)'s (inverse (N,),
+    counts (C,)) for integer cell keys (N,3) int64: the rows' lexicographic order is that
+    of one mixed-radix int64 per row where the key's span allows (~10x faster than
+    np.unique over rows: 37 ms on 12 k points, the whole cover_cells, on a Cornell box's
+    pre-pass; fast46), else np.unique's own."""
+    lo = key.min(axis=0)
+    span = key.max(axis=0) - lo + 1
+    if float(span[0]) * float(span[1]) * float(span[2]) < 2.0 ** 62:
+        flat = ((key[:, 0] - lo[0]) * span[1] + (key[:, 1] - lo[1])) * span[2] \
+            + (key[:, 2] - lo[2])
+        _, member, count = np.unique(flat, return_inverse=True, return_counts=True)
+        return member, count
+    _, member, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return member.ravel(), count
+
+
 def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
                 max_cells: int = ROI_CELLS) -> Region:
     """The fewest grid cells holding `cover` of points (N,3), as bounding spheres; the
@@ -316,7 +333,7 @@ def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
         # last-bit differences of its points (an instanced or inside-out copy of the same
         # scene) would split it between two cells and change the photons.
         key = np.floor((points - lo) / h + 0.5).astype(np.int64)
-        _, member, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        member, count = _cells_of(key)
         order = np.argsort(-count, kind="stable")
         taken = np.cumsum(count[order])
         k = int(np.searchsorted(taken, need) + 1)
