@@ -44,7 +44,8 @@ from .stagespans import StageSpans
 from .heterogeneous import HeterogeneousMedia
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
-from .visualimportance import glow_share, indirect_share, secondary_share
+from .visualimportance import (glow_and_secondary_shares, glow_share, indirect_share,
+                               secondary_share)
 from .volumeemission import glows
 
 
@@ -734,6 +735,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
     emitters = counts = g_emitters = g_counts = pre_radius = None
     camera_map_radius = [None]  # (without final gathering: _camera_map_radius's)
+    known_secondary = None  # (radius, the secondary share there) measured with the glow's
     if global_shot:
         # (n: settings.photons, fewer where a pilot finds the indirect share small)
         memo = {}  # (the pilot's region of interest: the same camera pre-pass)
@@ -772,8 +774,14 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
                     cap = pre_radius[0]
                 else:
                     cap, camera_map_radius[0] = _camera_map_radius(ctx, shot)
-            g_share = glow_share(ctx, shot, s.radius or (
-                0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else cap))
+            cap = s.radius or (0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else cap)
+            if s.final_gather and plan.indirect:
+                # The secondary map's share (smooth_counts) from the same search: the
+                # same shot and, where the maps keep this radius, the same value.
+                g_share, sec = glow_and_secondary_shares(ctx, shot, cap)
+                known_secondary = (cap, sec)
+            else:
+                g_share = glow_share(ctx, shot, cap)
             g_split = glow_split(g_share)
             stats["glow_share"], stats["glow_split"] = g_share, g_split
             g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n),
@@ -895,7 +903,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     elif guide_skipped:
         # (auto at a share too small for any grid to pay: guiding.can_guide; not built)
         stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
-    smooth_counts(ctx, shot, stats)
+    smooth_counts(ctx, shot, stats, known_secondary)
     stats["time_photon_map"] = time.perf_counter() - t0
     # (The glow shot's photons beside an aimed map are the glow map's: counted, and
     # drawn in the photon-hit view, as when they were the caustic map's.)
@@ -930,12 +938,14 @@ def gather_count(most: int, share: float | None) -> int:
 _NOT_MEASURED = object()  # (_photon_maps: the share not measured while the maps were built)
 
 
-def smooth_counts(ctx, shot, stats) -> None:
+def smooth_counts(ctx, shot, stats, known_secondary=None) -> None:
     """Samples a pixel for the smooth estimates of a glow-only caustic map and of the
     secondary map, from their rms shares of the light the camera sees
     (integrator.smooth_per_pixel; visualimportance.glow_share, the glow shot's if it was
     measured, and secondary_share, ~0.02 s each, on this thread: the same for any
-    worker count): ctx.glow_per_pixel, ctx.secondary_per_pixel and their stats."""
+    worker count): ctx.glow_per_pixel, ctx.secondary_per_pixel and their stats.
+    known_secondary: (radius, secondary_share there) measured beside the glow share
+    (visualimportance.glow_and_secondary_shares), taken where the radius is this one."""
     from .integrator import (GLOW_LEAST_PER_PIXEL, GLOW_SAMPLES_PER_PIXEL,
                              SECONDARY_SAMPLES_PER_PIXEL)
     radius = ctx.settings.radius or ctx.global_radius
@@ -949,7 +959,9 @@ def smooth_counts(ctx, shot, stats) -> None:
                                               least=GLOW_LEAST_PER_PIXEL)
         stats["glow_per_pixel"] = ctx.glow_per_pixel
     if ctx.secondary_map is not None and len(ctx.secondary_map):
-        stats["secondary_share"] = share = secondary_share(ctx, shot, radius)
+        share = (known_secondary[1] if known_secondary is not None
+                 and known_secondary[0] == radius else secondary_share(ctx, shot, radius))
+        stats["secondary_share"] = share
         ctx.secondary_per_pixel = smooth_per_pixel(SECONDARY_SAMPLES_PER_PIXEL, share)
         stats["secondary_per_pixel"] = ctx.secondary_per_pixel
 
@@ -1311,7 +1323,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                                    # counts may drop: most hold none)
                                    drop_bounds=_drop_bound_masks(shot, limits, gathered,
                                                                  masks, level_of)
-                                   if bounded else None)
+                                   if bounded else None,
+                                   # (each point's estimates when a lookup first takes
+                                   # it: a world-lit yard's gather rays read a third)
+                                   lazy=GATHER_POINTS_LAZY)
             guide_pays = s.gather_guiding == "on" or can_guide(share)
             if s.gather_guiding != "off" and gather_map.tree is not None and not guide_pays:
                 out_deeper["guide_skipped"] = True  # auto: no grid could reach AUTO_GAIN
@@ -1449,6 +1464,11 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             out[name].lookup = s.caustic_lookup  # engine/causticcache.py
     out["diffuse_area"] = diffuse_area
     return out
+
+
+# The gather map's points estimated when a lookup first takes them (GatherMap lazy: the
+# same bits; docs/performance.md "fast46"). False: all of them at the map's build (A/B).
+GATHER_POINTS_LAZY = True
 
 
 # A search radius above this share of the scene's size blurs light across objects.
