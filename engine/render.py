@@ -1308,10 +1308,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             # counts those valid one diffuse bounce after the camera's hit (keep).
             rows = np.flatnonzero(shot.kind != CAUSTIC)
             bounded = regather_levels(s)
+            points = gather_points(len(rows), share if share_counts(ctx) else None, k)
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
-                                   max_points=gather_points(
-                                       len(rows), share if share_counts(ctx) else None, k),
+                                   max_points=points,
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary,
@@ -1325,8 +1325,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                                                                  masks, level_of)
                                    if bounded else None,
                                    # (each point's estimates when a lookup first takes
-                                   # it: a world-lit yard's gather rays read a third)
-                                   lazy=GATHER_POINTS_LAZY)
+                                   # it, where few lookups a point are expected)
+                                   lazy=gather_points_lazy(ctx, points, gather_count(
+                                       s.gather_rays, share) if share_counts(ctx)
+                                       else s.gather_rays))
             guide_pays = s.gather_guiding == "on" or can_guide(share)
             if s.gather_guiding != "off" and gather_map.tree is not None and not guide_pays:
                 out_deeper["guide_skipped"] = True  # auto: no grid could reach AUTO_GAIN
@@ -1467,8 +1469,30 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
 
 
 # The gather map's points estimated when a lookup first takes them (GatherMap lazy: the
-# same bits; docs/performance.md "fast46"). False: all of them at the map's build (A/B).
+# same bits; docs/performance.md "fast46") where the camera pass is expected to make
+# fewer than LAZY_LOOKUPS_PER_POINT level-0 lookups a point. A lazy estimate costs ~1.6x
+# the build's (its points come scattered, not in the tree's order), so it pays where a
+# render reads under ~60 % of the points: a world-lit yard 1.0 lookups a point (31 % of
+# its points read at 16 spp), hdri_sphere 1.6, product 1.5 gain 0.07-0.16 CPU s; Figure 3
+# at 2.1 is even, Figure 8 at 3.8 and Figure 6 at 6.9 lose 0.16-0.5 s.
+# False: every point at the map's build (A/B).
 GATHER_POINTS_LAZY = True
+LAZY_LOOKUPS_PER_POINT = 2.0
+
+
+def gather_points_lazy(ctx, points: int, gather_rays: int) -> bool:
+    """Whether the gather map of at most `points` points estimates them lazily: the
+    level-0 lookups the camera pass is expected to make (pixels x spp x gather_rays x the
+    share of the pre-pass' camera rays whose gather rays end on a surface that stores
+    photons: len(ctx.lookups) / (ROI_RAYS x ROI_GATHER)) under LAZY_LOOKUPS_PER_POINT a
+    point. False without the pre-pass' lookups (visual importance off) or points."""
+    from .visualimportance import ROI_GATHER, ROI_RAYS
+    if not GATHER_POINTS_LAZY or ctx.lookups is None or points <= 0:
+        return False
+    pixels = ctx.scene.width * ctx.scene.height
+    expected = (pixels * ctx.settings.spp * gather_rays * len(ctx.lookups)
+                / (ROI_RAYS * ROI_GATHER))
+    return expected < LAZY_LOOKUPS_PER_POINT * points
 
 
 # A search radius above this share of the scene's size blurs light across objects.
