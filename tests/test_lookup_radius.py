@@ -117,6 +117,17 @@ def test_without_final_gathering_the_radius_is_measured_at_the_camera_hits(monke
     assert R.camera_radius(ctx, positions[:k], k) is None
 
 
+def _spy_camera_radius(monkeypatch) -> list:
+    """R.camera_radius replaced by itself keeping its answers: the list they go into."""
+    plain, asked = R.camera_radius, []
+
+    def spy(ctx, positions, k):
+        asked.append(plain(ctx, positions, k))
+        return asked[-1]
+    monkeypatch.setattr(R, "camera_radius", spy)
+    return asked
+
+
 def test_a_render_without_final_gathering_reads_the_global_map_at_the_camera_radius(
         monkeypatch):
     """The global map's radius (Film.stats radius_global) is camera_radius's answer when
@@ -130,12 +141,7 @@ def test_a_render_without_final_gathering_reads_the_global_map_at_the_camera_rad
     s.add_triangles(v, f, "wall", name="room")
     s.add_point_light((0.0, 0.0, 0.5), power=100.0)
     s.set_camera((0, -0.9, -0.2), (0, 1, 0.3), view_angle=70)
-    plain, asked = R.camera_radius, []
-
-    def spy(ctx, positions, k):
-        asked.append(plain(ctx, positions, k))
-        return asked[-1]
-    monkeypatch.setattr(R, "camera_radius", spy)
+    asked = _spy_camera_radius(monkeypatch)
     # No gather ray reads a map: the pre-pass' gather rays are not traced (mem45).
     monkeypatch.setattr(VI, "lookup_points", lambda *a, **kw: pytest.fail("traced"))
     film = s.render(RenderSettings(photons=20_000, caustic_photons=0, spp=1, seed=1,
@@ -164,12 +170,7 @@ def test_without_final_gathering_the_glow_share_is_capped_at_the_camera_radius(
     the pre-pass' gather rays (lookup_radius: 4,096 x 4 rays and a tree over the whole
     shot, which no estimate reads then; fast46)."""
     from engine import RenderSettings
-    plain, asked = R.camera_radius, []
-
-    def spy(ctx, positions, k):
-        asked.append(plain(ctx, positions, k))
-        return asked[-1]
-    monkeypatch.setattr(R, "camera_radius", spy)
+    asked = _spy_camera_radius(monkeypatch)
     monkeypatch.setattr(R, "lookup_radius", lambda *a, **kw: pytest.fail("gather rays"))
     caps = []
     plain_share = R.glow_share
