@@ -108,7 +108,7 @@ with open(PICKLE, "rb") as f:
     scene = pickle.load(f)
 ctx = prepare_context(scene, RenderSettings(workers=1))
 _photon_pass(ctx, {}, None, None)
-g = ctx.gather_map.serial()
+g = ctx.gather_map.complete().serial()  # (estimates made: the lookups timed alone)
 rng = np.random.default_rng(1)
 # Queries where gather rays end: rays from inside the scene's box to random directions.
 lo, hi = ctx.geo.bounds

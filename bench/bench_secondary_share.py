@@ -20,7 +20,7 @@ def main():
                           RenderSettings(workers=1, photons=30_000, caustic_photons=10_000,
                                          seed=2))
     _photon_pass(ctx, {}, None, None)
-    g, s = ctx.gather_map, ctx.settings
+    g, s = ctx.gather_map.complete(), ctx.settings  # (every point's estimates: read whole)
     print("| points | count | share / k-NN estimate (sums) | share / the points' E |")
     print("|---|---:|---:|---:|")
     for name, sel in (("disc whole", ~g.boundary), ("boundary", g.boundary)):

@@ -1082,6 +1082,20 @@ def _warm_up():
 _NO_POINTS = np.zeros(0, np.int64)
 
 
+class _LazyPoints:
+    """A lazy GatherMap's estimates still to make (GatherMap._fill), shared by its views:
+    the estimating PhotonMap, the masks over its photons ((S, N) bool or None), the
+    estimate's (k, min_photons, estimator), the points' surfaces (or None), the arrays to
+    fill ((P,3) E of every photon, (P,) boundary, (S,P,3) the masks' or None), the drop
+    bounds' (P,) bool arrays with their mask rows, and which points are known ((P,)
+    bool)."""
+
+    def __init__(self, estimating, chosen, args, surface, E, boundary, levels, hits):
+        self.estimating, self.chosen, self.args, self.surface = estimating, chosen, args, surface
+        self.E, self.boundary, self.levels, self.hits = E, boundary, levels, hits
+        self.known = np.zeros(len(E), np.bool_)
+
+
 class GatherMap:
     """Precomputed irradiance at a subset of photon positions (Christensen 1999), so a
     final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate.
@@ -1113,12 +1127,13 @@ class GatherMap:
 
     secondary_E = None
     surface = NO_SURFACE  # the points' surfaces (set with the points)
+    _lazy = None  # lazy: the estimates still to make (_LazyPoints), shared by the views
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
                  workers: int = 1, should_cancel=None, rows: np.ndarray | None = None,
                  keep: np.ndarray | None = None, subsets=(), secondary=(),
-                 bounces: np.ndarray | None = None, drop_bounds=None):
+                 bounces: np.ndarray | None = None, drop_bounds=None, lazy: bool = False):
         """rows: (K,) int, build from photons.take(rows) only (gathered once, straight into
         the trees' order). The independent steps run side by side on `workers` threads
         (parallel.run_tasks: the two kd-trees, then the points' irradiance and their
@@ -1143,7 +1158,13 @@ class GatherMap:
         per key, (P,) bool: whether some photon of that mask adds to the point's estimate
         (another mask of the same searches; a mask without a photon of nonzero power:
         all False, no mask). integrator._chain_lookups reads them as bounds on the
-        photons a lookup's counts can drop (render._drop_bound_masks)."""
+        photons a lookup's counts can drop (render._drop_bound_masks).
+        lazy: each point's estimate (E, boundary, the masks' arrays, the drop bounds) is
+        made by the first lookup that takes the point (_fill), not all at construction:
+        the same bits (one point's estimate depends on nothing else), for the points a
+        render's gather rays read (a third of a world-lit yard's at 16 spp,
+        docs/performance.md "fast46"). Until then those arrays hold 0 (boundary True) at
+        the points not yet read: whoever reads them whole calls complete() first."""
         self.workers = workers
         self.subset_maps = []
         self.secondary_levels = []
@@ -1216,12 +1237,13 @@ class GatherMap:
                 bound_masks.append(mask)
         masks += bound_masks
 
+        chosen = None
+        if masks:
+            chosen = np.empty((len(masks), len(estimating)), np.bool_)
+            for row, mask in zip(chosen, masks):
+                np.take(mask, estimating.source, out=row)
+
         def estimate(stop):
-            chosen = None
-            if masks:
-                chosen = np.empty((len(masks), len(estimating)), np.bool_)
-                for row, mask in zip(chosen, masks):
-                    np.take(mask, estimating.source, out=row)
             return estimating.irradiance(self.position, self.normal, radius, k, min_photons,
                                          estimator, return_boundary=True, should_cancel=stop,
                                          masks=chosen,
@@ -1230,7 +1252,14 @@ class GatherMap:
         def neighbours(stop):
             return tree.neighbour_lists(workers=workers, should_cancel=stop)
 
-        done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
+        if lazy:
+            # The arrays the estimates fill (in place: the views below read them).
+            P = len(self.position)
+            done = (np.zeros((P, 3)), np.ones(P, np.bool_)) + (
+                () if chosen is None else (np.zeros((len(chosen), P, 3)),))
+            self.neighbours = run_tasks([neighbours], 1, should_cancel)[0]
+        else:
+            done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
         E, self.boundary = done[0], done[1]
         levels = list(done[2]) if masks else []
         if bound_masks:
@@ -1238,6 +1267,13 @@ class GatherMap:
             levels = levels[:len(levels) - len(bound_masks)]
         for key, j in zip(bound_keys, bound_of):
             self.drop_bounds[key] = hit[j] if j >= 0 else np.zeros(len(self.position), bool)
+        if lazy:
+            first = len(chosen) - len(bound_masks) if chosen is not None else 0
+            self._lazy = _LazyPoints(
+                estimating, chosen, (k, min_photons, estimator),
+                self.surface if len(self.surface) else None, done[0], done[1],
+                done[2] if chosen is not None else None,
+                [(h, first + j) for j, h in enumerate(hit)] if bound_masks else [])
         self.E = E if keep is None else levels.pop(0)
         if len(secondary):
             self.secondary_levels = levels[len(levels) - len(secondary):]
@@ -1262,6 +1298,37 @@ class GatherMap:
             view = copy.copy(self)
             view.E, view.subset_maps, view.secondary_levels = E, [], []
             self.subset_maps.append(view)
+
+    def _fill(self, point: np.ndarray):
+        """A lazy map's estimates at gather points `point` (M,) int64 (indices into
+        self.position; -1 ignored) not made yet, written into the shared arrays (the same
+        bits as the whole pass). Two threads may make a point twice: the same values,
+        written before the point is marked known."""
+        lz = self._lazy
+        if lz is None or not len(point):
+            return
+        point = point[point >= 0]
+        new = np.unique(point[~np.take(lz.known, point)])
+        if not len(new):
+            return
+        got = lz.estimating.irradiance(
+            np.take(self.position, new, axis=0), np.take(self.normal, new, axis=0),
+            self.radius, *lz.args, return_boundary=True, masks=lz.chosen,
+            surface=None if lz.surface is None else np.take(lz.surface, new))
+        lz.E[new] = got[0]
+        lz.boundary[new] = got[1]
+        if lz.levels is not None:
+            lz.levels[:, new] = got[2]
+            for hit, row in lz.hits:
+                hit[new] = np.any(got[2][row] != 0.0, axis=1)
+        lz.known[new] = True
+
+    def complete(self) -> "GatherMap":
+        """Every point's estimates made (a lazy map's, for readers of whole arrays: E,
+        boundary, secondary_levels, drop_bounds, the subset maps' E); returns self."""
+        if self._lazy is not None:
+            self._fill(np.arange(len(self.position), dtype=np.int64))
+        return self
 
     def counts_irradiance(self, points, limits, camera) -> np.ndarray:
         """(M,3) float64: the irradiance at gather points `points` (M,) int64 (indices into
@@ -1357,7 +1424,10 @@ class GatherMap:
             ray_row = np.empty(m, np.int64)
             blocked = np.empty(m, bool)
             point = np.empty(m, np.int64)
-        point = point if points else _NO_POINT
+        lazy = self._lazy is not None
+        if lazy and scratch is None and not points:
+            point = np.empty(m, np.int64)
+        point = point if points or lazy else _NO_POINT
         p = np.ascontiguousarray(p, dtype=np.float64)
         n = np.ascontiguousarray(n, dtype=np.float64)
         lift = (_NO_LIFT if offset is None
@@ -1376,6 +1446,14 @@ class GatherMap:
             hidden = rows[ray_row[:nrays][blocked[:nrays]]]
             if len(hidden):
                 self._next_visible(p, n, lift, hidden, kmax, out, boundary, point, qsurf)
+        if lazy:
+            # The kernels copied E and boundary of points perhaps not estimated yet: the
+            # rows that found a point read them again once they are (no point: 0, True).
+            found = np.flatnonzero(point >= 0)
+            at = np.take(point, found)
+            self._fill(at)
+            out[found] = np.take(self.E, at, axis=0)
+            boundary[found] = np.take(self.boundary, at)
         return (out, boundary, point) if points else (out, boundary)
 
     def _surfaces(self, surface, m):

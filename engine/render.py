@@ -45,7 +45,8 @@ from .stagespans import StageSpans
 from .heterogeneous import HeterogeneousMedia
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
-from .visualimportance import glow_share, indirect_share, secondary_share
+from .visualimportance import (glow_and_secondary_shares, glow_share, indirect_share,
+                               secondary_share)
 from .volumeemission import glows
 
 
@@ -734,6 +735,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # span with no estimate: newuser33).
     global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
     emitters = counts = g_emitters = g_counts = pre_radius = None
+    camera_map_radius = [None]  # (without final gathering: _camera_map_radius's)
+    known_secondary = None  # (radius, the secondary share there) measured with the glow's
     if global_shot:
         # (n: settings.photons, fewer where a pilot finds the indirect share small)
         memo = {}  # (the pilot's region of interest: the same camera pre-pass)
@@ -762,10 +765,24 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             # Capped by the global radius (computed once, here, for the maps too): with
             # 0.1 x the scene's extent (4 m in a 40 m yard) its two k-NN estimates searched
             # thousands of photons a hit, 0.5 CPU s (docs/performance.md "worldfast43").
-            if s.radius is None:
-                pre_radius = global_search_radius(ctx, shot, _diffuse_area(ctx))
-            g_share = glow_share(ctx, shot, s.radius or (
-                0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else pre_radius[0]))
+            # Without final gathering the global map is read at the camera's diffuse hits:
+            # its radius there (camera_radius, reused by the maps) is the cap; the
+            # pre-pass' gather rays (lookup_points) would serve nothing (fast46).
+            cap = None
+            if s.radius is None and not GLOW_SHARE_EXTENT_CAP:
+                if s.final_gather or not plan.indirect:
+                    pre_radius = global_search_radius(ctx, shot, _diffuse_area(ctx))
+                    cap = pre_radius[0]
+                else:
+                    cap, camera_map_radius[0] = _camera_map_radius(ctx, shot)
+            cap = s.radius or (0.1 * geo.extent if GLOW_SHARE_EXTENT_CAP else cap)
+            if s.final_gather and plan.indirect:
+                # The secondary map's share (smooth_counts) from the same search: the
+                # same shot and, where the maps keep this radius, the same value.
+                g_share, sec = glow_and_secondary_shares(ctx, shot, cap)
+                known_secondary = (cap, sec)
+            else:
+                g_share = glow_share(ctx, shot, cap)
             g_split = glow_split(g_share)
             stats["glow_share"], stats["glow_split"] = g_share, g_split
             g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n),
@@ -827,7 +844,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
     # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
     maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
-                                                    stop, pre_radius, glow_apart),
+                                                    stop, pre_radius, glow_apart,
+                                                    camera_map_radius[0]),
                            should_cancel)
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
@@ -886,7 +904,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     elif guide_skipped:
         # (auto at a share too small for any grid to pay: guiding.can_guide; not built)
         stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
-    smooth_counts(ctx, shot, stats)
+    smooth_counts(ctx, shot, stats, known_secondary)
     stats["time_photon_map"] = time.perf_counter() - t0
     # (The glow shot's photons beside an aimed map are the glow map's: counted, and
     # drawn in the photon-hit view, as when they were the caustic map's.)
@@ -921,12 +939,14 @@ def gather_count(most: int, share: float | None) -> int:
 _NOT_MEASURED = object()  # (_photon_maps: the share not measured while the maps were built)
 
 
-def smooth_counts(ctx, shot, stats) -> None:
+def smooth_counts(ctx, shot, stats, known_secondary=None) -> None:
     """Samples a pixel for the smooth estimates of a glow-only caustic map and of the
     secondary map, from their rms shares of the light the camera sees
     (integrator.smooth_per_pixel; visualimportance.glow_share, the glow shot's if it was
     measured, and secondary_share, ~0.02 s each, on this thread: the same for any
-    worker count): ctx.glow_per_pixel, ctx.secondary_per_pixel and their stats."""
+    worker count): ctx.glow_per_pixel, ctx.secondary_per_pixel and their stats.
+    known_secondary: (radius, secondary_share there) measured beside the glow share
+    (visualimportance.glow_and_secondary_shares), taken where the radius is this one."""
     from .integrator import (GLOW_LEAST_PER_PIXEL, GLOW_SAMPLES_PER_PIXEL,
                              SECONDARY_SAMPLES_PER_PIXEL)
     radius = ctx.settings.radius or ctx.global_radius
@@ -940,7 +960,9 @@ def smooth_counts(ctx, shot, stats) -> None:
                                               least=GLOW_LEAST_PER_PIXEL)
         stats["glow_per_pixel"] = ctx.glow_per_pixel
     if ctx.secondary_map is not None and len(ctx.secondary_map):
-        stats["secondary_share"] = share = secondary_share(ctx, shot, radius)
+        share = (known_secondary[1] if known_secondary is not None
+                 and known_secondary[0] == radius else secondary_share(ctx, shot, radius))
+        stats["secondary_share"] = share
         ctx.secondary_per_pixel = smooth_per_pixel(SECONDARY_SAMPLES_PER_PIXEL, share)
         stats["secondary_per_pixel"] = ctx.secondary_per_pixel
 
@@ -1109,6 +1131,30 @@ def lookup_radius(ctx, shot, k: int, tree=None) -> float | None:
     return kth_radius(points, shot.position, k, ctx.geo.extent, tree)
 
 
+def _global_map_rows(shot, at_hit: np.ndarray) -> np.ndarray:
+    """(M,) int64: the rows of `shot` the global map holds without final gathering (its
+    INDIRECT and CAUSTIC_DIFFUSE photons usable at the camera's hit, at_hit (N,) bool)."""
+    return np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
+
+
+def _camera_map_radius(ctx, shot) -> tuple:
+    """(the glow share's cap (m) without final gathering, camera_radius's answer or
+    None): camera_radius over the photons the global map will hold (_global_map_rows; the
+    k-NN distances do not depend on their order, so _build_maps reuses the answer), else
+    those photons' own spacing (auto_radius) or, with at most k of them, the whole
+    shot's."""
+    k = ctx.settings.k_nearest
+    positions = np.take(shot.position, _global_map_rows(
+        shot, shot.usable(ctx.settings.bounce_limits)), axis=0)
+    r = (RADIUS_FROM_LOOKUPS and camera_radius(ctx, positions, k)) or None
+    if r is not None:
+        return r, r
+    if len(positions) <= k:
+        positions = shot.position
+    return auto_radius(_diffuse_area(ctx), len(positions), k, ctx.geo.extent, positions,
+                       workers=ctx.settings.threads), None
+
+
 def camera_radius(ctx, positions: np.ndarray, k: int) -> float | None:
     """Global search radius (m) without final gathering, where the global map is read at
     the camera's diffuse hits: kth_radius over the pre-pass' camera paths' diffuse hits
@@ -1144,7 +1190,7 @@ def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
-                glow=None) -> dict:
+                glow=None, camera_map_radius=None) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
     global_photons. stop() is asked between the steps (raises Cancelled).
 
@@ -1154,7 +1200,9 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
     what it computes alone, so the maps are the same for any thread count. pre_radius:
     global_search_radius's answer for this shot where the photon pass has it, else None.
-    glow: the glow shot's Photons for a map of their own (GLOW_MAP_APART), else None."""
+    glow: the glow shot's Photons for a map of their own (GLOW_MAP_APART), else None.
+    camera_map_radius: without final gathering, camera_radius's answer for the global
+    map's photons where the photon pass measured it (_camera_map_radius), else None."""
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     diffuse_tris = _diffuse_tris(ctx)
     diffuse_area = area_sum(geo, diffuse_tris)
@@ -1179,8 +1227,13 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     def gather_chain(flag):
         # One Morton tree over the shot for the lookups' radius and the shot's own spacing
         # (the same distances as a tree each; a build was ~0.05 CPU s on Figure 6).
+        # Built where a radius is measured over the shot here: not where the photon
+        # pass' radius was measured over the whole shot (fast46).
         tree = None
-        if len(shot) > k:
+        needs_tree = len(shot) > k and not (
+            pre_radius is not None and pre_radius[1] == len(shot)
+            and (s.final_gather or not plan.indirect))
+        if needs_tree:
             stop = stop_array()
             tree = KthTree(shot.position, stop)
             if stop[0]:
@@ -1256,10 +1309,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             # counts those valid one diffuse bounce after the camera's hit (keep).
             rows = np.flatnonzero(shot.kind != CAUSTIC)
             bounded = regather_levels(s)
+            points = gather_points(len(rows), share if share_counts(ctx) else None, k)
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
-                                   max_points=gather_points(
-                                       len(rows), share if share_counts(ctx) else None, k),
+                                   max_points=points,
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary,
@@ -1271,7 +1324,12 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                                    # counts may drop: most hold none)
                                    drop_bounds=_drop_bound_masks(shot, limits, gathered,
                                                                  masks, level_of)
-                                   if bounded else None)
+                                   if bounded else None,
+                                   # (each point's estimates when a lookup first takes
+                                   # it, where few lookups a point are expected)
+                                   lazy=gather_points_lazy(ctx, points, gather_count(
+                                       s.gather_rays, share) if share_counts(ctx)
+                                       else s.gather_rays))
             guide_pays = s.gather_guiding == "on" or can_guide(share)
             if s.gather_guiding != "off" and gather_map.tree is not None and not guide_pays:
                 out_deeper["guide_skipped"] = True  # auto: no grid could reach AUTO_GAIN
@@ -1346,12 +1404,14 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                 deeper.append(last[0])
             out["regather_secondary"] = tuple(deeper)
         elif plan.indirect and not s.final_gather:
-            rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
+            rows = _global_map_rows(shot, at_hit)
             out["global_map"] = pm = _counted_map(shot, workers, rows)
             # Read at the camera's diffuse hits: the k-NN distance there
-            # (camera_radius); the photons' own spacing (auto_radius) without any.
-            out["global_radius"] = s.radius or (
-                RADIUS_FROM_LOOKUPS and camera_radius(ctx, pm.photons.position, k)) or \
+            # (camera_radius, measured once: the photon pass' where it has it); the
+            # photons' own spacing (auto_radius) without any.
+            measured = camera_map_radius if camera_map_radius is not None else (
+                RADIUS_FROM_LOOKUPS and camera_radius(ctx, pm.photons.position, k))
+            out["global_radius"] = s.radius or measured or \
                 auto_radius(diffuse_area, len(pm), k, geo.extent, pm.photons.position,
                             pm.tree, workers=workers)
         return out
@@ -1407,6 +1467,33 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             out[name].lookup = s.caustic_lookup  # engine/causticcache.py
     out["diffuse_area"] = diffuse_area
     return out
+
+
+# The gather map's points estimated when a lookup first takes them (GatherMap lazy: the
+# same bits; docs/performance.md "fast46") where the camera pass is expected to make
+# fewer than LAZY_LOOKUPS_PER_POINT level-0 lookups a point. A lazy estimate costs ~1.6x
+# the build's (its points come scattered, not in the tree's order), so it pays where a
+# render reads under ~60 % of the points: a world-lit yard 1.0 lookups a point (31 % of
+# its points read at 16 spp), hdri_sphere 1.6, product 1.5 gain 0.07-0.16 CPU s; Figure 3
+# at 2.1 is even, Figure 8 at 3.8 and Figure 6 at 6.9 lose 0.16-0.5 s.
+# False: every point at the map's build (A/B).
+GATHER_POINTS_LAZY = True
+LAZY_LOOKUPS_PER_POINT = 2.0
+
+
+def gather_points_lazy(ctx, points: int, gather_rays: int) -> bool:
+    """Whether the gather map of at most `points` points estimates them lazily: the
+    level-0 lookups the camera pass is expected to make (pixels x spp x gather_rays x the
+    share of the pre-pass' camera rays whose gather rays end on a surface that stores
+    photons: len(ctx.lookups) / (ROI_RAYS x ROI_GATHER)) under LAZY_LOOKUPS_PER_POINT a
+    point. False without the pre-pass' lookups (visual importance off) or points."""
+    from .visualimportance import ROI_GATHER, ROI_RAYS
+    if not GATHER_POINTS_LAZY or ctx.lookups is None or points <= 0:
+        return False
+    pixels = ctx.scene.width * ctx.scene.height
+    expected = (pixels * ctx.settings.spp * gather_rays * len(ctx.lookups)
+                / (ROI_RAYS * ROI_GATHER))
+    return expected < LAZY_LOOKUPS_PER_POINT * points
 
 
 # A search radius above this share of the scene's size blurs light across objects.

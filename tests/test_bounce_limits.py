@@ -211,6 +211,8 @@ def _regather_maps(scene, **limits):
                                                 **limits))
     try:
         shoot_photons(ctx, {})
+        if ctx.gather_map is not None:
+            ctx.gather_map.complete()  # (every point's estimates: the arrays are read whole)
         return ctx.gather_map, ctx.regather_maps
     finally:
         ctx.accel.close()

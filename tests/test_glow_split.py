@@ -108,3 +108,34 @@ def test_a_scene_without_specular_layers_has_no_glow_share():
         assert vi.glow_share(ctx, shot, 0.1 * ctx.geo.extent) == 0.0
     finally:
         ctx.accel.close()
+
+
+def test_the_glow_and_secondary_shares_come_from_one_search(monkeypatch):
+    """glow_and_secondary_shares gives glow_share's and secondary_share's values exactly
+    (one search with a power mask per kind: the bits of the zeroed-power estimates); a
+    render with a glow shot and final gathering (no pilot here) asks the share estimates
+    twice (the glow and secondary shares together, then the indirect share), not three
+    times, and reports the secondary share secondary_share gives (fast46)."""
+    plain = vi._kind_estimates
+    groups = []
+
+    def counted(ctx, shot, radius, rows, kinds, rays, max_photons):
+        groups.append(list(kinds))
+        return plain(ctx, shot, radius, rows, kinds, rays, max_photons)
+    monkeypatch.setattr(vi, "_kind_estimates", counted)
+    monkeypatch.setattr(render_mod, "PHOTONS_SHARE_FULL", 0.0)  # (no pilot)
+    ctx = prepare_context(_yard(), RenderSettings(photons=20_000, caustic_photons=5_000,
+                                                  seed=2, workers=1))
+    try:
+        stats = {}
+        shot = shoot_photons(ctx, stats)[0]
+        assert stats.get("glow_photons_emitted") and ctx.secondary_map is not None
+        assert groups == [[(CAUSTIC,), (render_mod.CAUSTIC_DIFFUSE,)],
+                          [(render_mod.INDIRECT,)]], groups
+        r = ctx.global_radius
+        assert stats["glow_share"] == vi.glow_share(ctx, shot, r) > 0
+        assert stats["secondary_share"] == vi.secondary_share(ctx, shot, r) > 0
+        assert vi.glow_and_secondary_shares(ctx, shot, r) == (stats["glow_share"],
+                                                              stats["secondary_share"])
+    finally:
+        ctx.accel.close()

@@ -5,6 +5,8 @@ photons away from the lookups (a lamp in a narrow gap, docs/accuracy.md "night43
 not shrink it."""
 import importlib
 import math
+import os
+import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -115,6 +117,17 @@ def test_without_final_gathering_the_radius_is_measured_at_the_camera_hits(monke
     assert R.camera_radius(ctx, positions[:k], k) is None
 
 
+def _spy_camera_radius(monkeypatch) -> list:
+    """R.camera_radius replaced by itself keeping its answers: the list they go into."""
+    plain, asked = R.camera_radius, []
+
+    def spy(ctx, positions, k):
+        asked.append(plain(ctx, positions, k))
+        return asked[-1]
+    monkeypatch.setattr(R, "camera_radius", spy)
+    return asked
+
+
 def test_a_render_without_final_gathering_reads_the_global_map_at_the_camera_radius(
         monkeypatch):
     """The global map's radius (Film.stats radius_global) is camera_radius's answer when
@@ -128,15 +141,76 @@ def test_a_render_without_final_gathering_reads_the_global_map_at_the_camera_rad
     s.add_triangles(v, f, "wall", name="room")
     s.add_point_light((0.0, 0.0, 0.5), power=100.0)
     s.set_camera((0, -0.9, -0.2), (0, 1, 0.3), view_angle=70)
-    plain, asked = R.camera_radius, []
-
-    def spy(ctx, positions, k):
-        asked.append(plain(ctx, positions, k))
-        return asked[-1]
-    monkeypatch.setattr(R, "camera_radius", spy)
+    asked = _spy_camera_radius(monkeypatch)
     # No gather ray reads a map: the pre-pass' gather rays are not traced (mem45).
     monkeypatch.setattr(VI, "lookup_points", lambda *a, **kw: pytest.fail("traced"))
     film = s.render(RenderSettings(photons=20_000, caustic_photons=0, spp=1, seed=1,
                                    workers=1, final_gather=False, k_nearest=16))
     assert len(asked) == 1 and 0 < asked[0] < 0.1 * 2.0 * math.sqrt(3.0)
     assert film.stats["radius_global"] == asked[0]
+
+
+def _portal_room_with_rug():
+    """tests/test_portal.py's room lit through a roof pane by a world (portals: the glow
+    shot is aimed), with a rough metal rug on its floor (a glow off a rough specular
+    layer)."""
+    sys.path.insert(0, os.path.dirname(__file__))
+    from test_portal import _room
+    from engine.scene import Material
+    s = _room()
+    s.add_material(Material("brushed", (0.6, 0.6, 0.6), metallic=0.5, roughness=0.5))
+    s.add_plane((0, 0, 0.01), (0, 0, 1), 2.0, "brushed", name="rug")
+    return s
+
+
+def test_without_final_gathering_the_glow_share_is_capped_at_the_camera_radius(
+        monkeypatch):
+    """Without final gathering a glow shot's share is capped by the global map's radius
+    at the camera's hits (camera_radius, measured once and reused by the maps), not by
+    the pre-pass' gather rays (lookup_radius: 4,096 x 4 rays and a tree over the whole
+    shot, which no estimate reads then; fast46)."""
+    from engine import RenderSettings
+    asked = _spy_camera_radius(monkeypatch)
+    monkeypatch.setattr(R, "lookup_radius", lambda *a, **kw: pytest.fail("gather rays"))
+    caps = []
+    plain_share = R.glow_share
+    monkeypatch.setattr(R, "glow_share", lambda ctx, shot, radius: (
+        caps.append(radius), plain_share(ctx, shot, radius))[1])
+    film = _portal_room_with_rug().render(RenderSettings(
+        photons=20_000, caustic_photons=0, spp=1, seed=1, workers=1, final_gather=False))
+    st = film.stats
+    assert st.get("glow_photons_emitted", 0) > 0  # (a glow shot was traced)
+    assert len(asked) == 1 and asked[0] is not None and asked[0] > 0
+    assert caps == [asked[0]] and st["radius_global"] == asked[0]
+
+
+def test_the_maps_build_no_tree_where_the_passed_radius_covers_the_shot(monkeypatch):
+    """_build_maps: where the photon pass' global radius was measured over every photon
+    of the shot (pre_radius's count == len(shot)) the gather chain builds no Morton tree
+    over the shot and the spacing is that radius; measured elsewhere (count 0: at the
+    lookups) it builds one, for the shot's own spacing (fast46)."""
+    from engine import RenderSettings
+    from engine.render import prepare_context
+    ctx = prepare_context(_portal_room_with_rug(), RenderSettings(
+        photons=8_000, caustic_photons=0, spp=1, seed=1, workers=1))
+    try:
+        shots = R.shoot_photons(ctx, {})
+        shot, caustic = shots[0], shots[-1]
+        built = []
+        plain = R.KthTree
+
+        def counted(*a, **kw):
+            built.append(len(a[0]))
+            return plain(*a, **kw)
+        monkeypatch.setattr(R, "KthTree", counted)
+        out = R._build_maps(ctx, shot, caustic, True, lambda: False,
+                            pre_radius=(0.25, len(shot)))
+        assert [n for n in built if n == len(shot)] == []
+        assert out["radius_spacing"] == 0.25 and out["gather_short"] == 0.25
+        built.clear()
+        out = R._build_maps(ctx, shot, caustic, True, lambda: False,
+                            pre_radius=(0.25, 0))
+        assert [n for n in built if n == len(shot)] == [len(shot)]
+        assert out["radius_spacing"] > 0 and out["gather_short"] == 0.25
+    finally:
+        ctx.accel.close()

@@ -183,3 +183,50 @@ def test_box_tree_listing_is_the_brute_force_set():
                 assert mortontree._list_d2(t.position, t.box, inner, len(p), *q, bound,
                                            listed, len(want) - 1, st_node,
                                            st_d2) == len(want)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_lazy_gather_map_estimates_only_the_points_its_lookups_take(workers):
+    """GatherMap(lazy=True) (the render's, fast46): lookups over a corner of the floor
+    answer with the bits of the map that estimated every point at its build (E, boundary,
+    the point, a subset level's E, the secondary share and the drop bounds at the points
+    taken), having estimated only the points they took; complete() then holds every
+    array of the eager map."""
+    rng = np.random.default_rng(12)
+    ph = _join(_plane(30000, rng), _plane(6000, rng, z=0.001, nz=-1.0))
+    n = len(ph)
+    keep = rng.random(n) < 0.9
+    deeper = keep & (rng.random(n) < 0.7)
+    second = rng.random(n) < 0.2
+    bounds = {(0, 1): keep & ~deeper, (1, 1): np.zeros(n, bool)}
+    args = (ph, 0.05, 32, 1, "knn_simpson")
+    kw = dict(workers=workers, keep=keep, subsets=[deeper], secondary=[second],
+              drop_bounds=bounds, max_points=5000)
+    eager = GatherMap(*args, **kw)
+    lazy = GatherMap(*args, lazy=True, **kw)
+    assert eager._lazy is None and not lazy._lazy.known.any()
+    q = np.c_[0.2 * rng.random((400, 2)), np.zeros(400)]
+    nq = np.tile([0.0, 0.0, 1.0], (400, 1))
+    want = eager.lookup(q, nq, points=True)
+    got = lazy.lookup(q, nq, points=True)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    taken = np.unique(got[2][got[2] >= 0])
+    assert len(taken) > 10
+    assert np.array_equal(np.flatnonzero(lazy._lazy.known), taken)  # those alone
+    assert len(taken) < 0.2 * len(lazy.position)
+    # A level's view reads the shared arrays: its lookups' bits too (no point new here).
+    for a, b in zip(lazy.subset_maps[0].lookup(q, nq), eager.subset_maps[0].lookup(q, nq)):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(lazy.secondary_levels[0][taken],
+                                  eager.secondary_levels[0][taken])
+    for key in bounds:
+        np.testing.assert_array_equal(lazy.drop_bounds[key][taken], eager.drop_bounds[key][taken])
+    assert lazy.complete() is lazy and lazy._lazy.known.all()
+    for a, b in ((lazy.E, eager.E), (lazy.boundary, eager.boundary),
+                 (lazy.subset_maps[0].E, eager.subset_maps[0].E),
+                 (lazy.secondary_levels[0], eager.secondary_levels[0])):
+        np.testing.assert_array_equal(a, b)
+    for key in bounds:
+        np.testing.assert_array_equal(lazy.drop_bounds[key], eager.drop_bounds[key])
+    assert eager.drop_bounds[(0, 1)].any() and lazy.subset_maps[0].boundary is lazy.boundary

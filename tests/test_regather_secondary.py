@@ -102,6 +102,7 @@ def test_lookup_points_name_the_taken_point(box):
 def test_render_sets_each_regathering_levels_secondary_share(box):
     ctx = box
     assert ctx.secondary_map is not None and len(ctx.secondary_map) > 100
+    ctx.gather_map.complete()  # (every point's estimates: the arrays are read whole)
     for level in range(MAX_GATHER_LEVEL):
         gmap = _deeper(ctx.gather_map, ctx.regather_maps, level)
         assert gmap.secondary_E is not None and gmap.secondary_E.shape == gmap.E.shape
@@ -132,7 +133,7 @@ def test_point_share_agrees_with_the_secondary_maps_estimate(box):
     map's k-NN estimate (its own radius, photon visibility) of the same photons: the
     same light, so the same mean within the estimates' noise."""
     ctx = box
-    g = ctx.gather_map
+    g = ctx.gather_map.complete()  # (every point's estimates: read whole)
     s = ctx.settings
     from engine.photonvisibility import visible_irradiance
     from engine.integrator import smooth_min_photons
@@ -176,7 +177,7 @@ def test_levels_that_share_a_map_share_its_secondary_share():
                                          glossy_bounces=1024, transmission_bounces=1024))
     try:
         _photon_pass(ctx, {}, None, None)
-        g = ctx.gather_map
+        g = ctx.gather_map.complete()  # (every point's estimates: read whole)
         assert all(m is g for m in ctx.regather_maps)
         assert g.secondary_E is not None and len(g.secondary_levels) == 1
         assert (g.secondary_E > 0).any()

@@ -154,7 +154,7 @@ def _map_arrays(ctx):
             ph = m.photons
             out += [ph.position, ph.power, ph.direction, ph.normal, ph.kind, *m.tree.nodes]
     if ctx.gather_map is not None:
-        out += _gather_arrays(ctx.gather_map)
+        out += _gather_arrays(ctx.gather_map.complete())  # (read whole)
     return out
 
 

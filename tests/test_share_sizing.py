@@ -152,3 +152,24 @@ def test_glow_share_capped_by_the_global_radius_reads_no_lower(seed):
         assert 0.0 < wide <= near <= 1.0, (near, wide)
     finally:
         ctx.accel.close()
+
+
+def test_gather_points_are_estimated_lazily_where_few_lookups_a_point_are_expected():
+    """render.gather_points_lazy: the expected level-0 lookups (pixels x spp x gather rays
+    x the pre-pass' rate of gather-ray ends on photon-storing surfaces) under
+    LAZY_LOOKUPS_PER_POINT a point; never without the pre-pass' lookups or points."""
+    from types import SimpleNamespace
+    R = importlib.import_module("engine.render")
+    rays = vi.ROI_RAYS * vi.ROI_GATHER
+
+    def ctx(lookups, spp=16):
+        return SimpleNamespace(scene=SimpleNamespace(width=160, height=120),
+                               settings=SimpleNamespace(spp=spp),
+                               lookups=None if lookups is None else np.zeros((lookups, 3)))
+    # 160 x 120 x 16 x 1 ray x 940 / 16,384 = 17,625 lookups (the world-lit yard's)
+    assert R.gather_points_lazy(ctx(940), 17_739, 1)
+    assert not R.gather_points_lazy(ctx(940), 17_739 // 4, 1)
+    assert not R.gather_points_lazy(ctx(940, spp=64), 17_739, 1)
+    assert not R.gather_points_lazy(ctx(rays), 60_000, 2)  # (every ray ends: Figure 6-like)
+    assert not R.gather_points_lazy(ctx(None), 17_739, 1)
+    assert not R.gather_points_lazy(ctx(940), 0, 1)

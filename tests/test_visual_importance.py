@@ -395,3 +395,18 @@ def test_a_fog_box_round_the_scene_is_seen_through_by_the_pre_pass(monkeypatch):
     monkeypatch.setattr(vi, "INVISIBLE_DEPTH", 0)  # the walls as before: no lookups
     points, region, _ = _lookups(fogged())
     assert len(points) == 0 and region is None, len(points)
+
+
+def test_cells_of_is_np_unique_over_rows():
+    """cover_cells' cells (_cells_of: one mixed-radix int64 per row) are np.unique's over
+    the rows, inverse and counts alike: for keys with negative values, for a span too
+    large for one int64 (np.unique's own then) and for a single row."""
+    rng = np.random.default_rng(5)
+    for key in (rng.integers(-40, 40, (5000, 3)),
+                np.concatenate([rng.integers(0, 3, (300, 3)),
+                                [[-2 ** 40, 0, 2 ** 40], [2 ** 40, 5, -2 ** 40]]]),
+                np.array([[7, -3, 2]])):
+        _, member, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        got_member, got_count = vi._cells_of(key.astype(np.int64))
+        assert np.array_equal(got_member, member.ravel())
+        assert np.array_equal(got_count, count)
