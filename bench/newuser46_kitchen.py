@@ -47,7 +47,8 @@ import numpy as np  # noqa: E402
 import bpy  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
-from newuser26_scenes import (assign, camera, cube, glass, principled)  # noqa: E402
+from newuser26_scenes import (assign, camera, cube, glass, principled,  # noqa: E402
+                              world_colour)
 from newuser44_table import arguments, lathe, render  # noqa: E402
 
 WORKTOP_Z = 0.92  # the worktop's upper face
@@ -89,16 +90,13 @@ def sky_hdr(path, w=128, h=64):
 
 
 def hdri_world(scene, path, strength=1.0):
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
+    """A new World whose Background takes its Color from an Environment Texture of the
+    image at path (equirectangular, the node's defaults)."""
+    world = world_colour(scene, (1.0, 1.0, 1.0), strength)
     nt = world.node_tree
     env = nt.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(path)
-    bg = nt.nodes["Background"]
-    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
-    bg.inputs["Strength"].default_value = strength
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
     return world
 
 
@@ -196,9 +194,7 @@ def kitchen_scene(hdr, only=None, window="emit", bottle_color=(0.85, 0.95, 0.9),
     if only in (None, "world"):
         hdri_world(scene, hdr, 1.0)
     else:
-        w = bpy.data.worlds.new("World")  # black: the lamps alone
-        scene.world = w
-        w.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+        world_colour(scene, (0.0, 0.0, 0.0), 0.0)  # black: the lamps alone
     camera((0.7, 0.2, 1.5), (-0.5, 1.65, 0.95), lens=28.0)
     return scene
 
