@@ -1024,6 +1024,18 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             glass_note += ("; the caustics of " + _quoted(plan.casters, most=REPORT_NAMES_MAX)
                            + " likewise reach Cycles' paths in rare bright samples that "
                            "its clamp cuts: they can read brighter here")
+        # A lamp (or the sky) seen through a closed glass object is indirect light to
+        # Cycles (bounce 2 or more: sampleclamp.py), and its clamp cuts it where it is
+        # bright (newuser46: a bottle before a window Area light at 0.63 of its unclamped
+        # self in Cycles, 0.74 in ours). Single-plane panes refract once: direct to Cycles.
+        panes = set(plan.window_glass) | set(plan.pane_glass)
+        seen_glass = [n for n in sharp_seen if kinds.get(n) == "glass" and n not in panes]
+        if s.clamp_indirect > 0 and seen_glass and emitting:
+            glass_note += ("; the light seen through glass "
+                           + _quoted(seen_glass, most=REPORT_NAMES_MAX)
+                           + " (a lamp or the sky behind it) reaches Cycles' camera paths "
+                           "after two refractions, as indirect light its clamp cuts where "
+                           "it is bright: such glass can read brighter here")
         plan.add("clamping", True,
                  f"Light Paths > Clamping: direct light {limit(s.clamp_direct)}, indirect "
                  f"light and photon estimates {limit(s.clamp_indirect)}; brighter samples "
