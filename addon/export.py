@@ -1300,8 +1300,9 @@ def clamp_settings(scene, props) -> dict:
 def filter_glossy_settings(scene) -> dict:
     """Cycles' Light Paths > Caustics (Filter Glossy, Reflective, Refractive) as the
     RenderSettings keywords cycles_filter_glossy, cycles_caustics_reflective,
-    cycles_caustics_refractive (0 / on / on without the Cycles add-on): not simulated,
-    only named by the effect report where they change Cycles' image (engine/settings.py)."""
+    cycles_caustics_refractive (0 / on / on without the Cycles add-on): Filter Glossy
+    above 1/pi blurs the caustic / glow maps' paths (engine/glossysplit.py); the rest is
+    only named by the effect report where it changes Cycles' image (engine/settings.py)."""
     cycles = getattr(scene, "cycles", None)
     return dict(cycles_filter_glossy=float(getattr(cycles, "blur_glossy", 0.0) or 0.0),
                 cycles_caustics_reflective=bool(getattr(cycles, "caustics_reflective", True)),

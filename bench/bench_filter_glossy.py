@@ -52,6 +52,23 @@ def lum(img):
     return img[..., :3] @ LUM
 
 
+def regions(name, shape) -> dict:
+    """{"image": all pixels, object name: the pixels it covers fully} of scene `name`
+    ((H, W) bool masks): its stored labels, else Cycles coverage renders, one per mesh
+    object (16 spp: cheap)."""
+    out = {"image": np.ones(shape, bool)}
+    lab = acc.load_labels(name)
+    if lab is None:
+        lab = acc.object_labels(name, samples=16)
+    if lab is not None:
+        labels, names = lab
+        for i, n in enumerate(names):
+            m = labels == i + 1
+            if m.any():
+                out[n] = m
+    return out
+
+
 def render(name, samples, fg, seed=0):
     scene = acc.setup(name)
     acc.set_cycles(scene, samples, seed)
@@ -74,17 +91,7 @@ def main(argv=None):
         imgs = {fg: render(name, a.samples, fg, a.seed)[0] for fg in (0.0, 1.0)}
         t1 = os.times()
         secs = (t1.user + t1.system - t0.user - t0.system, time.perf_counter() - w0)
-        regions = {"image": np.ones(imgs[0.0].shape[:2], bool)}
-        lab = acc.load_labels(name)
-        if lab is None:  # Cycles coverage renders, one per mesh object (16 spp: cheap)
-            lab = acc.object_labels(name, samples=16)
-        if lab is not None:
-            labels, names = lab
-            for i, n in enumerate(names):
-                m = labels == i + 1
-                if m.any():
-                    regions[n] = m
-        for r, m in regions.items():
+        for r, m in regions(name, imgs[0.0].shape[:2]).items():
             l0, l1 = float(lum(imgs[0.0])[m].mean()), float(lum(imgs[1.0])[m].mean())
             print(f"| {name} | {r} | {int(m.sum())} | {l0:.5g} | {l1:.5g} | {l1 / l0:.4f} |",
                   flush=True)

@@ -16,6 +16,7 @@ import numpy as np
 from .closures.ggx import ALPHA_MIN
 from .closures.principled import M_ANISO
 from .geometry import CAMERA, SHADOW, Geometry, MaterialTable
+from .glossysplit import settings_filter_glossy
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
@@ -203,23 +204,33 @@ def _strong_reflector(geo: Geometry, table: MaterialTable, oid: int) -> bool:
     return bool(np.any(_is_glossy_node(table, np.unique(geo.material[geo.object_id == oid]))))
 
 
-def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names) -> None:
+def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
+                        split: bool = False) -> None:
     """The "glossy blur" line: Cycles' Filter Glossy (the scene's, read by the add-on) is
     on and light reaches diffuse surfaces off specular ones here (the caustic map's L S+ D
-    paths), which Cycles renders through blurred lobes and ours does not (glow36: a
-    roughness 0.4 metal block on a diffuse floor, the floor beside it 1.19x Cycles at its
-    default 1.0, within 5 % of Cycles at 0)."""
+    paths), which Cycles renders through blurred lobes (glow36: a roughness 0.4 metal
+    block on a diffuse floor, the floor beside it 1.19x Cycles at its default 1.0 without
+    the blur, within 5 % of Cycles at 0). split: engine/glossysplit.py renders those
+    paths blurred too (on: Filter Glossy above 1/pi, final gathering); else ours does not
+    blur."""
     if not names:
         return
     lo, hi = (float(a) for a in filter_glossy_alpha(filter_glossy, [1.0 / math.pi, 0.0]))
+    said = (f"Cycles' Light Paths > Caustics > Filter Glossy is {filter_glossy:g}: Cycles "
+            "widens the glossy, mirror and glass lobes its paths meet after a diffuse "
+            f"bounce (to GGX alpha {lo:.2f}-{hi:.2f}, roughness {math.sqrt(lo):.2f}-"
+            f"{math.sqrt(hi):.2f}), which spreads and dims the light "
+            + _quoted(names, most=REPORT_NAMES_MAX) + " throw"
+            + ("" if len(names) > 1 else "s") + " onto diffuse surfaces")
+    if split:
+        plan.add("glossy blur", True,
+                 said + "; so does ours: that light comes through the final gather's "
+                 "rays, their lobes blurred as Cycles', not from the caustic photons "
+                 "(light off them after a further diffuse bounce stays unblurred)")
+        return
     plan.add("glossy blur", False,
-             f"Cycles' Light Paths > Caustics > Filter Glossy is {filter_glossy:g}: Cycles "
-             "widens the glossy, mirror and glass lobes its paths meet after a diffuse "
-             f"bounce (to GGX alpha {lo:.2f}-{hi:.2f}, roughness {math.sqrt(lo):.2f}-"
-             f"{math.sqrt(hi):.2f}), which spreads and dims the light "
-             + _quoted(names, most=REPORT_NAMES_MAX) + " throw"
-             + ("" if len(names) > 1 else "s") + " onto diffuse surfaces; ours does "
-             "not blur, so it matches Cycles with Filter Glossy 0: set that to compare")
+             said + "; ours does not blur, so it matches Cycles with Filter Glossy 0: set "
+             "that to compare")
 
 
 def _cycles_caustics_note(plan: EffectPlan, s, geo: Geometry, table: MaterialTable,
@@ -726,7 +737,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # ~4 %) throws too little light for the blur to show.
             _filter_glossy_note(plan, s.cycles_filter_glossy, [
                 n for n in [n for _, _, _, n in reached] + rough_reached
-                if _strong_reflector(geo, table, ids_of[n])])
+                if _strong_reflector(geo, table, ids_of[n])],
+                split=settings_filter_glossy(s) > 0.0)
         if not (s.cycles_caustics_reflective and s.cycles_caustics_refractive):
             _cycles_caustics_note(plan, s, geo, table,
                                   [n for _, _, _, n in reached] + rough_reached)

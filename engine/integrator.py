@@ -45,6 +45,7 @@ from .closures import principled as pr
 from .coincident import CoincidentSurfaces
 from .turnedlight import TurnedReflections
 from . import turnedglossy
+from . import glossysplit
 from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -871,7 +872,7 @@ GUIDE_REGATHERS = False
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     level=0, should_cancel=None, lean=_UNSET, extra=None,
-                    glow_only=False) -> np.ndarray:
+                    glow_only=False, caustic=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -893,7 +894,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     at their gather point (chaincounts.subset_irradiance).
     glow_only: the irradiance from emitting media alone (engine/volumeemission.py): no
     lookup, no surface emission, no lamps' light scattered in fog; the glow's second
-    bounce gathers that way from level 0's gather ends."""
+    bounce gathers that way from level 0's gather ends.
+    caustic: (N,3) float64 zeros, level 0: receives (added in place) the irradiance the
+    chains carry where Cycles' Filter Glossy blurs the caustic / glow maps' paths
+    (engine/glossysplit.py), the maps' light at D; None: that goes into the result."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -973,6 +977,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     turned_refl = None if glow_only else TurnedReflections.for_context(ctx)
     if turned_refl is not None:
         turned_h = np.zeros(n, bool)
+    # Cycles' Filter Glossy on the chains (engine/glossysplit.py; None: off): level 0's
+    # chains blur their lobes and add the light the caustic / glow maps leave out.
+    fg_split = glossysplit.split_filter_glossy(ctx) if level == 0 and not glow_only else 0.0
+    chains = glossysplit.GatherChains(ctx, n, fg_split) if fg_split > 0.0 else None
+    E_chain = E if caustic is None else caustic
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -996,6 +1005,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         if buf.tp_ones < k:
             tp.fill(1.0)
             buf.tp_ones = k
+        if chains is not None:
+            chains.start(idx, d, ns)
         if guide is not None:
             tp *= np.take(g_w, idx)[:, None]
             buf.tp_ones = 0
@@ -1199,21 +1210,33 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 add_gathered(E, idx, c(ends, np.int64), c(tp, np.float64),
                              c(wd, np.float64), c(Eg, np.float64), G, _NO_FLAG,
                              _NO_LENGTH, 0.0, False, _NO_ROWS)
+            choice = None
+            if chains is not None and (yf is y or n_full):
+                # The chain's hits with a lobe to continue: blurred, and light sampling
+                # through their blurred reflective lobes (glossysplit.GatherChains).
+                rows_f = slice(None) if yf is y else full
+                choice = chains.vertex(yf, idx[rows_f], tp[rows_f], E_chain, G, rng,
+                                       counters)
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d
+            pdf = None
             if yf is y:
-                keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
+                keep, o, d, tp, ray_cls, *pdf = continue_specular(
+                    ctx, y, tp, rng, ray_cls, choice=choice, want_pdf=chains is not None)
             else:
                 # Lean hits never continue (no lobe but the diffuse one); the survival
                 # numbers are drawn for every hit, as continue_specular draws them.
                 go_u = rng.random(m)
                 if not n_full:
                     break
-                keep, o, d, tp, ray_cls = continue_specular(
+                keep, o, d, tp, ray_cls, *pdf = continue_specular(
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
-                    go_u=go_u[full])
+                    go_u=go_u[full], choice=choice, want_pdf=chains is not None)
                 keep = full[keep]
+            if chains is not None:
+                chains.continued(idx[keep], pdf[0])
+                chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G)
             if turned_refl is not None and turned_refl.escapes:
                 turned_h[idx[keep]] = (turned_h[idx[keep]]
                                        | turned_refl.turned(y, keep, d_in[keep], d))
@@ -2201,10 +2224,15 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
-    caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
-                               footprint, _caustic_per_pixel(ctx),
-                               every=scattered, counts=extra, clamp_tp=clamp_tp)
-    if getattr(ctx, "glow_map", None) is not None:
+    if glossysplit.maps_blurred(ctx):
+        # Cycles' Filter Glossy blurs every caustic / glow photon's path here: the final
+        # gather's chains carry that light instead (engine/glossysplit.py).
+        caustic = np.zeros_like(f)
+    else:
+        caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f,
+                                   sample_id, footprint, _caustic_per_pixel(ctx),
+                                   every=scattered, counts=extra, clamp_tp=clamp_tp)
+    if getattr(ctx, "glow_map", None) is not None and not glossysplit.maps_blurred(ctx):
         # The glow shot's map beside the aimed one (render.GLOW_MAP_APART): as smooth
         # within a pixel as a glow-only map, so as many estimates a pixel.
         _smooth_estimate(ctx, ctx.glow_map, ctx.glow_radius, hit, f, sample_id, footprint,
@@ -2212,10 +2240,20 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                          every=scattered if GLOW_EVERY_SAMPLE_PAST_BOUNCE else None,
                          into=caustic, counts=extra, clamp_tp=clamp_tp)
     if ctx.gather_map is not None:
+        # (the gather chains' share of the maps' light, where Filter Glossy moves it to
+        # them, into the caustic term: glossysplit)
+        chained = np.zeros_like(f) if glossysplit.maps_blurred(ctx) else None
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
-                                       should_cancel=should_cancel, extra=extra)
+                                       should_cancel=should_cancel, extra=extra,
+                                       caustic=chained)
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
+        if chained is not None:
+            chained *= f
+            if clamp_tp is not None:
+                chained = sampleclamp.clamp(chained, clamp_tp, None,
+                                            sampleclamp.limits(s)[1])
+            caustic = caustic + chained
         _smooth_estimate(ctx, ctx.secondary_map, ctx.secondary_radius or ctx.global_radius,
                          hit, f, sample_id, footprint, _secondary_per_pixel(ctx),
                          into=indirect, counts=extra, clamp_tp=clamp_tp)

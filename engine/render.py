@@ -28,6 +28,7 @@ from .lights import packing as pk
 from .lights.packing import pack_lights
 from .mallocheap import render_heap
 from .edgeimages import edge_images
+from .glossysplit import settings_filter_glossy
 from .guiding import AUTO_GAIN, GatherGuide, can_guide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
@@ -1521,9 +1522,12 @@ def _glow_blur_words(settings: RenderSettings, stats: dict) -> str:
     lobes after a diffuse bounce (effects.filter_glossy_alpha: GGX alpha 0.41-0.5, so
     roughness below ~0.7) and dims that light; ours does not blur. The effects' "glossy
     blur" line names only strong reflectors (a dielectric layer reflects ~4 %), which
-    left a new user's walls 1-2 % brighter than Cycles' unexplained. "" otherwise."""
+    left a new user's walls 1-2 % brighter than Cycles' unexplained. "" otherwise, and
+    where engine/glossysplit.py blurs that glow as Cycles does."""
     share = stats.get("glow_share")
     fg = getattr(settings, "cycles_filter_glossy", 0.0)
+    if settings_filter_glossy(settings) > 0.0:
+        return ""  # (blurred as Cycles': engine/glossysplit.py)
     if not fg or share is None or not math.isfinite(share) or share < FILTER_GLOSSY_GLOW_SHARE:
         return ""
     lo, hi = (100 * share * f for f in FILTER_GLOW_DIMS)

@@ -146,12 +146,13 @@ class RenderSettings:
     clamp_direct: float = 0.0
     clamp_indirect: float = 0.0
     # Cycles' Light Paths > Caustics > Filter Glossy of the scene (0 = off; Cycles' default
-    # 1.0), read by the add-on only so the effect report can say where Cycles' image
-    # differs: Cycles widens every glossy, mirror and glass lobe its paths meet after a
-    # diffuse bounce (to GGX alpha 0.41-0.5 at 1.0: surface_shader_prepare_closures), which
+    # 1.0), read by the add-on: Cycles widens every glossy, mirror and glass lobe its
+    # paths meet after a diffuse bounce (to GGX alpha 0.41-0.5 at 1.0:
+    # surface_shader_prepare_closures), which
     # dims the light a rough metal throws onto the floor beside it by up to ~18 %
-    # (docs/accuracy.md, glow36). Not simulated: the engine renders that light unblurred,
-    # as Cycles with Filter Glossy 0.
+    # (docs/accuracy.md, glow36). Above 1/pi (Cycles' default among them) with final
+    # gathering the engine renders the caustic / glow maps' paths blurred as Cycles does
+    # (engine/glossysplit.py); the rest unblurred, as Cycles with Filter Glossy 0.
     cycles_filter_glossy: float = 0.0
     # Cycles' Light Paths > Caustics > Reflective / Refractive of the scene (Cycles'
     # default: both on), read by the add-on only so the effect report can say where

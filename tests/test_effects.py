@@ -562,13 +562,23 @@ def test_scene_files_and_the_cli_keep_max_depth(tmp_path):
         assert f"Max Ray Depth {want} stops camera paths sooner" in _line(plan, "bounce limits:")
 
 
-def test_maps_line_says_filter_glossy_dims_a_large_glow():
+def test_maps_line_says_filter_glossy_dims_a_large_glow(monkeypatch):
     """Cycles' Filter Glossy widens the rough specular layers' lobes after a diffuse
-    bounce and dims their glow; ours does not blur (tableroom45: a window-lit room's walls
-    1.2-2.3 % brighter than Cycles at Filter Glossy 1, within 0.3 % of it at 0, glow rms
-    share 0.060; newuser46: a kitchen's walls, cabinet and floor 2.3-4.2 %, glow 0.04). The maps line says so where the glow's share reaches
-    FILTER_GLOSSY_GLOW_SHARE and Filter Glossy is on; not below it, nor at Filter Glossy 0."""
+    bounce and dims their glow; without engine/glossysplit.py ours does not blur
+    (tableroom45: a window-lit room's walls 1.2-2.3 % brighter than Cycles at Filter
+    Glossy 1, within 0.3 % of it at 0, glow rms share 0.060; newuser46: a kitchen's
+    walls, cabinet and floor 2.3-4.2 %, glow 0.04). The maps line says so where the
+    glow's share reaches FILTER_GLOSSY_GLOW_SHARE and Filter Glossy is on; not below it,
+    nor at Filter Glossy 0, nor where the split blurs that glow as Cycles does."""
+    from engine import glossysplit
     from engine.render import FILTER_GLOSSY_GLOW_SHARE, photon_map_report
+    glow = dict(global_photons=400_000, radius_global=0.14, caustic_photons=45_000,
+                radius_caustic=0.13, glow_photons_emitted=2_000_000,
+                glow_label="glossy photons", glow_words="soft glow off rough specular layers",
+                glow_share=0.06)
+    assert "Filter Glossy" not in photon_map_report(RenderSettings(cycles_filter_glossy=1.0),
+                                                    glow)[0]
+    monkeypatch.setattr(glossysplit, "ENABLED", False)
     stats = dict(global_photons=400_000, radius_global=0.14, caustic_photons=45_000,
                  radius_caustic=0.13, glow_photons_emitted=2_000_000,
                  glow_label="glossy photons", glow_words="soft glow off rough specular layers")
@@ -902,13 +912,27 @@ def _metal_block_scene(roughness):
     return s
 
 
-def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_image():
+def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_image(
+        monkeypatch):
     """glow36 (issue 14): beside a roughness 0.4 metal block the floor read 1.11-1.19x
     Cycles; Cycles' default Filter Glossy 1.0 widens the metal's lobe on paths after a
     diffuse bounce (within 5 % of Cycles with 0). The add-on passes the scene's value;
     the report names it where light reaches diffuse surfaces off a specular one (the
-    glow of a rough metal, a sharp caustic), and not without Filter Glossy."""
+    glow of a rough metal, a sharp caustic), and not without Filter Glossy. With
+    engine/glossysplit.py on (Filter Glossy above 1/pi) ours blurs that light too: the
+    line says so and the image changes; with it off only the line changes."""
+    from engine import glossysplit
     from engine.effects import filter_glossy_alpha
+    line = _line(_plan(_metal_block_scene(0.4), cycles_filter_glossy=1.0), "glossy blur: on - ")
+    assert "'Block' throws onto diffuse surfaces; so does ours" in line, line
+    base = RenderSettings(photons=2000, caustic_photons=1000, spp=1, workers=1, seed=3)
+    a = _metal_block_scene(0.4).render(base)
+    b = _metal_block_scene(0.4).render(dataclasses.replace(base, cycles_filter_glossy=1.0))
+    # (the chains carry that light, into the caustic pass)
+    assert a.caustic.max() > 0 and b.caustic.max() > 0
+    assert not np.array_equal(a.caustic, b.caustic)
+    assert not np.array_equal(a.combined, b.combined)
+    monkeypatch.setattr(glossysplit, "ENABLED", False)
     for rough in (0.4, 0.1):  # a rough metal's glow, a sharp one's caustic
         line = _line(_plan(_metal_block_scene(rough), cycles_filter_glossy=1.0),
                      "glossy blur: off - ")

@@ -323,6 +323,10 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
                  "volume_bounces", "transparent_max_bounces"):
         if cycles is not None and hasattr(cycles, attr):
             setattr(cycles, attr, COMPARE_BOUNCES)
+    # Filter Glossy 0, as set_cycles renders the references: the add-on passes Cycles'
+    # (default 1.0), which engine/glossysplit.py now emulates.
+    if cycles is not None and hasattr(cycles, "blur_glossy"):
+        cycles.blur_glossy = 0.0
     # No clamp, as set_cycles renders the references (the add-on reads Cycles' Clamping,
     # default Indirect 10, when the Cycles add-on is there: addon/export.clamp_settings).
     for owner in (pm, cycles):
