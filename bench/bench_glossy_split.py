@@ -23,6 +23,7 @@ renders). Mean Rec. 709 luminance over the pixels each object covers fully.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -41,15 +42,17 @@ mb = acc.mb
 
 def _sharp_floor():
     """A Principled floor (base 0.8, roughness 0.1, specular 0.5: Blender's default) and
-    a glossy metal ball (roughness 0.2) lit from behind by a point lamp; the camera looks
-    at the floor at a grazing angle towards the ball, so the ball's glossy caustic on
-    the floor arrives near the floor's mirror direction of the view (pdf_D high)."""
+    a glossy metal ball (roughness 0.2) lit by a narrow spot aimed at it from the camera's
+    side, low (the floor lit by the ball's glow alone, nearly); the camera looks at the
+    floor at a grazing angle towards the ball, so much of that glow arrives near the
+    floor's mirror direction of the view (pdf_D high: photons Cycles does not blur)."""
     mb.reset()
     floor = mb.material("FloorMat", "principled", (0.8, 0.8, 0.8), roughness=0.1)
     metal = mb.material("Metal", "principled", (0.9, 0.9, 0.9), roughness=0.2, metallic=1.0)
     mb.plane("Floor", 8, 8, floor)
     mb.sphere("Ball", 0.5, metal, (0.0, 0.5, 0.5))
-    mb.light("Lamp", "POINT", (0.0, 1.6, 1.5), 300.0, shadow_soft_size=0.1)
+    mb.light("Lamp", "SPOT", (0.0, -1.5, 0.4), 300.0, look_at=(0.0, 0.5, 0.5),
+             shadow_soft_size=0.05, spot_size=math.radians(24.0), spot_blend=0.0)
     mb.camera((0.0, -4.0, 0.6), (0.0, 0.0, 0.0), 40.0)
 
 
