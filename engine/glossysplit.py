@@ -103,7 +103,7 @@ class DiffusePdf:
         self.plain = self.lambert & ~(self.psum > 0.0)  # (cos / pi exactly)
         with np.errstate(invalid="ignore", divide="ignore"):
             share = np.where(self.plain, 1.0, self.wd / (self.wd + self.psum))
-        self.largest = np.where(self.lambert, share / math.pi, np.inf)
+        self.largest = np.where(self.lambert, share * LAMBERT_PDF_MAX, np.inf)
         self.ns = np.asarray(hit.ns, np.float64)
         self.wo = np.asarray(hit.wo, np.float64)
 
