@@ -210,7 +210,7 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
     paths), which Cycles renders through blurred lobes (glow36: a roughness 0.4 metal
     block on a diffuse floor, the floor beside it 1.19x Cycles at its default 1.0 without
     the blur, within 5 % of Cycles at 0). split: engine/glossysplit.py renders those
-    paths blurred too (on: Filter Glossy above 1/pi, final gathering); else ours does not
+    paths blurred too (on: Filter Glossy above 0, final gathering); else ours does not
     blur."""
     if not names:
         return

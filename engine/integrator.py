@@ -986,7 +986,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Cycles' Filter Glossy on the chains (engine/glossysplit.py; None: off): level 0's
     # chains blur their lobes and add the light the caustic / glow maps leave out.
     fg_split = glossysplit.split_filter_glossy(ctx) if level == 0 and not glow_only else 0.0
-    chains = glossysplit.GatherChains(ctx, n, fg_split) if fg_split > 0.0 else None
+    chains = (glossysplit.GatherChains(ctx, n, fg_split,
+                                       glossysplit.DiffusePdf(ctx, hit, fg_split))
+              if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
@@ -1230,6 +1232,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if yf is y:
                 keep, o, d, tp, ray_cls, *pdf = continue_specular(
                     ctx, y, tp, rng, ray_cls, choice=choice, want_pdf=chains is not None)
+                keep_f = keep
             else:
                 # Lean hits never continue (no lobe but the diffuse one); the survival
                 # numbers are drawn for every hit, as continue_specular draws them.
@@ -1239,9 +1242,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 keep, o, d, tp, ray_cls, *pdf = continue_specular(
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
                     go_u=go_u[full], choice=choice, want_pdf=chains is not None)
+                keep_f = keep
                 keep = full[keep]
             if chains is not None:
-                chains.continued(idx[keep], pdf[0])
+                chains.continued(idx[keep], pdf[0], keep_f, d)
                 chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G)
             if turned_refl is not None and turned_refl.escapes:
                 turned_h[idx[keep]] = (turned_h[idx[keep]]
@@ -1964,7 +1968,8 @@ def smooth_min_photons(settings) -> int:
 
 
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
-                     per_pixel=None, every=None, into=None, counts=None, clamp_tp=None):
+                     per_pixel=None, every=None, into=None, counts=None, clamp_tp=None,
+                     blur=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most per_pixel samples per pixel (default
     CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
@@ -1980,7 +1985,8 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     specular chain: the photons usable for them alone, chaincounts.irradiance); None:
     the map's. clamp_tp: (N,3) the rows' camera-path throughputs, to hold each sample's
     estimate to Cycles' Clamp Indirect (engine/sampleclamp.py) before it is weighed up;
-    None: no clamp."""
+    None: no clamp. blur: a glossysplit.DiffusePdf of hit (Filter Glossy's split: only
+    the photons Cycles does not blur count, each row's search and disc kept) or None."""
     out = np.zeros_like(f) if into is None else into
     if pmap is None or len(pmap) == 0:
         return out
@@ -2010,18 +2016,20 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
     surface = hit_surfaces(ctx, None if getattr(hit, "prim", None) is None
                            else np.take(hit.prim, sel))
-    if PHOTON_VISIBILITY:
+    if PHOTON_VISIBILITY or blur is not None:
         # Only the photons each point can see (issue 14: a lamp shade piercing a wall);
         # one search a row for the estimate and its visibility rays.
         off = getattr(hit, "offset", None)
         E = photonvisibility.visible_irradiance(
-            pmap, getattr(ctx, "accel", None), np.take(hit.p, sel, axis=0),
+            pmap, getattr(ctx, "accel", None) if PHOTON_VISIBILITY else None,
+            np.take(hit.p, sel, axis=0),
             np.take(hit.ng, sel, axis=0), None if off is None else np.take(off, sel), radius,
             s.k_nearest, smooth_min_photons(s), s.estimator,
             r_floor=None if footprint is None else np.take(footprint, sel),
             limits=s.bounce_limits,
             counts=None if counts is None else np.take(counts, sel, axis=0),
-            geo=getattr(ctx, "geo", None), surface=surface)
+            geo=getattr(ctx, "geo", None), surface=surface,
+            reject=None if blur is None else blur.reject_for(pmap, sel))
     else:
         E = chaincounts.irradiance(
             pmap, s.bounce_limits, None if counts is None else np.take(counts, sel, axis=0),
@@ -2222,25 +2230,31 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
-    if glossysplit.maps_blurred(ctx):
-        # Cycles' Filter Glossy blurs every caustic / glow photon's path here: the final
-        # gather's chains carry that light instead (engine/glossysplit.py).
+    # Cycles' Filter Glossy (engine/glossysplit.py; None: off): the caustic / glow maps
+    # count only the photons whose paths Cycles does not blur, the final gather's chains
+    # carry the rest; where no row can count one (a Lambert floor above 1 / pi) the
+    # estimates are left out whole.
+    fg = glossysplit.split_filter_glossy(ctx)
+    d_pdf = glossysplit.DiffusePdf(ctx, hit, fg) if fg > 0.0 else None
+    if d_pdf is not None and d_pdf.none_unblurred():
         caustic = np.zeros_like(f)
     else:
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f,
                                    sample_id, footprint, _caustic_per_pixel(ctx),
-                                   every=scattered, counts=extra, clamp_tp=clamp_tp)
-    if getattr(ctx, "glow_map", None) is not None and not glossysplit.maps_blurred(ctx):
-        # The glow shot's map beside the aimed one (render.GLOW_MAP_APART): as smooth
-        # within a pixel as a glow-only map, so as many estimates a pixel.
-        _smooth_estimate(ctx, ctx.glow_map, ctx.glow_radius, hit, f, sample_id, footprint,
-                         getattr(ctx, "glow_per_pixel", 0) or GLOW_SAMPLES_PER_PIXEL,
-                         every=scattered if GLOW_EVERY_SAMPLE_PAST_BOUNCE else None,
-                         into=caustic, counts=extra, clamp_tp=clamp_tp)
+                                   every=scattered, counts=extra, clamp_tp=clamp_tp,
+                                   blur=d_pdf)
+        if getattr(ctx, "glow_map", None) is not None:
+            # The glow shot's map beside the aimed one (render.GLOW_MAP_APART): as smooth
+            # within a pixel as a glow-only map, so as many estimates a pixel.
+            _smooth_estimate(ctx, ctx.glow_map, ctx.glow_radius, hit, f, sample_id,
+                             footprint,
+                             getattr(ctx, "glow_per_pixel", 0) or GLOW_SAMPLES_PER_PIXEL,
+                             every=scattered if GLOW_EVERY_SAMPLE_PAST_BOUNCE else None,
+                             into=caustic, counts=extra, clamp_tp=clamp_tp, blur=d_pdf)
     if ctx.gather_map is not None:
         # (the gather chains' share of the maps' light, where Filter Glossy moves it to
         # them, into the caustic term: glossysplit)
-        chained = np.zeros_like(f) if glossysplit.maps_blurred(ctx) else None
+        chained = np.zeros_like(f) if d_pdf is not None else None
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
                                        caustic=chained)

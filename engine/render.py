@@ -37,6 +37,7 @@ from .panelight import panes_for
 from .mortontree import KthTree
 from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
+                      concat_blur_pdfs,
                       trace_photons)
 from .resources import check_resources, regather_levels
 from .scene import Scene
@@ -333,8 +334,9 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
         if shoot:
             # The photon-hit view reads the photons' places and kinds alone: the shots'
             # other arrays (power, directions, normals, counts, surfaces: 44 B a photon,
-            # the maps hold their own copies) are let go before the camera pass (Figure
-            # 6: -33 MB of its peak, docs/performance.md, mem45).
+            # 48 with Filter Glossy's reverse pdfs; the maps hold their own copies) are
+            # let go before the camera pass (Figure 6: -33 MB of its peak,
+            # docs/performance.md, mem45).
             shots = tuple((ph.position, ph.kind) for ph in
                           shoot_photons(ctx, stats, progress, should_cancel, on_warning,
                                         on_plan))
@@ -826,7 +828,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
                                 for f in ("position", "power", "direction", "normal", "kind")),
                               bounces=np.concatenate([caustic.bounces, rest.bounces]),
-                              surface=concat_surfaces(caustic, rest))
+                              surface=concat_surfaces(caustic, rest),
+                              blur_pdf=concat_blur_pdfs(caustic, rest))
             caustic.emitted = emitted
     elif glow is not None:
         # Nothing focuses light (effects: glow only): the caustic map is the glow shot.
@@ -1042,7 +1045,7 @@ def _with_images(photons: Photons, images: Photons) -> Photons:
                    photons.emitted,
                    None if photons.bounces is None else
                    np.concatenate([photons.bounces, images.bounces]),
-                   concat_surfaces(photons, images))
+                   concat_surfaces(photons, images), concat_blur_pdfs(photons, images))
 
 
 def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:

@@ -919,7 +919,7 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
     diffuse bounce (within 5 % of Cycles with 0). The add-on passes the scene's value;
     the report names it where light reaches diffuse surfaces off a specular one (the
     glow of a rough metal, a sharp caustic), and not without Filter Glossy. With
-    engine/glossysplit.py on (Filter Glossy above 1/pi) ours blurs that light too: the
+    engine/glossysplit.py on (Filter Glossy above 0) ours blurs that light too: the
     line says so and the image changes; with it off only the line changes."""
     from engine import glossysplit
     from engine.effects import filter_glossy_alpha
