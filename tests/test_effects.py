@@ -926,6 +926,8 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
                 "(to GGX alpha 0.41-0.50, roughness 0.64-0.71)") in line, line
         assert "'Block' throws onto diffuse surfaces" in line, line
         assert "matches Cycles with Filter Glossy 0" in line, line
+        # (the camera paths' own lobes blur without the split: filterglossy.PathBlur)
+        assert "ours does not blur that light (only its camera paths' own lobes" in line, line
     assert not any(r.startswith("glossy blur") for r in _plan(_metal_block_scene(0.4)).report())
     # Nothing specular, or only a dielectric specular layer (~4 % reflected: too little
     # for the blur to show): no line.
