@@ -227,9 +227,13 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
                  "rays, their lobes blurred as Cycles', not from the caustic photons "
                  "(light off them after a further diffuse bounce stays unblurred)")
         return
+    # (fgroom46: the camera paths' own lobes blur at any Filter Glossy, filterglossy.py;
+    # only the maps' light named here stays unblurred without the split.)
+    from .filterglossy import BLUR_CAMERA_PATHS
+    own = " (only its camera paths' own lobes, as Cycles)" if BLUR_CAMERA_PATHS else ""
     plan.add("glossy blur", False,
-             said + "; ours does not blur, so it matches Cycles with Filter Glossy 0: set "
-             "that to compare")
+             said + f"; ours does not blur that light{own}, so that light matches Cycles "
+             "with Filter Glossy 0: set that to compare")
 
 
 def _cycles_caustics_note(plan: EffectPlan, s, geo: Geometry, table: MaterialTable,

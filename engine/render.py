@@ -1565,6 +1565,10 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
                      "which focus none, send onto diffuse ones; not aimed at), lighter "
                      "photons of their own, stored in the Caustic pass"
                      + _glow_apart_words(stats) + _glow_blur_words(settings, stats))
+    if stats.get("caustic_photons") or stats.get("glow_photons_emitted"):
+        unread = _maps_unread_words(settings)
+        if unread:
+            parts.append(unread)
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
     if stats.get("photon_portals"):
@@ -1603,6 +1607,21 @@ def _glow_apart_words(stats: dict) -> str:
 # light off a specular layer first, does not count). FILTER_GLOW_DIMS: that range.
 FILTER_GLOSSY_GLOW_SHARE = 0.03
 FILTER_GLOW_DIMS = (0.2, 1.0)
+
+
+def _maps_unread_words(settings: RenderSettings) -> str:
+    """The maps line's words where engine/glossysplit.py leaves the caustic and glow
+    maps' estimates out whole (Filter Glossy above 1/pi with final gathering: Cycles
+    blurs every path of their light after the diffuse hit, so the gather's chains carry
+    it): the line otherwise says the photons are "stored in the Caustic pass", which a
+    user reads as their light being there (fgroom46, docs/accuracy.md). "" otherwise."""
+    fg = settings_filter_glossy(settings)
+    if not fg > 0.0:
+        return ""
+    return (f"at Filter Glossy {fg:g} (Light Paths > Caustics) none of the caustic or glow "
+            "photons is read where the camera's paths meet a diffuse surface: Cycles blurs "
+            "every path of that light, so the final gather's rays carry it instead, through "
+            "blurred lobes, into the Caustic pass (the photons are still traced, unused)")
 
 
 def _glow_blur_words(settings: RenderSettings, stats: dict) -> str:

@@ -1,5 +1,6 @@
 """Simulate only the effects a scene calls for, and say why (engine/effects.py)."""
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -576,8 +577,8 @@ def test_maps_line_says_filter_glossy_dims_a_large_glow(monkeypatch):
                 radius_caustic=0.13, glow_photons_emitted=2_000_000,
                 glow_label="glossy photons", glow_words="soft glow off rough specular layers",
                 glow_share=0.06)
-    assert "Filter Glossy" not in photon_map_report(RenderSettings(cycles_filter_glossy=1.0),
-                                                    glow)[0]
+    assert "dims it" not in photon_map_report(RenderSettings(cycles_filter_glossy=1.0),
+                                              glow)[0]
     monkeypatch.setattr(glossysplit, "ENABLED", False)
     stats = dict(global_photons=400_000, radius_global=0.14, caustic_photons=45_000,
                  radius_caustic=0.13, glow_photons_emitted=2_000_000,
@@ -603,6 +604,35 @@ def test_maps_line_says_filter_glossy_dims_a_large_glow(monkeypatch):
     assert "by about 0.8-4 % (" in line(1.0, 0.04)
     for fg, share in ((0.0, 0.06), (1.0, FILTER_GLOSSY_GLOW_SHARE * 0.9), (1.0, None)):
         assert "Filter Glossy" not in line(fg, share), (fg, share)
+
+
+def test_maps_line_says_the_split_leaves_the_caustic_and_glow_maps_unread(monkeypatch):
+    """At Filter Glossy above 1/pi with final gathering, engine/glossysplit.py leaves the
+    caustic and glow maps' estimates out whole (the gather's chains carry that light,
+    blurred), yet the maps line said the glow photons were "stored in the Caustic pass"
+    (fgroom46: newuser44's table, 2,003,582 glossy photons traced, none read). It says
+    so there; not at Filter Glossy 0 or 1/pi, without final gathering, with the switch
+    off, nor where no caustic or glow photon was shot."""
+    from engine import glossysplit
+    from engine.render import photon_map_report
+    stats = dict(global_photons=400_000, radius_global=0.14, caustic_photons=33_323,
+                 radius_caustic=0.13, glow_photons_emitted=2_003_582,
+                 glow_label="glossy photons", glow_words="soft glow off rough specular layers")
+    unread = "none of the caustic or glow photons is read where the camera's paths meet"
+
+    def line(stats=stats, **kw):
+        return photon_map_report(RenderSettings(**kw), stats)[0]
+    said = line(cycles_filter_glossy=1.0)
+    assert "at Filter Glossy 1 (Light Paths > Caustics) " + unread in said, said
+    assert "the final gather's rays carry it instead" in said, said
+    assert unread in line(dict(stats, glow_photons_emitted=0), cycles_filter_glossy=1.0)
+    for kw in (dict(cycles_filter_glossy=0.0), dict(cycles_filter_glossy=1 / math.pi),
+               dict(cycles_filter_glossy=1.0, final_gather=False)):
+        assert unread not in line(**kw), kw
+    assert unread not in line(dict(global_photons=400_000, radius_global=0.14),
+                              cycles_filter_glossy=1.0)
+    monkeypatch.setattr(glossysplit, "ENABLED", False)
+    assert unread not in line(cycles_filter_glossy=1.0)
 
 
 def test_glow_only_caustic_map_is_not_called_caustic_photons():
@@ -941,6 +971,8 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
                 "(to GGX alpha 0.41-0.50, roughness 0.64-0.71)") in line, line
         assert "'Block' throws onto diffuse surfaces" in line, line
         assert "matches Cycles with Filter Glossy 0" in line, line
+        # (the camera paths' own lobes blur without the split: filterglossy.PathBlur)
+        assert "ours does not blur that light (only its camera paths' own lobes" in line, line
     assert not any(r.startswith("glossy blur") for r in _plan(_metal_block_scene(0.4)).report())
     # Nothing specular, or only a dielectric specular layer (~4 % reflected: too little
     # for the blur to show): no line.
