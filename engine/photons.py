@@ -178,8 +178,9 @@ def concat_surfaces(*parts: Photons) -> np.ndarray | None:
 
 def concat_blur_pdfs(*parts: Photons) -> np.ndarray | None:
     """The parts' Photons.blur_pdf concatenated in order (a part without: inf, no
-    reverse pdf), or None where no part has them."""
-    if all(p.blur_pdf is None for p in parts):
+    reverse pdf), or None where no part with photons has them (Photons.empty()'s zero-length
+    array alone must not give every photon of the others 4 B of inf: photon_bytes)."""
+    if all(p.blur_pdf is None or len(p) == 0 for p in parts):
         return None
     return np.concatenate([np.full(len(p), np.inf, np.float32) if p.blur_pdf is None
                            else p.blur_pdf for p in parts])

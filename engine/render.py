@@ -1610,18 +1610,20 @@ FILTER_GLOW_DIMS = (0.2, 1.0)
 
 
 def _maps_unread_words(settings: RenderSettings) -> str:
-    """The maps line's words where engine/glossysplit.py leaves the caustic and glow
-    maps' estimates out whole (Filter Glossy above 1/pi with final gathering: Cycles
-    blurs every path of their light after the diffuse hit, so the gather's chains carry
-    it): the line otherwise says the photons are "stored in the Caustic pass", which a
-    user reads as their light being there (fgroom46, docs/accuracy.md). "" otherwise."""
+    """The maps line's words where engine/glossysplit.py's split is on (Filter Glossy
+    above 0 with final gathering): a caustic or glow photon is read at a camera path's
+    diffuse hit only if Cycles leaves its path unblurred (on a matte surface above 1/pi:
+    none), and the final gather's chains carry the rest, blurred. The line otherwise says
+    the photons are "stored in the Caustic pass", which a user reads as their light being
+    there (fgroom46, docs/accuracy.md). "" otherwise."""
     fg = settings_filter_glossy(settings)
     if not fg > 0.0:
         return ""
-    return (f"at Filter Glossy {fg:g} (Light Paths > Caustics) none of the caustic or glow "
-            "photons is read where the camera's paths meet a diffuse surface: Cycles blurs "
-            "every path of that light, so the final gather's rays carry it instead, through "
-            "blurred lobes, into the Caustic pass (the photons are still traced, unused)")
+    matte = " (on a matte surface, none)" if fg > 1.0 / math.pi else ""
+    return (f"at Filter Glossy {fg:g} (Light Paths > Caustics) the caustic and glow photons "
+            f"are read only on paths Cycles leaves unblurred{matte}: the final gather's rays "
+            "carry the rest of that light instead, through blurred lobes, into the Caustic "
+            "pass")
 
 
 def _glow_blur_words(settings: RenderSettings, stats: dict) -> str:

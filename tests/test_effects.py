@@ -607,26 +607,30 @@ def test_maps_line_says_filter_glossy_dims_a_large_glow(monkeypatch):
 
 
 def test_maps_line_says_the_split_leaves_the_caustic_and_glow_maps_unread(monkeypatch):
-    """At Filter Glossy above 1/pi with final gathering, engine/glossysplit.py leaves the
-    caustic and glow maps' estimates out whole (the gather's chains carry that light,
-    blurred), yet the maps line said the glow photons were "stored in the Caustic pass"
-    (fgroom46: newuser44's table, 2,003,582 glossy photons traced, none read). It says
-    so there; not at Filter Glossy 0 or 1/pi, without final gathering, with the switch
-    off, nor where no caustic or glow photon was shot."""
+    """With Filter Glossy above 0 and final gathering, engine/glossysplit.py reads a
+    caustic or glow photon only where Cycles leaves its path unblurred (above 1/pi none
+    on a matte surface) and the gather's chains carry the rest, blurred, yet the maps
+    line said the glow photons were "stored in the Caustic pass" (fgroom46: newuser44's
+    table, 2,003,582 glossy photons traced, none read). It says so there; not at Filter
+    Glossy 0, without final gathering, with the switch off, nor where no caustic or
+    glow photon was shot."""
     from engine import glossysplit
     from engine.render import photon_map_report
     stats = dict(global_photons=400_000, radius_global=0.14, caustic_photons=33_323,
                  radius_caustic=0.13, glow_photons_emitted=2_003_582,
                  glow_label="glossy photons", glow_words="soft glow off rough specular layers")
-    unread = "none of the caustic or glow photons is read where the camera's paths meet"
+    unread = "the caustic and glow photons are read only on paths Cycles leaves unblurred"
 
     def line(stats=stats, **kw):
         return photon_map_report(RenderSettings(**kw), stats)[0]
     said = line(cycles_filter_glossy=1.0)
-    assert "at Filter Glossy 1 (Light Paths > Caustics) " + unread in said, said
-    assert "the final gather's rays carry it instead" in said, said
+    assert ("at Filter Glossy 1 (Light Paths > Caustics) " + unread
+            + " (on a matte surface, none)") in said, said
+    assert "the final gather's rays carry the rest of that light instead" in said, said
+    low = line(cycles_filter_glossy=0.3)
+    assert unread in low and "matte surface" not in low, low
     assert unread in line(dict(stats, glow_photons_emitted=0), cycles_filter_glossy=1.0)
-    for kw in (dict(cycles_filter_glossy=0.0), dict(cycles_filter_glossy=1 / math.pi),
+    for kw in (dict(cycles_filter_glossy=0.0),
                dict(cycles_filter_glossy=1.0, final_gather=False)):
         assert unread not in line(**kw), kw
     assert unread not in line(dict(global_photons=400_000, radius_global=0.14),
