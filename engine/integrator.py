@@ -983,6 +983,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     fg_split = glossysplit.split_filter_glossy(ctx) if level == 0 and not glow_only else 0.0
     chains = glossysplit.GatherChains(ctx, n, fg_split) if fg_split > 0.0 else None
     E_chain = E if caustic is None else caustic
+    cam_pdf = None if chains is None else getattr(hit, "min_ray_pdf", None)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -1008,6 +1009,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             buf.tp_ones = k
         if chains is not None:
             chains.start(idx, d, ns)
+            if cam_pdf is not None:
+                # (the camera path's own min_ray_pdf before D: Cycles' is the path's)
+                chains.min_pdf[idx] = np.minimum(chains.min_pdf[idx], np.take(cam_pdf, idx))
         if guide is not None:
             tp *= np.take(g_w, idx)[:, None]
             buf.tp_ones = 0
@@ -2146,6 +2150,8 @@ def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, s
     rows = np.asarray(dsel)[j[i]]
     if medium is not None:
         xhit.medium = np.take(medium, rows)
+    if hit.min_ray_pdf is not None:  # (the entry's path's, for the exits' gather chains)
+        xhit.min_ray_pdf = np.take(hit.min_ray_pdf, rows)
     direct, caustic, indirect = shade_diffuse(
         ctx, xhit, xw, rng, counters, None,
         None if sample_id is None else np.take(sample_id, rows),
@@ -3273,6 +3279,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             w_diffuse = np.zeros(n)
             if nd:
                 w_diffuse[dsel[:nd]] = (wd[:nd, 0] + wd[:nd, 1] + wd[:nd, 2]) / 3.0
+            # (each hit's path min_ray_pdf so far: the gather chains from its diffuse lobe
+            # start there, glossysplit.GatherChains)
+            hit.min_ray_pdf = fgblur.min_pdf
         if medium is not None:
             # The medium each hit point is in: its shadow and gather rays start there
             # (directlight.direct_light's medium_sigma, gather_indirect).
