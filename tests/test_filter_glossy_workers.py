@@ -91,3 +91,18 @@ def test_gather_chains_start_at_the_camera_paths_min_ray_pdf(monkeypatch):
     assert np.all(pdfs[through] <= 0.01)
     assert np.all(pdfs[~through] > 0.0)
     assert (pdfs[~through] > 0.01).any()  # D's own cos / pi there
+
+
+def test_blur_alphas_warns_nothing():
+    """blur_alphas hands the kernel arrays of its own (np.broadcast_arrays' views made
+    numba warn, FutureWarning, on every render with Filter Glossy: effects'
+    filter_glossy_alpha calls it in prepare_context)."""
+    import warnings
+    from engine.filterglossy import blur_alpha, blur_alphas
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for fg, pdf in ((1.0, np.array([0.1, 0.2])), (np.ones(2), np.array([0.1, 2.0])),
+                        (1.0, [1.0 / np.pi, 0.0]), (np.ones(3), 0.5)):
+            got = blur_alphas(fg, pdf)
+            want = [blur_alpha(f, p) for f, p in zip(*np.broadcast_arrays(fg, pdf))]
+            np.testing.assert_array_equal(got, want)
