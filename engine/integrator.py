@@ -3279,9 +3279,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             w_diffuse = np.zeros(n)
             if nd:
                 w_diffuse[dsel[:nd]] = (wd[:nd, 0] + wd[:nd, 1] + wd[:nd, 2]) / 3.0
-            # (each hit's path min_ray_pdf so far: the gather chains from its diffuse lobe
-            # start there, glossysplit.GatherChains)
-            hit.min_ray_pdf = fgblur.min_pdf
+            # (each hit's path min_ray_pdf so far, inf at the camera's first hits: the
+            # gather chains from its diffuse lobe start there, glossysplit.GatherChains)
+            if bounce > 0:
+                hit.min_ray_pdf = fgblur.min_pdf
         if medium is not None:
             # The medium each hit point is in: its shadow and gather rays start there
             # (directlight.direct_light's medium_sigma, gather_indirect).

@@ -106,3 +106,24 @@ def test_blur_alphas_warns_nothing():
             got = blur_alphas(fg, pdf)
             want = [blur_alpha(f, p) for f, p in zip(*np.broadcast_arrays(fg, pdf))]
             np.testing.assert_array_equal(got, want)
+
+
+def test_camera_paths_hand_their_min_ray_pdf_to_the_gather(monkeypatch):
+    """integrator._trace_paths sets SurfaceHit.min_ray_pdf on the hits past the first
+    bounce (the rough floor's reflections of the wall and the block), which the level-0
+    gather reads (the test above)."""
+    from engine import integrator
+    seen = []
+    real = integrator.gather_indirect
+
+    def spy(ctx, hit, *a, **k):
+        if k.get("level", 0) == 0 and not k.get("glow_only", False):
+            m = getattr(hit, "min_ray_pdf", None)
+            seen.append(np.inf if m is None or not len(m) else float(np.min(m)))
+        return real(ctx, hit, *a, **k)
+
+    monkeypatch.setattr(integrator, "gather_indirect", spy)
+    render(_scene(), RenderSettings(workers=1, photons=2_000, caustic_photons=2_000, spp=1,
+                                    seed=3, cycles_filter_glossy=1.0))
+    assert seen and np.isinf(seen).any()  # the camera's first hits: none
+    assert any(np.isfinite(v) and 0 < v < 1.0 / np.pi for v in seen)
