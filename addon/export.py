@@ -1301,8 +1301,8 @@ def filter_glossy_settings(scene) -> dict:
     """Cycles' Light Paths > Caustics (Filter Glossy, Reflective, Refractive) as the
     RenderSettings keywords cycles_filter_glossy, cycles_caustics_reflective,
     cycles_caustics_refractive (0 / on / on without the Cycles add-on). Filter Glossy
-    blurs the camera paths as Cycles' (engine/filterglossy.py) and, above 1/pi, the
-    caustic / glow maps' paths (engine/glossysplit.py); the rest is named by the effect
+    blurs the camera paths as Cycles' (engine/filterglossy.py) and the caustic / glow
+    maps' paths (engine/glossysplit.py); the rest is named by the effect
     report where it changes Cycles' image (engine/settings.py)."""
     cycles = getattr(scene, "cycles", None)
     return dict(cycles_filter_glossy=float(getattr(cycles, "blur_glossy", 0.0) or 0.0),

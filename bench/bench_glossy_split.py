@@ -3,7 +3,14 @@ and 1 against Cycles at 0 and 1, per object, with the light the maps drop and th
 the gather chains add, each from its own pass.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_glossy_split.py [--spp N] [--seed S]
-        [--cycles-spp N] [--only glossy_floor,figure6_box]
+        [--cycles-spp N] [--only glossy_floor,figure6_box] [--fg 1.0]
+
+--fg: the Filter Glossy compared with 0 (default 1, Cycles' default; 0.3: only the
+bounces of pdf below 0.3 blur). Scenes: tools/accuracy_scenes' and glossy_floor
+(bench/bench_filter_glossy.py), sharp_floor (here: a Principled floor of roughness 0.1
+with Blender's default specular 0.5 under a glossy metal ball, seen at a grazing angle:
+photons from the ball arriving near the floor's mirror direction of the view keep
+pdf_D above Filter Glossy, docs/compatibility.md "fgphoton46").
 
 Ours: the add-on's export (tools/accuracy_scenes.export_ours), only
 cycles_filter_glossy changed between the two renders. "dropped" is the caustic pass at
@@ -16,6 +23,7 @@ renders). Mean Rec. 709 luminance over the pixels each object covers fully.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -29,6 +37,26 @@ import bench_filter_glossy as bfg  # noqa: E402  (registers glossy_floor; needs 
 
 acc = bfg.acc
 LUM = bfg.LUM
+mb = acc.mb
+
+
+def _sharp_floor():
+    """A Principled floor (base 0.8, roughness 0.1, specular 0.5: Blender's default) and
+    a glossy metal ball (roughness 0.2) lit by a narrow spot aimed at it from the camera's
+    side, low (the floor lit by the ball's glow alone, nearly); the camera looks at the
+    floor at a grazing angle towards the ball, so much of that glow arrives near the
+    floor's mirror direction of the view (pdf_D high: photons Cycles does not blur)."""
+    mb.reset()
+    floor = mb.material("FloorMat", "principled", (0.8, 0.8, 0.8), roughness=0.1)
+    metal = mb.material("Metal", "principled", (0.9, 0.9, 0.9), roughness=0.2, metallic=1.0)
+    mb.plane("Floor", 8, 8, floor)
+    mb.sphere("Ball", 0.5, metal, (0.0, 0.5, 0.5))
+    mb.light("Lamp", "SPOT", (0.0, -1.5, 0.4), 300.0, look_at=(0.0, 0.5, 0.5),
+             shadow_soft_size=0.05, spot_size=math.radians(24.0), spot_blend=0.0)
+    mb.camera((0.0, -4.0, 0.6), (0.0, 0.0, 0.0), 40.0)
+
+
+acc.SCENES["sharp_floor"] = (_sharp_floor, "specular")
 
 
 def ours(name, fg, spp, seed):
@@ -48,18 +76,19 @@ def main(argv=None):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cycles-spp", type=int, default=512)
     p.add_argument("--only", default="glossy_floor,figure6_box")
+    p.add_argument("--fg", type=float, default=1.0)
     a = p.parse_args(argv)
-    print(f"ours {a.spp} spp seed {a.seed}; Cycles {a.cycles_spp} spp; load "
+    print(f"FG1 = Filter Glossy {a.fg}; ours {a.spp} spp seed {a.seed}; Cycles {a.cycles_spp} spp; load "
           f"{os.getloadavg()[0]:.1f}")
     print("| scene | region | ours FG0 | ours FG1 | ours 1/0 | Cycles FG0 | Cycles FG1 | "
           "Cycles 1/0 | ours FG1 / Cycles FG1 | dropped / FG0 | chains / FG0 |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.only.split(","):
         f0, s0 = ours(name, 0.0, a.spp, a.seed)
-        f1, s1 = ours(name, 1.0, a.spp, a.seed)
-        cyc = {fg: bfg.render(name, a.cycles_spp, fg, 1)[0] for fg in (0.0, 1.0)}
+        f1, s1 = ours(name, a.fg, a.spp, a.seed)
+        cyc = {fg: bfg.render(name, a.cycles_spp, fg, 1)[0] for fg in (0.0, a.fg)}
         L = {k: np.asarray(v, np.float64)[..., :3] @ LUM for k, v in (
-            ("o0", f0.combined), ("o1", f1.combined), ("c0", cyc[0.0]), ("c1", cyc[1.0]),
+            ("o0", f0.combined), ("o1", f1.combined), ("c0", cyc[0.0]), ("c1", cyc[a.fg]),
             ("drop", f0.caustic), ("chains", f1.caustic))}
         for r, m in bfg.regions(name, f0.combined.shape[:2]).items():
             v = {k: float(x[m].mean()) for k, x in L.items()}

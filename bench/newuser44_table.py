@@ -194,13 +194,16 @@ def render(scene, a):
     for k, v in (s.split("=", 1) for s in a.set):
         setattr(scene.photonmap, k, ast.literal_eval(v))
     if r.engine == "CYCLES":  # plain: no denoiser, every pixel the same samples
-        c.device, c.samples, c.seed = "CPU", int(a.mode.split(":")[1]), 0
+        c.device, c.samples = "CPU", int(a.mode.split(":")[1])
+        c.seed = getattr(a, "cycles_seed", 0)  # newuser46_kitchen.py --cycles-seed
         c.use_denoising = c.use_adaptive_sampling = False
     if a.save:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(a.save))
     fmt = r.image_settings  # linear 32-bit EXR: the comparison reads radiance
-    fmt.media_type = "IMAGE"
-    fmt.file_format, fmt.color_depth = "OPEN_EXR", "32"
+    multilayer = getattr(a, "passes", False)  # newuser46_kitchen.py --passes
+    fmt.media_type = "MULTI_LAYER_IMAGE" if multilayer else "IMAGE"
+    fmt.file_format = "OPEN_EXR_MULTILAYER" if multilayer else "OPEN_EXR"
+    fmt.color_depth = "32"
     r.filepath, r.use_file_extension = os.path.abspath(a.out), False
     t0, w0 = cpu(), time.time()
     bpy.ops.render.render(write_still=True)

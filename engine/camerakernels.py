@@ -705,23 +705,47 @@ def glass_both(prm, i, ox, oy, oz, u1, u2):
     Fresnel-weighted colours), 0 where that half has no sample (below the lobe's normal,
     total internal reflection, a Refraction BSDF's reflection). Its expectation equals
     _glass_sample's, term by term."""
+    (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2, p_r) = glass_both_share(
+        prm, i, ox, oy, oz, u1, u2)
+    return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2)
+
+
+@kernel
+def glass_both_share(prm, i, ox, oy, oz, u1, u2):
+    """glass_both and, last, p_r: the probability with which _glass_sample (Cycles'
+    bsdf_microfacet_sample: average reflectance over average reflectance + transmittance
+    at the microfacet normal, 0 transmittance under total internal reflection) would
+    have chosen the reflection at that normal (1 - p_r: the refraction); 0 where wo sees
+    the normal's back. A split branch's Cycles clamp is the limit x its p
+    (engine/sampleclamp.py)."""
     if pr.raised_rough_glass(prm, i):
         qx, qy, qz = pr._to_glossy(prm, i, ox, oy, oz)
-        (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2) = _glass_both_local(
+        (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2, p_r) = _glass_both_local_share(
             prm, i, qx, qy, qz, u1, u2)
         rx, ry, rz = pr._from_glossy(prm, i, rx, ry, rz)
         tx, ty, tz = pr._from_glossy(prm, i, tx, ty, tz)
-        return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2)
-    return _glass_both_local(prm, i, ox, oy, oz, u1, u2)
+        return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2, p_r)
+    return _glass_both_local_share(prm, i, ox, oy, oz, u1, u2)
 
 
 @kernel
 def _glass_both_local(prm, i, ox, oy, oz, u1, u2):
     """glass_both with wo in the lobe's frame (rough: z its normal)."""
+    (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2, p_r) = _glass_both_local_share(
+        prm, i, ox, oy, oz, u1, u2)
+    return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2)
+
+
+@kernel
+def _glass_both_local_share(prm, i, ox, oy, oz, u1, u2):
+    """glass_both_share with wo in the lobe's frame (rough: z its normal)."""
     (rough, alpha, eta, hx, hy, hz, c, r0, r1, r2, t0, t1, t2) = pr.glass_microfacet(
         prm, i, ox, oy, oz, u1, u2)
     if c <= 0.0:
-        return (0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0)
+        return (0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0)
+    # _glass_sample's choice probability, before the G1 ratios below (the same sums).
+    sr = r0 + r1 + r2
+    st = t0 + t1 + t2
     a2 = alpha * alpha
     lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
     rx, ry, rz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
@@ -735,7 +759,8 @@ def _glass_both_local(prm, i, ox, oy, oz, u1, u2):
     inv_eta = 1.0 / eta
     s2 = inv_eta * inv_eta * (1.0 - c * c)
     if s2 >= 1.0:  # total internal reflection at this microfacet
-        return (rx, ry, rz, r0, r1, r2, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0)
+        return (rx, ry, rz, r0, r1, r2, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0)
+    p_r = sr / (sr + st) if sr + st > 0.0 else 0.0
     ct = math.sqrt(1.0 - s2)
     kk = inv_eta * c - ct
     tx, ty, tz = -inv_eta * ox + kk * hx, -inv_eta * oy + kk * hy, -inv_eta * oz + kk * hz
@@ -744,7 +769,7 @@ def _glass_both_local(prm, i, ox, oy, oz, u1, u2):
     elif rough and abs(eta - 1.0) >= 1e-4:
         g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(-tz, a2))
         t0, t1, t2 = t0 * g, t1 * g, t2 * g
-    return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2)
+    return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2, p_r)
 
 
 @kernel
@@ -787,7 +812,7 @@ def _ray_weight(x, y, z, w0, w1, w2, tr, prob, gx, gy, gz, tp0, tp1, tp2):
 def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, table_alpha,
                    hit_alpha, p, ng, ns, wo, offset, tp, incoming, lobe_class, want_pdf,
                    split, split_rough, rows_out, o_out, d_out, tp_out, cls_out, pdf_out,
-                   split_out):
+                   split_out, split_p_out):
     """Sample the picked lobes (pick_lobes) of rows idx (M,) of N hits and write the
     continued rays, compacted: returns K, and rows_out[:K] (the kept k into idx), o_out,
     d_out (K,3) float64 (origins off the surface by the hit's offset along ng, to the
@@ -807,7 +832,9 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
     (glass_both: its reflection and its refraction both continue, each with its Fresnel
     weight; smooth glass only unless split_rough), so one pick may write two rows (the
     output arrays then hold 2 M rows; the reflection first); split_out (K,) marks the
-    rows a split wrote (u3 is drawn for them and not read)."""
+    rows a split wrote (u3 is drawn for them and not read), split_p_out (K,) float64 on
+    those rows the probability with which Cycles would have chosen that half
+    (glass_both_share's p_r or 1 - p_r; 1.0 on the other rows), for the clamp."""
     kept = 0
     j = 0
     any_split = split.shape[0] > 0
@@ -818,6 +845,7 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
         halves = 1
         is_split = False
         rx = ry = rz = r0 = r1 = r2 = 0.0
+        p_r = 1.0
         if lb == _PASS:
             x, y, z = -wo[row, 0], -wo[row, 1], -wo[row, 2]
             mt = mat[row]
@@ -831,7 +859,7 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
             ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
             if (any_split and split[row] and (lb == _GLASS_R or lb == _GLASS_T)
                     and (split_rough or not pr.is_rough(prm, row, lb + 1))):
-                (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2) = glass_both(
+                (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2, p_r) = glass_both_share(
                     prm, row, ox, oy, oz, u1[j], u2[j])
                 j += 1
                 halves = 2
@@ -883,6 +911,8 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
                 pdf_out[kept] = pdf
             if split_out.shape[0] > 0:
                 split_out[kept] = is_split
+                split_p_out[kept] = (1.0 if not is_split else
+                                     p_r if half == 0 else 1.0 - p_r)
             kept += 1
     return kept
 
@@ -978,4 +1008,4 @@ def _warm_up():
                    np.ones((1, 3)), np.zeros(1, np.int64), np.zeros(7, np.int64), True,
                    np.ones(1, np.bool_), False, np.empty(2, np.int64), np.empty((2, 3)),
                    np.empty((2, 3)), np.empty((2, 3)), np.empty(2, np.int64), np.empty(2),
-                   np.empty(2, np.bool_))
+                   np.empty(2, np.bool_), np.empty(2))

@@ -210,7 +210,7 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
     paths), which Cycles renders through blurred lobes (glow36: a roughness 0.4 metal
     block on a diffuse floor, the floor beside it 1.19x Cycles at its default 1.0 without
     the blur, within 5 % of Cycles at 0). split: engine/glossysplit.py renders those
-    paths blurred too (on: Filter Glossy above 1/pi, final gathering); else ours does not
+    paths blurred too (on: Filter Glossy above 0, final gathering); else ours does not
     blur."""
     if not names:
         return
@@ -807,16 +807,18 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             portals = len(getattr(li, "portal_rects", ()))
             if portals:
                 # Not "from the whole sky": the shadow rays are aimed through the
-                # portals (newuser36's round window).
+                # portals (newuser36's round window). One portal is "it" (newuser46).
+                them, their, ps = (("them", "their", "s") if portals > 1 else
+                                   ("it", "its", ""))
                 how = (f"the World colour lights the scene through {portals} light "
-                       f"portal{'s' if portals > 1 else ''}: two shadow rays a sample, "
-                       "aimed through the portals where a surface sees the sky through "
-                       "them, straight out from it elsewhere" if env is None else
+                       f"portal{ps}: two shadow rays a sample, aimed through the "
+                       f"portal{ps} where a surface sees the sky through {them}, straight "
+                       "out from it elsewhere" if env is None else
                        f"environment map '{env.name}' ({env.width}x{env.height}) lights "
-                       f"the scene through {portals} light portal"
-                       f"{'s' if portals > 1 else ''} (shadow rays aimed through them, "
-                       + ("by the map seen through them)" if li.by_map else
-                          "uniformly over their solid angle, and by the map)"))
+                       f"the scene through {portals} light portal{ps} (shadow rays aimed "
+                       f"through {them}, "
+                       + (f"by the map seen through {them})" if li.by_map else
+                          f"uniformly over {their} solid angle, and by the map)"))
             else:
                 how = ("the World colour lights the scene from the whole sky: two shadow "
                        "rays a sample, aimed more often straight out from each surface, "
@@ -1033,6 +1035,18 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             glass_note += ("; the caustics of " + _quoted(plan.casters, most=REPORT_NAMES_MAX)
                            + " likewise reach Cycles' paths in rare bright samples that "
                            "its clamp cuts: they can read brighter here")
+        # A lamp (or the sky) seen through a closed glass object is indirect light to
+        # Cycles (bounce 2 or more: sampleclamp.py), and its clamp cuts it where it is
+        # bright (newuser46: a bottle before a window Area light at 0.63 of its unclamped
+        # self in Cycles, 0.74 in ours). Single-plane panes refract once: direct to Cycles.
+        panes = set(plan.window_glass) | set(plan.pane_glass)
+        seen_glass = [n for n in sharp_seen if kinds.get(n) == "glass" and n not in panes]
+        if s.clamp_indirect > 0 and seen_glass and emitting:
+            glass_note += ("; the light seen through glass "
+                           + _quoted(seen_glass, most=REPORT_NAMES_MAX)
+                           + " (a lamp or the sky behind it) reaches Cycles' camera paths "
+                           "after two refractions, as indirect light its clamp cuts where "
+                           "it is bright: such glass can read brighter here")
         plan.add("clamping", True,
                  f"Light Paths > Clamping: direct light {limit(s.clamp_direct)}, indirect "
                  f"light and photon estimates {limit(s.clamp_indirect)}; brighter samples "
@@ -1264,8 +1278,10 @@ def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> 
     """" (Glossy BSDF, roughness 0.2)" or " (metallic 1, roughness 0.2)": the closure
     behind a glossy-node or metal kind, so a student finds the setting; " (roughness
     0.2)" for glass that is not smooth (a Principled Transmission 1 at roughness 0.2 read
-    as plain "glass", as if its roughness were ignored: new-user trial, newuser28); ""
-    otherwise."""
+    as plain "glass", as if its roughness were ignored: new-user trial, newuser28);
+    " (coat, roughness 0.03)" for a dielectric layer sharper by its coat than by its own
+    roughness (newuser46's bowl at roughness 0.5 with a coat read as plain "glossy", as
+    the rough walls beside it are not); "" otherwise."""
     mats = np.unique(geo.material[geo.object_id == oid])
     if kind == "glass":
         # The smoothest transmitting material names it; smooth (the delta lobe) says nothing.
@@ -1282,6 +1298,11 @@ def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> 
         return (f" (metallic {float(np.max(table.metallic[metal])):.2g}, roughness "
                 f"{float(np.min(table.roughness[metal])):.2g}"
                 + (f", anisotropic {aniso:.2g}" if aniso > 0 else "") + ")")
+    if kind in ("glossy", "rough glossy"):
+        layer = _layer_roughness(table, mats)
+        coated = layer < np.asarray(table.roughness[mats], np.float64)
+        if coated.any() and float(layer[coated].min()) <= float(layer.min()):
+            return f" (coat, roughness {float(layer[coated].min()):.2g})"
     return ""
 
 

@@ -6,23 +6,24 @@ A caustic or glow photon's path L S1 ... Sm D is, to Cycles, the camera path D -
 ... -> S1 -> L, whose lobes Filter Glossy blurs by the camera side's pdfs (Cycles'
 surface_shader_prepare_closures: min_ray_pdf / Filter Glossy below 1 widens every later
 microfacet lobe to alpha 0.5 sqrt(1 - min_ray_pdf / Filter Glossy)). Cycles blurs the
-path iff min(pdf_D, pdf_Sm, ..., pdf_S2) < Filter Glossy, pdf_D the diffuse hit D's pdf
-of the direction the photon came from. A photon cannot carry blurred light (a smooth
-lobe's sample has no density under the blurred one), so:
-- the maps' estimate at D counts only the photons Cycles does not blur;
+path iff min(pdf_D, pdf_Sm, ..., pdf_S2) < Filter Glossy, pdf_D the diffuse hit D's
+one-sample MIS pdf (over its closures: the diffuse lobe and any specular layer) of the
+direction the photon came from. A photon cannot carry blurred light (a smooth lobe's
+sample has no density under the blurred one), so:
+- the maps' estimate at D counts only the photons Cycles does not blur: a photon counts
+  iff min(pdf_D(wo, -w_photon), its stored min(pdf_Sm .. pdf_S2)) >= Filter Glossy
+  (Photons.blur_pdf, photonkernels.reverse_pdf; DiffusePdf.reject_for); a D whose
+  largest pdf is below Filter Glossy (a Lambert-only D above 1 / pi) reads no photon;
 - the final-gather chains from D (gather_indirect -> continue_specular, vertices since
-  D all non-diffuse) blur their lobes by the chain's own min_pdf (starting at D's pdf of
-  the gather direction, cos / pi) and add, at every blurred vertex, the light the maps
-  now leave out: light sampling through the blurred lobes, reflective and refractive
-  (in full), and what the continued rays meet of the emitters light sampling leaves to
-  them (a constant world). The same predicate on the same path decides both sides: each
-  path is counted once.
+  D all non-diffuse) blur their lobes by the chain's own min_pdf (starting at pdf_D of
+  the gather direction, the same DiffusePdf) and add, at every blurred vertex, the
+  light the maps now leave out: light sampling through the blurred lobes, reflective
+  and refractive (in full), and what the continued rays meet of the emitters light
+  sampling leaves to them (a constant world). The same predicate on the same path
+  decides both sides: each path is counted once.
 
-Built here for Filter Glossy above 1 / pi (Cycles' default 1.0 among them) with D's pdf
-its Lambert lobe's, cos / pi <= 1 / pi: every path is blurred, so the maps' estimates at
-D are left out whole and no photon needs its own test. Below 1 / pi the split is off
-(the render as without it): the per-photon test needs each photon's reverse pdfs
-(docs/compatibility.md, "fgsplit46", what is left).
+For any Filter Glossy above 0 (fgsplit46 built it above 1 / pi with D's Lambert pdf;
+docs/compatibility.md "fgphoton46" the per-photon test).
 """
 from __future__ import annotations
 
@@ -31,9 +32,9 @@ import math
 import numpy as np
 
 
-# The split on (Filter Glossy above LAMBERT_PDF_MAX, photon mapping with final gathering);
-# False: the maps and chains as without it (Cycles at Filter Glossy 0), whatever the
-# scene's Filter Glossy.
+# The split on (Filter Glossy above 0, photon mapping with final gathering); False: the
+# maps and chains as without it (Cycles at Filter Glossy 0), whatever the scene's Filter
+# Glossy.
 ENABLED = True
 # The largest pdf of a Lambert bounce's direction (cos / pi at the normal), 1/sr.
 LAMBERT_PDF_MAX = 1.0 / math.pi
@@ -42,10 +43,10 @@ LAMBERT_PDF_MAX = 1.0 / math.pi
 def settings_filter_glossy(settings) -> float:
     """The Filter Glossy the split applies with these RenderSettings
     (cycles_filter_glossy), or 0.0 where it is off: ENABLED false, no photon mapping or
-    no final gathering, or Filter Glossy at most LAMBERT_PDF_MAX."""
+    no final gathering, or Filter Glossy 0 (or not a number)."""
     fg = float(getattr(settings, "cycles_filter_glossy", 0.0) or 0.0)
     if (not ENABLED or not settings.photon_mapping
-            or not getattr(settings, "final_gather", True) or not fg > LAMBERT_PDF_MAX):
+            or not getattr(settings, "final_gather", True) or not fg > 0.0):
         return 0.0
     return fg
 
@@ -59,9 +60,108 @@ def split_filter_glossy(ctx) -> float:
 
 
 def maps_blurred(ctx) -> bool:
-    """Whether the caustic and glow maps' estimates at the camera's diffuse hits are
-    left out whole (every photon's path is one Cycles blurs: the split is on)."""
+    """Whether the split is on: the caustic and glow maps' estimates at the camera's
+    diffuse hits count only the photons Cycles does not blur (DiffusePdf), the gather
+    chains the rest."""
     return split_filter_glossy(ctx) > 0.0
+
+
+class DiffusePdf:
+    """Cycles' one-sample MIS pdf (1/sr) at the camera's diffuse hits D (hit (N rows),
+    bsdf.closures' lobes: the same numbers on the maps' side and the chains' side) of a
+    direction wi leaving D, the camera's wo = hit.wo:
+
+        pdf_D(wi) = (sum_l p_l pdf_l(wo, wi) + w_d max(cos_i, 0) / pi) / (sum_l p_l + w_d)
+
+    (filterglossy.mis_pdf's form: p_l the non-diffuse lobes' weights, their albedo's max
+    channel as choose_lobes, the pass lobe's included; w_d the diffuse albedo's mean
+    channel; pdf_l principled.bsdf_pdf's reflective lobes). A row with no lobe of density
+    beside the diffuse one takes w_d cos / pi / (w_d + p_pass), exactly cos / pi without
+    a pass lobe (fgsplit46's bits). fg: the split's Filter Glossy.
+
+    largest (N,): an upper bound of each row's pdf_D (1 / pi x that share for those
+    rows, inf for the others); rows with largest < fg read no photon."""
+
+    def __init__(self, ctx, hit, fg: float):
+        from .bsdf import closures
+        from .closures import principled as pr
+        # (the hit's cached lobes if it has them; else set up here and not cached, so
+        # the camera side's own set-up, blurred or not, is left as it would be)
+        had = (hit.prm, hit.lobe_albedo)
+        prm, albedo = closures(ctx.table, hit, getattr(ctx, "geo", None))
+        hit.prm, hit.lobe_albedo = had
+        albedo = np.asarray(albedo, np.float64)
+        p = albedo[:, 1:, :].max(axis=2)  # (choose_lobes' order: SPEC_LOBES)
+        self.fg = float(fg)
+        self.prm = prm
+        self.sel = np.zeros((len(p), pr.N_LOBES))
+        self.sel[:, 1:] = p
+        self.psum = p.sum(axis=1)
+        self.wd = np.maximum(albedo[:, pr.L_DIFFUSE, :].mean(axis=1), 0.0)
+        others = [j for j in range(1, pr.N_LOBES) if j != pr.L_PASS]
+        self.lambert = ~(self.sel[:, others] > 0.0).any(axis=1)
+        self.plain = self.lambert & ~(self.psum > 0.0)  # (cos / pi exactly)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = np.where(self.plain, 1.0, self.wd / (self.wd + self.psum))
+        self.largest = np.where(self.lambert, share * LAMBERT_PDF_MAX, np.inf)
+        self.ns = np.asarray(hit.ns, np.float64)
+        self.wo = np.asarray(hit.wo, np.float64)
+
+    def none_unblurred(self) -> bool:
+        """No row can count a photon (every largest < fg): the maps' estimates are
+        left out whole, as fgsplit46 did above 1 / pi on Lambert floors."""
+        return not (self.largest >= self.fg).any()
+
+    def pdf(self, rows, wi, ns=None) -> np.ndarray:
+        """pdf_D (K,) of directions wi (K,3) (unit, leaving D) at hit rows rows (K,);
+        ns: the shading normals (N,3) by hit row (None: the hit's)."""
+        from .closures.principled import bsdf_pdf_many
+        rows = np.asarray(rows, np.int64)
+        wi = np.ascontiguousarray(wi, np.float64)
+        nsr = np.take(self.ns if ns is None else ns, rows, axis=0)
+        cos = np.einsum("ij,ij->i", wi, nsr)
+        out = np.maximum(cos, 0.0) / math.pi
+        mix = np.flatnonzero(~np.take(self.plain, rows))
+        for a in range(0, len(mix), PDF_BLOCK):
+            k = mix[a:a + PDF_BLOCK]
+            r = rows[k]
+            lobes = np.empty(len(k))
+            bsdf_pdf_many(np.ascontiguousarray(np.take(self.prm, r, axis=0)),
+                          np.ascontiguousarray(np.take(self.sel, r, axis=0)),
+                          np.ascontiguousarray(nsr[k]),
+                          np.ascontiguousarray(np.take(self.wo, r, axis=0)),
+                          np.ascontiguousarray(wi[k]), lobes)
+            wd = np.take(self.wd, r)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out[k] = (lobes + wd * out[k]) / (np.take(self.psum, r) + wd)
+        return np.where(np.isnan(out), np.inf, out)
+
+    def reject_for(self, pmap, sel):
+        """The maps' per-photon test at the query rows sel (Q,) of the hit (the rows a
+        _smooth_estimate reads): a callable (rows (H,) into sel, photons (H,) of pmap)
+        -> (H,) bool, True where Cycles blurs the photon's path (min(pdf_D(-w_photon),
+        Photons.blur_pdf) < fg: left out of the estimate)."""
+        ph = pmap.photons
+        stored = getattr(ph, "blur_pdf", None)
+        sel = np.asarray(sel, np.int64)
+
+        def reject(rows, photons):
+            r = np.take(sel, rows)
+            out = np.ones(len(r), bool)
+            test = np.flatnonzero(np.take(self.largest, r) >= self.fg)
+            if len(test):
+                pid = np.take(photons, test)
+                wi = -np.take(ph.direction, pid, axis=0).astype(np.float64)
+                wi /= np.maximum(np.linalg.norm(wi, axis=1), 1e-300)[:, None]
+                pd = self.pdf(r[test], wi)
+                if stored is not None:
+                    pd = np.minimum(pd, np.take(stored, pid).astype(np.float64))
+                out[test] = ~(pd >= self.fg)
+            return out
+        return reject
+
+
+PDF_BLOCK = 1 << 16  # DiffusePdf.pdf's pairs per call (its gathered lobe rows' memory)
 
 
 def raise_rows(prm, min_pdf, filter_glossy) -> None:
@@ -75,8 +175,8 @@ def raise_rows(prm, min_pdf, filter_glossy) -> None:
 
 class GatherChains:
     """One level-0 gather_indirect call's chain state for the split: per gathering hit
-    row, the min_pdf (1/sr) of its current ray's chain (D's cos / pi, then the minimum
-    with each continuation's pdf) and whether the vertex its ray left was blurred. fg:
+    row, the min_pdf (1/sr) of its current ray's chain (D's pdf, d_pdf: a DiffusePdf of
+    the gathering hits, then the minimum with each continuation's pdf) and whether the vertex its ray left was blurred. fg:
     split_filter_glossy(ctx) > 0. E (n,3) is the gather's irradiance sum (tp pi L / G per
     ray, as the lookups add).
 
@@ -87,9 +187,10 @@ class GatherChains:
     without shadow rays) and the mesh sides no shadow ray samples. A delta lamp through
     a blurred glass ball is then found, as Cycles finds it (figure8_caustic's spot)."""
 
-    def __init__(self, ctx, n: int, fg: float):
+    def __init__(self, ctx, n: int, fg: float, d_pdf: DiffusePdf):
         from . import integrator as it
         self.ctx, self.fg = ctx, fg
+        self.d_pdf = d_pdf
         self.min_pdf = np.full(n, np.inf)
         self.from_blurred = np.zeros(n, bool)
         self.modes = it.light_modes(ctx)
@@ -97,12 +198,13 @@ class GatherChains:
         self.continuation_lights = [li for li, m in enumerate(self.modes)
                                     if m == it.MODE_CONTINUATION]
         self.unsampled = it._unsampled_meshes(ctx)
+        self._vertex = None  # (q, psum, w_diffuse, ns) of vertex()'s hits
 
     def start(self, idx, d, ns):
         """The gather rays (hit rows idx (K,), directions d (K,3)) leave D (shading
-        normals ns (n,3) by hit row): min_pdf = D's Lambert pdf cos / pi."""
-        cos = np.einsum("ij,ij->i", np.asarray(d, np.float64), np.take(ns, idx, axis=0))
-        self.min_pdf[idx] = np.maximum(cos, 0.0) / math.pi
+        normals ns (n,3) by hit row): min_pdf = D's one-sample MIS pdf (DiffusePdf, the
+        maps' own predicate; cos / pi on a Lambert-only D)."""
+        self.min_pdf[idx] = self.d_pdf.pdf(idx, d, ns)
 
     def vertex(self, y, rows_idx, tp, E, G, rng, counters):
         """At chain hits y (the rows that continue: their hit rows rows_idx (M,), ray
@@ -119,6 +221,11 @@ class GatherChains:
         mp = np.ascontiguousarray(self.min_pdf[rows_idx])
         raise_rows(prm, mp, self.fg)
         choice = it.lobe_choice(albedo, tp)
+        # (continued's Cycles MIS pdfs: the unblurred lobe weights, the diffuse one's mean
+        # channel, by row of y)
+        alb = np.asarray(albedo, np.float64)
+        self._vertex = (choice[1], choice[3], (alb[:, 0, 0] + alb[:, 0, 1] + alb[:, 0, 2]) / 3.0,
+                        np.asarray(y.ns, np.float64))
         blurred = np.flatnonzero(mp < self.fg)
         if not len(blurred):
             return choice
@@ -143,11 +250,23 @@ class GatherChains:
         np.add.at(E, rows, add)
         return choice
 
-    def continued(self, rows_idx, pdf):
-        """The continued rays' chains (hit rows rows_idx (K,), continuation pdfs (K,),
-        inf for mirror-like lobes and refractions): whether the vertex they left was
-        blurred, then min_pdf lowered."""
+    def continued(self, rows_idx, pdf, rows_y=None, d=None):
+        """The continued rays' chains (hit rows rows_idx (K,), continuation pdfs (K,):
+        continue_specular's want_pdf, inf for mirror-like lobes and refractions; rows_y
+        (K,) the rows of the last vertex's y they left, d (K,3) their directions):
+        whether the vertex they left was blurred, then min_pdf lowered by Cycles'
+        one-sample MIS pdf of the continuation (filterglossy.mis_pdf, the form the
+        photons' reverse pdfs take: one predicate on both sides). rows_y None: by pdf
+        itself."""
+        from .filterglossy import mis_pdf
         self.from_blurred[rows_idx] = self.min_pdf[rows_idx] < self.fg
+        if rows_y is not None and self._vertex is not None and len(rows_idx):
+            q, psum, wd, ns = self._vertex
+            rows_y = np.asarray(rows_y, np.int64)
+            d = np.asarray(d, np.float64)
+            cos_i = np.einsum("ij,ij->i", np.take(ns, rows_y, axis=0), d)
+            pdf = mis_pdf(pdf, np.take(q, rows_y), np.take(psum, rows_y),
+                          np.take(wd, rows_y), cos_i)
         self.min_pdf[rows_idx] = np.minimum(self.min_pdf[rows_idx], pdf)
 
     def emission(self, rows_idx, o, d, tp, cls, E, G):

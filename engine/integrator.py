@@ -680,13 +680,13 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
 
 def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b, org_ns,
                         org_p, passages, lamp_w, clamping, tp, chain, acc, target, pix, ftp,
-                        feat, s):
+                        feat, s, clamp_tp=None):
     """Shadow Linking: the light of lamp li (whose shadows only its blockers cast, past:
     their lightlinking.BlockerAccel) that the rays o, d (left a surface; `sees` (n,) the
     rows that may see it) meet wherever it lies, unless a blocker lies between (Cycles'
     shadow_linking_intersect: such lamps are met by a dedicated ray, not the main path),
-    added as the ordinary lamp hits are (MIS when `mis`, shades, clamping); the paths
-    go on."""
+    added as the ordinary lamp hits are (MIS when `mis`, shades, clamping; clamp_tp:
+    _add_lamp_light's); the paths go on."""
     mask, tl, L = light.intersect(o, d, np.full(len(o), np.inf))
     if L is None or not mask.any():
         return
@@ -704,15 +704,18 @@ def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b,
     if not len(rows):
         return
     _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org_ns, org_p,
-                    link_prim, lamp_w, clamping, tp, chain, s, acc, target, pix, ftp, feat)
+                    link_prim, lamp_w, clamping, tp, chain, s, acc, target, pix, ftp, feat,
+                    clamp_tp)
 
 
 def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org_ns, org_p,
-                    link_prim, lamp_w, clamping, tp, chain, s, acc, target, pix, ftp, feat):
+                    link_prim, lamp_w, clamping, tp, chain, s, acc, target, pix, ftp, feat,
+                    clamp_tp=None):
     """The light L (K,3) of lamp li that the rays at rows met (at tl along o, d) into the
     accumulator: weighted by MIS against the BSDF rays' pdf_b when `mis` (the light tree's
     choice in the receiver sets of link_prim), by the shade the path left (lamp_w),
-    clamped, and into the data passes."""
+    clamped, and into the data passes. clamp_tp: (N,3) the throughput the clamp reads
+    (sampleclamp.split_throughput; None: tp)."""
     if mis:
         om, tm = o[rows], tl[rows]
         if passages is not None:
@@ -724,8 +727,8 @@ def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org
         # the glossy hit before (shadelight.shade_bsdf_weights).
         L = L * lamp_w[rows, li][:, None]
     if clamping:
-        L = sampleclamp.clamp(L, tp, rows, sampleclamp.bounce_limits(
-            s, np.take(chain[:, 0], rows) - 1))
+        L = sampleclamp.clamp(L, tp if clamp_tp is None else clamp_tp, rows,
+                              sampleclamp.bounce_limits(s, np.take(chain[:, 0], rows) - 1))
     acc.add(target, pix, L, tp, rows)
     datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
     if acc.light is not None:
@@ -733,11 +736,12 @@ def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org
 
 
 def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, org_ns, org_p,
-                        clamping, tp, chain, acc, target, pix, ftp, feat, s):
+                        clamping, tp, chain, acc, target, pix, ftp, feat, s, clamp_tp=None):
     """Shadow Linking for lights at infinity (suns): the rays rows_mask (n,) that met a
     surface see a shadow-linked sun's disc when no blocker of it lies in that direction
     (its BlockerAccel; Cycles' dedicated shadow-linking ray counts distant lights),
-    weighted as the discs the missing rays see (MIS, clamping)."""
+    weighted as the discs the missing rays see (MIS, clamping; clamp_tp:
+    _add_lamp_light's)."""
     for li, light in enumerate(ctx.lights):
         past = links.blocker_accel(li)
         if past is None or not hasattr(light, "seen_at_infinity"):
@@ -764,8 +768,9 @@ def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, or
                                     org_ns[rows], org_p[rows],
                                     _link_sets(ctx, link_prim, rows))[:, None]
         if clamping:
-            sun = sampleclamp.clamp(sun, tp, rows, sampleclamp.bounce_limits(
-                s, np.take(chain[:, 0], rows) - 1))
+            sun = sampleclamp.clamp(sun, tp if clamp_tp is None else clamp_tp, rows,
+                                    sampleclamp.bounce_limits(
+                                        s, np.take(chain[:, 0], rows) - 1))
         acc.add(target, pix, sun, tp, rows)
         datapasses.add_light(acc, pix, rows, tp, ftp, feat, sun)
         if acc.light is not None:
@@ -981,7 +986,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Cycles' Filter Glossy on the chains (engine/glossysplit.py; None: off): level 0's
     # chains blur their lobes and add the light the caustic / glow maps leave out.
     fg_split = glossysplit.split_filter_glossy(ctx) if level == 0 and not glow_only else 0.0
-    chains = glossysplit.GatherChains(ctx, n, fg_split) if fg_split > 0.0 else None
+    chains = (glossysplit.GatherChains(ctx, n, fg_split,
+                                       glossysplit.DiffusePdf(ctx, hit, fg_split))
+              if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
     cam_pdf = None if chains is None else getattr(hit, "min_ray_pdf", None)
     for g in range(G):
@@ -1229,6 +1236,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if yf is y:
                 keep, o, d, tp, ray_cls, *pdf = continue_specular(
                     ctx, y, tp, rng, ray_cls, choice=choice, want_pdf=chains is not None)
+                keep_f = keep
             else:
                 # Lean hits never continue (no lobe but the diffuse one); the survival
                 # numbers are drawn for every hit, as continue_specular draws them.
@@ -1238,9 +1246,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 keep, o, d, tp, ray_cls, *pdf = continue_specular(
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
                     go_u=go_u[full], choice=choice, want_pdf=chains is not None)
+                keep_f = keep
                 keep = full[keep]
             if chains is not None:
-                chains.continued(idx[keep], pdf[0])
+                chains.continued(idx[keep], pdf[0], keep_f, d)
                 chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G)
             if turned_refl is not None and turned_refl.escapes:
                 turned_h[idx[keep]] = (turned_h[idx[keep]]
@@ -1794,8 +1803,10 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     non-diffuse lobe); default: drawn here. split: (N,) bool, the hits where a picked
     smooth glass lobe (rough too with SPLIT_ROUGH_GLASS) continues both its reflection and
     its refraction, each with its Fresnel weight (camerakernels.glass_both): one kept
-    index may then appear twice, and a last element is returned, (K,) bool, the rays a
-    split made. The same uniform numbers are drawn either way."""
+    index may then appear twice, and two last elements are returned, (K,) bool, the rays a
+    split made, and (K,) float64, the probability with which Cycles' glass sampling would
+    have chosen each such ray's half (camerakernels.glass_both_share; 1 on the others).
+    The same uniform numbers are drawn either way."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit, ctx.geo)[1], tp))
     go = (psum > 0) & ((rng.random(len(p)) if go_u is None else go_u) < q)
@@ -1805,7 +1816,7 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
         empty = np.zeros((0, 3))
         out = (idx, empty, empty, empty, np.zeros(0, np.int64))
         out = out + (np.zeros(0),) if want_pdf else out
-        return out if split is None else out + (np.zeros(0, bool),)
+        return out if split is None else out + (np.zeros(0, bool), np.zeros(0))
     r = rng.random(m)
     lobe = np.empty(m, np.int64)
     prob = np.empty(m)
@@ -1833,6 +1844,7 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     pdf = np.empty(cap if want_pdf else 0)
     split_in = _NO_SPLIT if split is None else c(split, np.bool_)
     split_out = np.empty(cap if split is not None else 0, np.bool_)
+    split_p = np.empty(cap if split is not None else 0)
     # A writable copy: a read-only view would be a second kernel signature, compiled
     # during the first render instead of by jit.ensure_compiled.
     incoming = np.empty(len(p), np.int64)
@@ -1843,10 +1855,11 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
                        ctx.table.closure_params, c(ctx.table.alpha, np.float64), alpha, c(hit.p),
                        c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
                        incoming, _LOBE_CLASS, bool(want_pdf), split_in,
-                       bool(SPLIT_ROUGH_GLASS), rows, o, d, new_tp, cls, pdf, split_out)
+                       bool(SPLIT_ROUGH_GLASS), rows, o, d, new_tp, cls, pdf, split_out,
+                       split_p)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
     out = out + (pdf[:k],) if want_pdf else out
-    return out if split is None else out + (split_out[:k],)
+    return out if split is None else out + (split_out[:k], split_p[:k])
 
 
 # Camera paths sample the lights through rough glass (engine/glasslight.py; False: the
@@ -1959,7 +1972,8 @@ def smooth_min_photons(settings) -> int:
 
 
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
-                     per_pixel=None, every=None, into=None, counts=None, clamp_tp=None):
+                     per_pixel=None, every=None, into=None, counts=None, clamp_tp=None,
+                     blur=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most per_pixel samples per pixel (default
     CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
@@ -1975,7 +1989,8 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     specular chain: the photons usable for them alone, chaincounts.irradiance); None:
     the map's. clamp_tp: (N,3) the rows' camera-path throughputs, to hold each sample's
     estimate to Cycles' Clamp Indirect (engine/sampleclamp.py) before it is weighed up;
-    None: no clamp."""
+    None: no clamp. blur: a glossysplit.DiffusePdf of hit (Filter Glossy's split: only
+    the photons Cycles does not blur count, each row's search and disc kept) or None."""
     out = np.zeros_like(f) if into is None else into
     if pmap is None or len(pmap) == 0:
         return out
@@ -2005,18 +2020,20 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
     surface = hit_surfaces(ctx, None if getattr(hit, "prim", None) is None
                            else np.take(hit.prim, sel))
-    if PHOTON_VISIBILITY:
+    if PHOTON_VISIBILITY or blur is not None:
         # Only the photons each point can see (issue 14: a lamp shade piercing a wall);
         # one search a row for the estimate and its visibility rays.
         off = getattr(hit, "offset", None)
         E = photonvisibility.visible_irradiance(
-            pmap, getattr(ctx, "accel", None), np.take(hit.p, sel, axis=0),
+            pmap, getattr(ctx, "accel", None) if PHOTON_VISIBILITY else None,
+            np.take(hit.p, sel, axis=0),
             np.take(hit.ng, sel, axis=0), None if off is None else np.take(off, sel), radius,
             s.k_nearest, smooth_min_photons(s), s.estimator,
             r_floor=None if footprint is None else np.take(footprint, sel),
             limits=s.bounce_limits,
             counts=None if counts is None else np.take(counts, sel, axis=0),
-            geo=getattr(ctx, "geo", None), surface=surface)
+            geo=getattr(ctx, "geo", None), surface=surface,
+            reject=None if blur is None else blur.reject_for(pmap, sel))
     else:
         E = chaincounts.irradiance(
             pmap, s.bounce_limits, None if counts is None else np.take(counts, sel, axis=0),
@@ -2134,14 +2151,16 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
 
 
 def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, sample_id,
-                      footprint, bounce, rng, counters, should_cancel, clamping, lpass):
+                      footprint, bounce, rng, counters, should_cancel, clamping, lpass,
+                      clamp_tp=None):
     """The BSSRDF part of a camera bounce's subsurface hits: walks (j, W, per_walk) from
     SubsurfaceWalks.entries at the shaded rows dsel, walked (SubsurfaceWalks.exits) and
     each exit shaded as a Lambertian surface of weight W x the walk's throughput (direct
     light, caustic and indirect estimates), added where the entry's own diffuse share
-    goes (the same passes and bounce limits)."""
+    goes (the same passes and bounce limits). clamp_tp: _add_lamp_light's."""
     s = ctx.settings
     j, W, per_walk = walks
+    ctp = tp if clamp_tp is None else clamp_tp
     every = len(dsel) == len(hit.p)
     got = sss.exits(hit, None if every else dsel, j, W, rng, per_walk)
     if got is None:
@@ -2157,9 +2176,9 @@ def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, s
         None if sample_id is None else np.take(sample_id, rows),
         None if footprint is None else np.take(footprint, rows), should_cancel,
         bounce=bounce, extra=None if bounce == 0 else _chain_counts(chain[rows]),
-        clamp_tp=np.take(tp, rows, axis=0) if clamping else None)
+        clamp_tp=np.take(ctp, rows, axis=0) if clamping else None)
     if clamping:
-        direct = sampleclamp.clamp(direct, tp, rows, sampleclamp.bounce_limits(
+        direct = sampleclamp.clamp(direct, ctp, rows, sampleclamp.bounce_limits(
             s, np.take(chain[:, 0], rows)))
     if lpass is not None:
         lpass.shaded(pix, direct, tp, rows, lightpasses.DIFFUSE_DIRECT)
@@ -2217,25 +2236,31 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
-    if glossysplit.maps_blurred(ctx):
-        # Cycles' Filter Glossy blurs every caustic / glow photon's path here: the final
-        # gather's chains carry that light instead (engine/glossysplit.py).
+    # Cycles' Filter Glossy (engine/glossysplit.py; None: off): the caustic / glow maps
+    # count only the photons whose paths Cycles does not blur, the final gather's chains
+    # carry the rest; where no row can count one (a Lambert floor above 1 / pi) the
+    # estimates are left out whole.
+    fg = glossysplit.split_filter_glossy(ctx)
+    d_pdf = glossysplit.DiffusePdf(ctx, hit, fg) if fg > 0.0 else None
+    if d_pdf is not None and d_pdf.none_unblurred():
         caustic = np.zeros_like(f)
     else:
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f,
                                    sample_id, footprint, _caustic_per_pixel(ctx),
-                                   every=scattered, counts=extra, clamp_tp=clamp_tp)
-    if getattr(ctx, "glow_map", None) is not None and not glossysplit.maps_blurred(ctx):
-        # The glow shot's map beside the aimed one (render.GLOW_MAP_APART): as smooth
-        # within a pixel as a glow-only map, so as many estimates a pixel.
-        _smooth_estimate(ctx, ctx.glow_map, ctx.glow_radius, hit, f, sample_id, footprint,
-                         getattr(ctx, "glow_per_pixel", 0) or GLOW_SAMPLES_PER_PIXEL,
-                         every=scattered if GLOW_EVERY_SAMPLE_PAST_BOUNCE else None,
-                         into=caustic, counts=extra, clamp_tp=clamp_tp)
+                                   every=scattered, counts=extra, clamp_tp=clamp_tp,
+                                   blur=d_pdf)
+        if getattr(ctx, "glow_map", None) is not None:
+            # The glow shot's map beside the aimed one (render.GLOW_MAP_APART): as smooth
+            # within a pixel as a glow-only map, so as many estimates a pixel.
+            _smooth_estimate(ctx, ctx.glow_map, ctx.glow_radius, hit, f, sample_id,
+                             footprint,
+                             getattr(ctx, "glow_per_pixel", 0) or GLOW_SAMPLES_PER_PIXEL,
+                             every=scattered if GLOW_EVERY_SAMPLE_PAST_BOUNCE else None,
+                             into=caustic, counts=extra, clamp_tp=clamp_tp, blur=d_pdf)
     if ctx.gather_map is not None:
         # (the gather chains' share of the maps' light, where Filter Glossy moves it to
         # them, into the caustic term: glossysplit)
-        chained = np.zeros_like(f) if glossysplit.maps_blurred(ctx) else None
+        chained = np.zeros_like(f) if d_pdf is not None else None
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
                                        caustic=chained)
@@ -2872,6 +2897,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # Cycles' bounce of a contribution is the chain's bent bounces (chain[:, 0]) for light
     # sampled at a hit, one less for an emitter or the world the ray meets; 0 is direct.
     clamping = sampleclamp.enabled(s)
+    # Each path's clamp scale (sampleclamp.split_throughput): the product of the Cycles
+    # probabilities of the glass halves it took where a glass lobe split (None: 1 for
+    # every path, no split yet; only while clamping).
+    cscale = None
     # Each path's glass hits left to split (SPLIT_GLASS_HITS; None: the lobe choice
     # everywhere).
     may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
@@ -2957,7 +2986,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 _shadow_linked_lamp(ctx, li, light, past, o, d, sees & (ray_cls != CAMERA),
                                     link_prim, modes[li] == MODE_MIS, pdf_b, org_ns, org_p,
                                     passages, lamp_w, clamping, tp, chain, acc, target, pix,
-                                    ftp, feat, s)
+                                    ftp, feat, s, sampleclamp.split_throughput(tp, cscale))
                 sees = sees & (ray_cls == CAMERA)
                 if not sees.any():
                     continue
@@ -2985,7 +3014,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 _add_lamp_light(ctx, li, light, rows, L, o, d, tl,
                                 bounce > 0 and modes[li] == MODE_MIS and len(rows) > 0,
                                 passages, pdf_b, org_ns, org_p, link_prim, lamp_w, clamping,
-                                tp, chain, s, acc, target, pix, ftp, feat)
+                                tp, chain, s, acc, target, pix, ftp, feat,
+                                sampleclamp.split_throughput(tp, cscale))
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
@@ -2999,7 +3029,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # that left a surface and met one (the rays that missed see it below).
             _shadow_linked_suns(ctx, links, o, d, ~miss & (ray_cls != CAMERA), link_prim,
                                 modes, pdf_b, org_ns, org_p, clamping, tp, chain, acc,
-                                target, pix, ftp, feat, s)
+                                target, pix, ftp, feat, s,
+                                sampleclamp.split_throughput(tp, cscale))
         if world_row >= 0 and scatter is not None and miss.any():
             # Rays escaping into the world volume: the lamps' light it scatters along
             # their whole (infinite) length, cut where its transmittance is 1e-13
@@ -3089,8 +3120,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                 full = full + sun
                 raw = radiance
                 if clamping:
-                    radiance = sampleclamp.clamp(radiance, tp, missed, sampleclamp.bounce_limits(
-                        s, np.take(chain[:, 0], missed) - 1))
+                    radiance = sampleclamp.clamp(
+                        radiance, sampleclamp.split_throughput(tp, cscale), missed,
+                        sampleclamp.bounce_limits(s, np.take(chain[:, 0], missed) - 1))
                 acc.add(target, pix, radiance, tp, missed)
                 datapasses.add_light(acc, pix, missed, tp, ftp, feat,
                                      radiance if full is None else full)
@@ -3168,6 +3200,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 shade_from = shade_from[kept]
             if may_split is not None:
                 may_split = may_split[kept]
+            if cscale is not None:
+                cscale = cscale[kept]
             if fgblur is not None:
                 fgblur.take(kept)
             if feat is not None:
@@ -3318,7 +3352,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         org_ns if kept is None else org_ns[kept],
                         _link_sets(ctx, link_prim, kept))[:, None]
                 if clamping:
-                    Le = sampleclamp.clamp(Le, tp, None,
+                    Le = sampleclamp.clamp(Le, sampleclamp.split_throughput(tp, cscale), None,
                                            sampleclamp.bounce_limits(s, chain[:, 0] - 1))
                 acc.add(target, pix, Le, tp)
                 if lpass is not None:
@@ -3386,6 +3420,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Subsurface closures (engine/subsurfacewalk.py): wd keeps the diffuse share,
             # the BSSRDF's walks are shaded at their exits below (None: none here).
             walks = sss.entries(hit, None if every else dsel, wd) if sss is not None else None
+            ctp = sampleclamp.split_throughput(tp, cscale) if clamping else None
             direct, caustic, indirect = shade_diffuse(
                 ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
@@ -3393,7 +3428,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 scattered=scattered if every or scattered is None else scattered[dsel],
                 rows=None if every else dsel, bounce=bounce,
                 extra=None if bounce == 0 else _chain_counts(chain if every else chain[dsel]),
-                clamp_tp=(tp if every else np.take(tp, dsel, axis=0)) if clamping else None,
+                clamp_tp=(ctp if every else np.take(ctp, dsel, axis=0)) if clamping else None,
                 shade_glossy=sg, glossy_out=g_part)
             if sg is not None and sg.any():
                 shade_rows = np.zeros(n, np.bool_)
@@ -3401,7 +3436,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             direct_raw = direct
             if clamping:
                 # (A new array: direct may be the direct stage's buffers.)
-                direct = sampleclamp.clamp(direct, tp, dsel, sampleclamp.bounce_limits(
+                direct = sampleclamp.clamp(direct, ctp, dsel, sampleclamp.bounce_limits(
                     s, np.take(chain[:, 0], dsel)))
             if lpass is not None:
                 # Direct light by lobe at a path's first bent bounce, the photon
@@ -3424,7 +3459,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     sss_rng = np.random.default_rng(rng.integers(1 << 62))
                 _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium,
                                   sample_id, footprint, bounce, sss_rng, counters,
-                                  should_cancel, clamping, lpass)
+                                  should_cancel, clamping, lpass, ctp)
         if GLASS_LIGHT_SAMPLING:
             # Rough glass hits sample the lights behind their surface too (Cycles' light
             # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:
@@ -3462,8 +3497,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                             ctx, hit, gl, *glargs, [e for e in gsamples if e[0] == li],
                             counters, counts=gcounts)
                 if clamping:
-                    Lt = sampleclamp.clamp(Lt, tp, gl, sampleclamp.bounce_limits(
-                        s, np.take(chain[:, 0], gl)))
+                    Lt = sampleclamp.clamp(Lt, sampleclamp.split_throughput(tp, cscale), gl,
+                                           sampleclamp.bounce_limits(
+                                               s, np.take(chain[:, 0], gl)))
                 acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
                 if lpass is not None:
                     # The translucent lobe's share is Diffuse Direct (Cycles counts the
@@ -3514,7 +3550,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             keep, o, d, tp, ray_cls, pdf_b = (a[go] for a in (keep, o, d, tp, ray_cls,
                                                               pdf_b))
             if may_split is not None:
-                cont = cont[:6] + (cont[6][go],)
+                cont = cont[:6] + (cont[6][go], cont[7][go])
             # But it passes a transparent share, unbent (Cycles' TERMINATE_AFTER_TRANSPARENT).
             extra = passes_past_limit(ctx.table, hit, over, d_in, tp_in, cls_in)
             if len(extra[0]):
@@ -3523,7 +3559,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                            extra))
                 if may_split is not None:
                     cont = cont[:6] + (np.concatenate((cont[6],
-                                                       np.zeros(len(extra[0]), bool))),)
+                                                       np.zeros(len(extra[0]), bool))),
+                                       np.concatenate((cont[7], np.ones(len(extra[0])))))
         if fgblur is not None:
             # Each path's min_ray_pdf after this bounce: the continued direction's MIS pdf
             # (a pass, a mirror, smooth glass: inf, never the minimum).
@@ -3536,6 +3573,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if may_split is not None:
             # A split path's two rays have one split less left.
             may_split = may_split[keep] - cont[6]
+            if clamping and sampleclamp.SPLIT_SCALE:
+                # Each half's clamp shrinks by the probability Cycles' glass sampling
+                # would have taken it with (sampleclamp.split_throughput).
+                if cscale is not None:
+                    cscale = cscale[keep]
+                if cont[6].any():
+                    cscale = cont[7] if cscale is None else cscale * cont[7]
         # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
         # unbent) is none; else glossy or transmission by the continued ray's class.
         chain = np.take(chain, keep, axis=0)

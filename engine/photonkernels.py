@@ -428,13 +428,14 @@ def flat_tables(geo, table):
 
 _NO_ANISO_TAN = np.zeros((0, 3, 3))
 _NO_MAY_DIFFUSE = np.zeros(0, np.bool_)
+NO_BLUR_SLOT = np.zeros(0)  # scatter: no Filter Glossy state kept
 
 # _scatter's argument `plain`: its position in the argument list.
 _PLAIN_ARG = 31
 
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
-            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI):
+            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur_slot=NO_BLUR_SLOT):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -448,7 +449,9 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     where the hit's diffuse weight is > 0. pane_tri (T,) int64: the next-event pane
     (engine/panelight.py) of each triangle row, -1 for none, SHADE_TRANSLUCENT or
     SHADE_GLASS a next-event lamp shade's (engine/shadelight.py); empty (the default, and
-    for photons of lights served by neither): none."""
+    for photons of lights served by neither): none. blur_slot (slots,) float64: the
+    photons' Filter Glossy state by slot (_scatter; -1 at emission), empty (the default):
+    none kept, every stored photon's blur pdf inf."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -458,7 +461,7 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     else:
         bend_cos = math.cos(math.radians(GLASS_ADJOINT_MIN_BEND_DEG))
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-                    GLASS_ADJOINT_MODE, bend_cos)
+                    GLASS_ADJOINT_MODE, bend_cos, blur_slot)
 
 
 # How scatter sends photons at smooth glass with a bent shading normal.
@@ -751,10 +754,10 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              e1, e2, corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front,
              mat, base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id,
              caster, first_hit_mode, caustic_only, vis_on, limits,
-             st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface,
+             st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface, st_blur,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-             adjoint_mode, bend_cos):
+             adjoint_mode, bend_cos, blur_slot):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -794,6 +797,14 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     adjoint_mode: GLASS_ADJOINT_MODE's codes, bend_cos: the cosine between shading and
     geometric normal below which a smooth glass hit takes glassadjoint (the wrapper
     scatter passes the module's settings).
+
+    Filter Glossy's reverse pdfs (engine/glossysplit.py, docs/compatibility.md
+    "fgphoton46"): blur_slot (slots,) float64 per photon slot, the path's state: -1 (no
+    non-diffuse scatter since the light or the last diffuse bounce), else the minimum of
+    reverse_pdf over its non-diffuse scatters S_2 .. S_k since then (inf after S_1 alone).
+    Each stored photon writes that minimum to st_blur (float32; inf for -1), each
+    continued one the state after its scatter (a diffuse bounce: -1; a pass: unchanged).
+    Empty blur_slot: no state, st_blur inf.
 
     Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
     what is left); the power is divided by that probability and multiplied by the sampled
@@ -855,6 +866,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     # reference count; plain materials write only their two lobes, the only ones read).
     wj = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
+    blur_on = blur_slot.shape[0] > 0
+    # reverse_pdf's lobe weights, one row per FULL hit of a block (bsdf_pdf reads row jc).
+    rsel = np.zeros((_BLOCK, pr.N_LOBES))
     # A SMOOTH_GLASS hit's packed glass columns (smooth_glass; the others are not read).
     gprm = np.zeros((1, pr.N_PACK))
     # lobe_adjoint's set-up of a FULL hit at the photon's outgoing cosine.
@@ -992,6 +1006,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 for c in range(4):
                     st_bnc[ns_, c] = min((bi >> (_B_BITS * c)) & _B_MASK, BOUNCE_SATURATED)
                 st_surface[ns_] = object_id[t]
+                bs = blur_slot[slot[i]] if blur_on else -1.0
+                st_blur[ns_] = np.inf if bs < 0.0 else bs
                 ns_ += 1
             # --- Russian roulette over the lobes ---
             xi = uniform(key, slot[i], bounce, 0)
@@ -1048,6 +1064,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             gx, gy, gz = ng_b[j, 0], ng_b[j, 1], ng_b[j, 2]
             n0, n1, n2 = ns_b[j, 0], ns_b[j, 1], ns_b[j, 2]
             transmitted = False
+            ix = iy = iz = lx = ly = lz = 0.0  # (set by the non-diffuse lobes' samples)
             if lobe == pr.L_DIFFUSE:
                 u1 = uniform(key, slot[i], bounce, 1)
                 u2 = uniform(key, slot[i], bounce, 2)
@@ -1239,6 +1256,19 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     if (flat_on and glass and transmitted and not pane
                             and flat_entry(e1, e2, material, flat_mat, t, dx, dy, dz)):
                         nf |= F_IN_GLASS | (pre << _PRE_SHIFT) | (t << _TRI_SHIFT)
+            # --- Filter Glossy's reverse pdf state (glossysplit, "fgphoton46") ---
+            if blur_on:
+                old = blur_slot[slot[i]]
+                if lobe == pr.L_DIFFUSE:
+                    blur_slot[slot[i]] = -1.0
+                elif lobe != pr.L_PASS:
+                    if old < 0.0:
+                        blur_slot[slot[i]] = np.inf  # S_1: its pdf blurs nothing after it
+                    elif jc >= 0 and pr.is_rough(prm, jc, lobe):
+                        rp = reverse_pdf(prm, rsel, jc, wj, probs, transmitted,
+                                         ix, iy, iz, lx, ly, lz)
+                        if rp < old:
+                            blur_slot[slot[i]] = rp
             # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
             off = off_b[j] if ox * gx + oy * gy + oz * gz >= 0.0 else -off_b[j]
             nx_o[nn, 0] = p_b[j, 0] + off * gx
@@ -1278,6 +1308,37 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 nx_off[nn, 0], nx_off[nn, 1], nx_off[nn, 2] = 0.0, 0.0, 0.0
             nn += 1
     return ns_, nn
+
+
+@kernel
+def reverse_pdf(prm, rsel, jc, wj, probs, transmitted, ix, iy, iz, lx, ly, lz):
+    """Cycles' one-sample MIS pdf (1/sr; filterglossy.mis_pdf's form) with which the
+    camera side, arriving at FULL hit jc from the photon's next vertex (wo = the photon's
+    outgoing direction, local (ix, iy, iz) in the shading frame), samples the direction
+    back towards the photon's previous vertex (wi = -d, local (lx, ly, lz)):
+    (sum_l p_l pdf_l(wo, wi) + w_d max(cos_i, 0) / pi) / (sum_l p_l + w_d), p_l the
+    non-diffuse lobes' weights (probs: their albedo's max channel, as choose_lobes), w_d
+    the diffuse weight's mean channel (wj[L_DIFFUSE]). Reflections: principled.bsdf_pdf;
+    transmissions: transmission_pdf of the photon's own direction pair (the lobes are set
+    up at the photon's arriving side: the forward pdf stands for the reverse one, exact for
+    the translucent lobe, within the rough glass's eta^2 cosine ratio otherwise). rsel
+    (>= jc + 1, N_LOBES) scratch, row jc overwritten. NaN: inf (never a minimum)."""
+    psum = 0.0
+    rsel[jc, pr.L_DIFFUSE] = 0.0
+    for l in range(1, pr.N_LOBES):
+        rsel[jc, l] = probs[l]
+        psum += probs[l]
+    wd = (wj[pr.L_DIFFUSE, 0] + wj[pr.L_DIFFUSE, 1] + wj[pr.L_DIFFUSE, 2]) / 3.0
+    den = psum + max(wd, 0.0)
+    if not den > 0.0:
+        return np.inf
+    if transmitted:
+        lp = pr.transmission_pdf(prm, rsel, jc, lx, ly, lz, ix, iy, iz)
+    else:
+        lp = (pr.bsdf_pdf(prm, rsel, jc, ix, iy, iz, lx, ly, lz)
+              + max(wd, 0.0) * max(lz, 0.0) / math.pi)
+    out = lp / den
+    return out if out == out else np.inf
 
 
 @kernel
@@ -1369,10 +1430,11 @@ def surface_arrays(m: int):
 
 def store_arrays(m: int):
     """Buffers for up to m stored photons (position, power, direction, normal, kind,
-    bounce counts (m,4) uint8, surface (m,) int32: Photons' fields in order)."""
+    bounce counts (m,4) uint8, surface (m,) int32, blur pdf (m,) float32: Photons'
+    fields in order)."""
     return (np.empty((m, 3), np.float32), np.empty((m, 3), np.float32),
             np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty(m, np.uint8),
-            np.empty((m, 4), np.uint8), np.empty(m, np.int32))
+            np.empty((m, 4), np.uint8), np.empty(m, np.int32), np.empty(m, np.float32))
 
 
 def next_arrays(m: int, origins: bool = False):

@@ -163,7 +163,8 @@ class PhotonMap:
         self.photons = Photons(self.tree.position, power, *(
             np.take(a, source, axis=0) for a in (photons.direction, photons.normal,
                                                  photons.kind)), photons.emitted,
-            surface=None if photons.surface is None else np.take(photons.surface, source))
+            surface=None if photons.surface is None else np.take(photons.surface, source),
+            blur_pdf=None if photons.blur_pdf is None else np.take(photons.blur_pdf, source))
 
     def __len__(self):
         return len(self.photons)

@@ -36,6 +36,7 @@ from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
 from .coincident import CoincidentSurfaces
+from .glossysplit import settings_filter_glossy
 from .closures.principled import M_IOR
 from .console import short_count
 from .normalmap import bump_shadowing
@@ -71,12 +72,19 @@ class Photons:
     # query's tangent plane (engine/samesurface.py). None: unknown (any surface's photon
     # passes, the normal test alone decides).
     surface: np.ndarray | None = None
+    # (N,) float32 Filter Glossy's reverse pdf of each photon's path (1/sr; inf: none):
+    # the minimum, over its non-diffuse scatters S_2 .. S_m since the light or its last
+    # diffuse bounce, of the camera side's one-sample MIS pdf of the direction back
+    # towards the light (photonkernels.reverse_pdf; engine/glossysplit.py reads it).
+    # None: not kept (every photon inf).
+    blur_pdf: np.ndarray | None = None
 
     @classmethod
     def empty(cls):
         z = np.zeros((0, 3), np.float32)
         return cls(z, z.copy(), z.copy(), z.copy(), np.zeros(0, np.uint8),
-                   bounces=np.zeros((0, 4), np.uint8), surface=np.zeros(0, np.int32))
+                   bounces=np.zeros((0, 4), np.uint8), surface=np.zeros(0, np.int32),
+                   blur_pdf=np.zeros(0, np.float32))
 
     def __len__(self):
         return len(self.position)
@@ -92,14 +100,16 @@ class Photons:
         return Photons(*(np.take(a, rows, axis=0) for a in (
             self.position, self.power, self.direction, self.normal, self.kind)), self.emitted,
             None if self.bounces is None else np.take(self.bounces, rows, axis=0),
-            None if self.surface is None else np.take(self.surface, rows))
+            None if self.surface is None else np.take(self.surface, rows),
+            None if self.blur_pdf is None else np.take(self.blur_pdf, rows))
 
     @property
     def nbytes(self) -> int:
         return sum(a.nbytes for a in (self.position, self.power, self.direction,
                                       self.normal, self.kind)) + \
             (0 if self.bounces is None else self.bounces.nbytes) + \
-            (0 if self.surface is None else self.surface.nbytes)
+            (0 if self.surface is None else self.surface.nbytes) + \
+            (0 if self.blur_pdf is None else self.blur_pdf.nbytes)
 
     def usable(self, limits, camera=(0, 0, 0, 0)) -> np.ndarray:
         """(N,) bool: the photons whose light read at a camera-side vertex reached with
@@ -166,6 +176,15 @@ def concat_surfaces(*parts: Photons) -> np.ndarray | None:
     return np.concatenate([p.surface for p in parts])
 
 
+def concat_blur_pdfs(*parts: Photons) -> np.ndarray | None:
+    """The parts' Photons.blur_pdf concatenated in order (a part without: inf, no
+    reverse pdf), or None where no part has them."""
+    if all(p.blur_pdf is None for p in parts):
+        return None
+    return np.concatenate([np.full(len(p), np.inf, np.float32) if p.blur_pdf is None
+                           else p.blur_pdf for p in parts])
+
+
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
                   should_cancel=None, targets=None, first_hit=None, label=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
@@ -229,6 +248,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
             progress("photons", done / max(total, 1), f"Tracing {label} {short_count(done)}/{short_count(total)}")
     out = shot.photons()
     out.emitted = total
+    if not settings_filter_glossy(settings) > 0.0:
+        out.blur_pdf = None  # (no state kept: every photon's inf; 4 B a photon not held)
     return out
 
 
@@ -375,6 +396,10 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     elif vol is not None:
         vol.hetero = het  # (the free flights' scatter weights)
     limits = settings.bounce_limits
+    # Cycles' Filter Glossy on the maps' paths (engine/glossysplit.py): each photon's
+    # reverse-pdf state by slot (photonkernels._scatter's blur_slot; -1: none yet).
+    blur_slot = (np.full(int(slot.max()) + 1 if len(slot) else 0, -1.0)
+                 if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR_SLOT)
     # Which photons' last hit was a touching glass face met from inside, by slot
     # (CoincidentSurfaces.meet_hits; None: no glass touches anything).
     arrived = (np.zeros(int(slot.max()) + 1 if len(slot) else 0, bool)
@@ -496,12 +521,15 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 visibility, object_id, caster, mode, bool(caustic_only),
                                 vis_on, limits, *stored.room(m), *nxt_sets[k], hit_rows,
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
-                                may_diffuse=may_diffuse,
+                                may_diffuse=may_diffuse, blur_slot=blur_slot,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         if scattered is not None:
             n_nx = photonmedium.continue_scattered(nxt_sets[k], n_nx, scattered, flags, kinds,
                                                    bnc, slot)
+            if len(blur_slot):
+                # (a medium's scatter is a diffuse bounce to the reverse pdfs' state)
+                blur_slot[np.asarray(slot)[scattered[0]]] = -1.0
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
         if pmed is not None:
             # refracted in or out of a medium; out of an object's medium into the world
@@ -664,7 +692,7 @@ class _Shot:
         else:
             a = [x[:n] for x in self.arrays]
         self.arrays = None
-        return Photons(*a[:5], bounces=a[5], surface=a[6])
+        return Photons(*a[:5], bounces=a[5], surface=a[6], blur_pdf=a[7])
 
 
 def _factors(m: int):

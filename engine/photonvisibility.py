@@ -287,7 +287,7 @@ def _hidden_pairs(pmap, accel, p, n, lift, rows, slots, count, photons):
 
 
 def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator, r_floor,
-                     limits, counts, geo, visible=False, surface=None):
+                     limits, counts, geo, visible=False, surface=None, reject=None):
     """(E (M,3), rows (H,), photons (H,)): the estimate at p / n (chaincounts.irradiance,
     counts (M,4) or None) and its hidden (row, photon) pairs, by row: the photons each
     row's estimate read (_estimate_read) traced from the row (_hidden_pairs), in blocks
@@ -295,7 +295,10 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     OneSurfaceCells; None: none) are not traced. visible: E's rows that hide a photon
     hold their estimate from their visible photons alone (_visible_sums: from the read
     lists, the bits of _reestimate's second search). surface: the rows' (M,) object ids
-    (PhotonMap.knn_irradiance) or None."""
+    (PhotonMap.knn_irradiance) or None. reject: a callable (rows (H,) of p, map photons
+    (H,)) -> (H,) bool, the read pairs to leave out of E as well (counted as hidden ones
+    are, the same search and disc; not in the returned pairs), or None. accel None: no
+    pair is traced (reject's alone)."""
     m = len(p)
     if surface is not None:
         surface = query_surfaces(surface, m)
@@ -318,30 +321,64 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
             pmap, limits, counts_here, p[a:b], n[a:b], radius, k, min_photons, estimator,
             None if floor is None else floor[a:b],
             None if surface is None else surface[a:b])
-        if accel is None:
+        if accel is None and reject is None:
             continue
         here = (p[a:b], n[a:b], lift[a:b] if len(lift) else lift)
-        todo = np.flatnonzero(traced[a:b] & (count > 0) & (count <= photons.shape[1]))
-        rows, hid = _hidden_pairs(pmap, accel, *here, todo, todo, count, photons)
-        if visible and len(rows):
+        listed = np.flatnonzero((count > 0) & (count <= photons.shape[1]))
+        rows = hid = _NO_PAIRS
+        if accel is not None:
+            todo = listed[traced[a:b][listed]]
+            rows, hid = _hidden_pairs(pmap, accel, *here, todo, todo, count, photons)
+            rows_out.append(rows + a)
+            photons_out.append(hid)
+        if reject is not None:
+            rows, hid = _with_rejected(rows, hid, listed, listed, count, photons, a,
+                                       reject, len(pmap))
+        if (visible or reject is not None) and len(rows):
             _visible_sums(pmap, limits, counts_here, E[a:b], rows, rows, hid,
                           (count, photons, weight, factor))
-        rows_out.append(rows + a)
-        photons_out.append(hid)
         if len(wide):
-            slot = np.flatnonzero(traced[a:b][wide])
-            rows, hid = _hidden_pairs(pmap, accel, *here, wide[slot], slot, *wide_read[:2])
-            if visible and len(rows):
+            rows = hid = _NO_PAIRS
+            if accel is not None:
+                slot = np.flatnonzero(traced[a:b][wide])
+                rows, hid = _hidden_pairs(pmap, accel, *here, wide[slot], slot,
+                                          *wide_read[:2])
+                rows_out.append(rows + a)
+                photons_out.append(hid)
+            if reject is not None:
+                rows, hid = _with_rejected(rows, hid, wide, np.arange(len(wide)),
+                                           *wide_read[:2], a, reject, len(pmap))
+            if (visible or reject is not None) and len(rows):
                 # (each wide row's slot: its place in wide, which is ascending)
                 _visible_sums(pmap, limits, counts_here, E[a:b], rows,
                               np.searchsorted(wide, rows), hid, wide_read)
-            rows_out.append(rows + a)
-            photons_out.append(hid)
     if not rows_out:
         return E, np.zeros(0, np.int64), np.zeros(0, np.int64)
     rows, photons = np.concatenate(rows_out), np.concatenate(photons_out)
     order = np.argsort(rows, kind="stable")  # (the cut rows' pairs came after their block)
     return E, rows[order], photons[order]
+
+
+_NO_PAIRS = np.zeros(0, np.int64)
+
+
+def _with_rejected(rows, hid, qrows, slots, count, photons, a, reject, n_map):
+    """(rows, hid) hidden pairs (by row of the block) with the read pairs reject leaves
+    out added (the rows qrows (Q,) of the block, their read lists photons[slots[r],
+    :count[slots[r]]]; a: the block's first row of p, reject's rows are p's), each pair
+    once, sorted by row then photon."""
+    c = np.take(count, slots)
+    if not c.sum():
+        return rows, hid
+    pr = np.repeat(np.asarray(qrows, np.int64), c)
+    lists = np.take(photons, slots, axis=0)
+    ph = lists[np.arange(lists.shape[1])[None, :] < c[:, None]].astype(np.int64)
+    drop = np.asarray(reject(pr + a, ph), bool)
+    if not drop.any():
+        return rows, hid
+    key = np.unique(np.concatenate([np.asarray(rows, np.int64) * (n_map + 1) + hid,
+                                    pr[drop] * (n_map + 1) + ph[drop]]))
+    return key // (n_map + 1), key % (n_map + 1)
 
 
 def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None,
@@ -364,7 +401,8 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None,
 
 
 def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
-                       r_floor=None, limits=None, counts=None, geo=None, surface=None):
+                       r_floor=None, limits=None, counts=None, geo=None, surface=None,
+                       reject=None):
     """E (M,3) (W/m^2): the estimate pmap.irradiance (or chaincounts.irradiance with
     limits and counts (M,4) or None) at p / n (unit normals (M,3) facing the viewer;
     lift (M,) their ray offsets or None), with the rows that have hidden photons
@@ -372,7 +410,8 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     again from their visible photons alone (the hidden ones' power counted as 0, and the
     photons their camera-side counts cannot use, as chaincounts.irradiance does). Rows
     without a hidden photon keep the estimate's bits. accel None: the plain estimate.
-    surface: the rows' (M,) object ids (PhotonMap.knn_irradiance) or None."""
+    surface: the rows' (M,) object ids (PhotonMap.knn_irradiance) or None. reject:
+    _estimate_hidden's (pairs left out as hidden ones are; accel None: those alone)."""
     if pmap is None or len(pmap) == 0 or pmap.tree is None or len(p) == 0 or radius <= 0:
         return chaincounts.irradiance(pmap, limits, counts, p, n, radius, k, min_photons,
                                       estimator, r_floor=r_floor, surface=surface)
@@ -380,7 +419,8 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     # the bits of a second, masked search (_reestimate) for a fraction of its cost
     # (Figure 7: 2.4 CPU s of 35 were those searches, docs/performance.md "gatherspeed").
     E, _, _ = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
-                               r_floor, limits, counts, geo, visible=True, surface=surface)
+                               r_floor, limits, counts, geo, visible=True, surface=surface,
+                               reject=reject)
     return E
 
 

@@ -37,6 +37,7 @@ from .panelight import panes_for
 from .mortontree import KthTree
 from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
+                      concat_blur_pdfs,
                       trace_photons)
 from .resources import check_resources, regather_levels
 from .scene import Scene
@@ -333,8 +334,9 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
         if shoot:
             # The photon-hit view reads the photons' places and kinds alone: the shots'
             # other arrays (power, directions, normals, counts, surfaces: 44 B a photon,
-            # the maps hold their own copies) are let go before the camera pass (Figure
-            # 6: -33 MB of its peak, docs/performance.md, mem45).
+            # 48 with Filter Glossy's reverse pdfs; the maps hold their own copies) are
+            # let go before the camera pass (Figure 6: -33 MB of its peak,
+            # docs/performance.md, mem45).
             shots = tuple((ph.position, ph.kind) for ph in
                           shoot_photons(ctx, stats, progress, should_cancel, on_warning,
                                         on_plan))
@@ -826,7 +828,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
                                 for f in ("position", "power", "direction", "normal", "kind")),
                               bounces=np.concatenate([caustic.bounces, rest.bounces]),
-                              surface=concat_surfaces(caustic, rest))
+                              surface=concat_surfaces(caustic, rest),
+                              blur_pdf=concat_blur_pdfs(caustic, rest))
             caustic.emitted = emitted
     elif glow is not None:
         # Nothing focuses light (effects: glow only): the caustic map is the glow shot.
@@ -1042,7 +1045,7 @@ def _with_images(photons: Photons, images: Photons) -> Photons:
                    photons.emitted,
                    None if photons.bounces is None else
                    np.concatenate([photons.bounces, images.bounces]),
-                   concat_surfaces(photons, images))
+                   concat_surfaces(photons, images), concat_blur_pdfs(photons, images))
 
 
 def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:
@@ -1593,8 +1596,13 @@ def _glow_apart_words(stats: dict) -> str:
 # a window-lit room whose Principled floor, table and mug (roughness 0.3-0.6) throw the
 # sun's glow onto the walls, rms share 0.060: Cycles' walls at Filter Glossy 1 read
 # 0.978-0.988 of its own at 0 (ours 0.997-1.003 of the latter), so the blur took about a
-# fifth to a third of that glow; at 0.03 that is about 1 % of a surface's light.
+# fifth to a third of that glow. newuser46 (docs/accuracy.md): a kitchen whose white
+# worktop (roughness 0.2) and walls reflect a window light and an HDRI sun, rms share
+# 0.04: walls, cabinet and floor 0.958-0.977 of Cycles' own at 0, about all of the glow
+# (the blur also widens the lobes light meets after a diffuse bounce, which the glow,
+# light off a specular layer first, does not count). FILTER_GLOW_DIMS: that range.
 FILTER_GLOSSY_GLOW_SHARE = 0.03
+FILTER_GLOW_DIMS = (0.2, 1.0)
 
 
 def _glow_blur_words(settings: RenderSettings, stats: dict) -> str:
@@ -1612,11 +1620,13 @@ def _glow_blur_words(settings: RenderSettings, stats: dict) -> str:
         return ""  # (blurred as Cycles': engine/glossysplit.py)
     if not fg or share is None or not math.isfinite(share) or share < FILTER_GLOSSY_GLOW_SHARE:
         return ""
+    lo, hi = (100 * share * f for f in FILTER_GLOW_DIMS)
     return (f"; that glow is {100 * share:.0f} % (rms) of the diffuse light the camera "
             f"sees, and Cycles' Light Paths > Caustics > Filter Glossy ({fg:g}) widens those "
             "lobes after a diffuse bounce and dims it, so the surfaces it lights read "
-            "brighter here than in Cycles (by about a fifth to a third of the glow): set "
-            "Filter Glossy 0 in Cycles to compare")
+            f"brighter here than in Cycles, by about {lo:.1f}-{hi:.0f} % (a fifth of that "
+            "share to all of it in the rooms measured, more where the lamps' light meets a "
+            "specular layer after a diffuse bounce): set Filter Glossy 0 in Cycles to compare")
 
 
 def _caustic_radius_words(settings: RenderSettings, stats: dict, held: str) -> str:

@@ -16,6 +16,21 @@ smooth average, far below the spiky single-path values the clamp was made for, s
 clamp rarely touches it; where the estimate is taken for one sample of a block and weighed
 up by the block's length, it is clamped before the weighing (as each of the block's
 samples would be).
+
+Where our camera path splits at glass and Cycles' chooses (integrator.SPLIT_GLASS_HITS:
+the first glass hits continue both the reflection and the refraction, each weighted by
+its Fresnel share C_b, where Cycles takes branch b with probability P_b and throughput
+C_b / P_b), Cycles clamps the chosen path's whole value, so its expected contribution
+is sum_b P_b min(C_b / P_b, L) = sum_b min(C_b, P_b L): each split branch is clamped
+at P_b x the limit, and every later contribution of that path at the limit times the
+product of the P_b it took (its clamp scale). P_b is the probability Cycles' glass
+sampling gives that half (bsdf_microfacet.h, bsdf_microfacet_sample: pdf_reflect =
+average(reflectance) / average(reflectance + transmittance) at the sampled microfacet
+normal; the Fresnel reflectance on smooth clear glass; camerakernels.glass_both_share).
+Clamping tp x rgb at scale x limit is clamping (tp / scale) x rgb at the limit: the
+callers pass split_throughput(tp, scale) as the clamp's tp. Unclamped (a branch under
+its share of the limit) nothing changes; a split branch over it loses what Cycles'
+clamp takes from the samples that choose it (docs/accuracy.md, splitclamp46).
 """
 from __future__ import annotations
 
@@ -23,6 +38,10 @@ import numpy as np
 
 # Cycles' kernel limit per UI unit: the sum of three channels is compared.
 CHANNELS = 3.0
+# A glass split's halves clamped at their Cycles probability x the limit (above; False:
+# each half at the whole limit, which let a split bottle through glass read ~1.15x
+# Cycles, docs/accuracy.md newuser46).
+SPLIT_SCALE = True
 
 
 def limits(settings) -> tuple[float, float]:
@@ -67,3 +86,12 @@ def clamp(rgb, tp=None, rows=None, limit=np.inf) -> np.ndarray:
         out = rgb * scale[:, None]
     out[~finite] = 0.0  # (inf * 0 would be NaN)
     return out
+
+
+def split_throughput(tp, scale):
+    """The throughput the clamp reads for paths with clamp scale `scale` ((N,) float64,
+    the product of the Cycles probabilities P_b of the glass halves each path took where
+    it split; None: 1 for every path): tp / scale (N,3), so clamp(rgb,
+    split_throughput(tp, scale), rows, limit) holds tp[rows] * rgb to limit x
+    scale[rows]. tp itself (the same bits) where scale is None."""
+    return tp if scale is None else tp / scale[:, None]

@@ -149,9 +149,9 @@ class RenderSettings:
     # 1.0), read by the add-on: Cycles widens every glossy, mirror and glass lobe its paths
     # meet after a bounce of low pdf (to GGX alpha 0.41-0.5 after a diffuse bounce at 1.0:
     # surface_shader_prepare_closures). The camera paths do too (engine/filterglossy.py,
-    # docs/compatibility.md "fgcamera46"); above 1/pi (Cycles' default among them) with
-    # final gathering the caustic / glow maps' paths are rendered blurred as well
-    # (engine/glossysplit.py, "fgsplit46"); the rest (the secondary map, regathers) is
+    # docs/compatibility.md "fgcamera46"); with final gathering the caustic / glow maps'
+    # paths are rendered blurred as well, photon by photon (engine/glossysplit.py,
+    # "fgsplit46", "fgphoton46"); the rest (the secondary map, regathers) is
     # rendered unblurred, as Cycles with 0, and the effect report says where that differs.
     cycles_filter_glossy: float = 0.0
     # Cycles' Light Paths > Caustics > Reflective / Refractive of the scene (Cycles'

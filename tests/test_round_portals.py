@@ -279,3 +279,10 @@ def test_the_effect_report_says_the_world_lights_through_the_portals():
         with_portal
     without = world_line(_round_room(portal=False))
     assert "from the whole sky" in without and "portal" not in without, without
+    # One portal is "it", not "them" (newuser46's window: "through 1 light portal
+    # (shadow rays aimed through them, by the map seen through them)").
+    assert "aimed through the portal where a surface sees the sky through it" in with_portal, \
+        with_portal
+    mapped = world_line(_round_room(env=_sun_map()))
+    assert "through 1 light portal (shadow rays aimed through it, " in mapped, mapped
+    assert "them" not in mapped, mapped
