@@ -93,8 +93,9 @@ class SurfaceHit:
                           # shadow and gather rays from it start in that medium
     min_ray_pdf: np.ndarray | None = None  # (N,) 1/sr the camera path's min_ray_pdf before
                           # this hit (Cycles' Filter Glossy, engine/filterglossy.PathBlur),
-                          # set by the camera paths: the gather chains start from it
-                          # (glossysplit.GatherChains); None: inf (a camera ray's first hit)
+                          # set by the camera paths: the split's pdf at D is at most it
+                          # (glossysplit.DiffusePdf: the maps' per-photon test and the
+                          # gather chains' start); None: inf (a camera ray's first hit)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle

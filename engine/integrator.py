@@ -990,7 +990,6 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                        glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
-    cam_pdf = None if chains is None else getattr(hit, "min_ray_pdf", None)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -1016,9 +1015,6 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             buf.tp_ones = k
         if chains is not None:
             chains.start(idx, d, ns)
-            if cam_pdf is not None:
-                # (the camera path's own min_ray_pdf before D: Cycles' is the path's)
-                chains.min_pdf[idx] = np.minimum(chains.min_pdf[idx], np.take(cam_pdf, idx))
         if guide is not None:
             tp *= np.take(g_w, idx)[:, None]
             buf.tp_ones = 0

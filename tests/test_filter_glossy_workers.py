@@ -43,10 +43,10 @@ def test_filter_glossy_1_is_the_same_for_one_and_two_workers():
 
 def test_gather_chains_start_at_the_camera_paths_min_ray_pdf(monkeypatch):
     """Cycles' min_ray_pdf is the path's: camera -> rough metal M -> diffuse D -> S blurs
-    S by min(pdf_M, pdf_D), not by D's pdf alone. The level-0 gather chains start at the
-    smaller of D's cos / pi and the camera path's min_ray_pdf (SurfaceHit.min_ray_pdf,
-    set by integrator._trace_paths), so a hit reached through a low-pdf glossy bounce
-    blurs its chains' lobes as Cycles does."""
+    S by min(pdf_M, pdf_D), not by D's pdf alone. The split's pdf at D
+    (glossysplit.DiffusePdf) is at most the camera path's min_ray_pdf
+    (SurfaceHit.min_ray_pdf, set by integrator._trace_paths): the level-0 gather chains
+    start there and the maps' per-photon test reads the same number."""
     from engine import glossysplit
     from engine.bsdf import surface_hit
     from engine.integrator import Counters, gather_indirect
@@ -81,6 +81,12 @@ def test_gather_chains_start_at_the_camera_paths_min_ray_pdf(monkeypatch):
 
         monkeypatch.setattr(glossysplit.GatherChains, "vertex", spy)
         gather_indirect(ctx, hit, np.random.default_rng(5), Counters())
+        # The maps' side alike: no photon counts where the camera path's pdf is below
+        # Filter Glossy (the same predicate as the chains': each path counted once).
+        d_pdf = glossysplit.DiffusePdf(ctx, hit, 1.0)
+        assert np.all(d_pdf.largest[::2] <= 0.01)
+        wi = np.tile(hit.ns[:1], (m, 1))
+        assert np.all(d_pdf.pdf(np.arange(m), wi, np.tile(hit.ns[:1], (m, 1)))[::2] <= 0.01)
     finally:
         ctx.accel.close()
     rows = np.concatenate([r for r, _ in seen])
