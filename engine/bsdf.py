@@ -91,6 +91,11 @@ class SurfaceHit:
     medium: np.ndarray | None = None  # (N,) int64 the medium the hit point is in (a material
                           # row, -1: none known; engine/media.py), set by the camera paths:
                           # shadow and gather rays from it start in that medium
+    min_ray_pdf: np.ndarray | None = None  # (N,) 1/sr the camera path's min_ray_pdf before
+                          # this hit (Cycles' Filter Glossy, engine/filterglossy.PathBlur),
+                          # set by the camera paths: the split's pdf at D is at most it
+                          # (glossysplit.DiffusePdf: the maps' per-photon test and the
+                          # gather chains' start); None: inf (a camera ray's first hit)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle

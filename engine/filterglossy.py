@@ -68,7 +68,8 @@ def blur_alphas(filter_glossy, min_pdf) -> np.ndarray:
     fg, pdf = np.broadcast_arrays(np.asarray(filter_glossy, np.float64),
                                   np.asarray(min_pdf, np.float64))
     out = np.empty(fg.shape)
-    _blur_alphas(np.ascontiguousarray(fg.ravel()), np.ascontiguousarray(pdf.ravel()),
+    # (copies: broadcast_arrays' views made numba warn, FutureWarning, at every call)
+    _blur_alphas(np.array(fg, np.float64).ravel(), np.array(pdf, np.float64).ravel(),
                  out.reshape(-1))
     return out
 

@@ -104,6 +104,13 @@ class DiffusePdf:
         with np.errstate(invalid="ignore", divide="ignore"):
             share = np.where(self.plain, 1.0, self.wd / (self.wd + self.psum))
         self.largest = np.where(self.lambert, share * LAMBERT_PDF_MAX, np.inf)
+        # The camera path's min_ray_pdf before D (SurfaceHit.min_ray_pdf; None: inf, a
+        # camera ray's first hit): Cycles' min_ray_pdf is the path's, so camera -> rough
+        # metal -> D -> S blurs S by min(pdf_metal, pdf_D), on both sides alike.
+        cam = getattr(hit, "min_ray_pdf", None)
+        self.camera = None if cam is None else np.asarray(cam, np.float64)
+        if self.camera is not None:
+            self.largest = np.minimum(self.largest, self.camera)
         self.ns = np.asarray(hit.ns, np.float64)
         self.wo = np.asarray(hit.wo, np.float64)
 
@@ -113,8 +120,9 @@ class DiffusePdf:
         return not (self.largest >= self.fg).any()
 
     def pdf(self, rows, wi, ns=None) -> np.ndarray:
-        """pdf_D (K,) of directions wi (K,3) (unit, leaving D) at hit rows rows (K,);
-        ns: the shading normals (N,3) by hit row (None: the hit's)."""
+        """pdf_D (K,) of directions wi (K,3) (unit, leaving D) at hit rows rows (K,),
+        at most the camera path's min_ray_pdf there; ns: the shading normals (N,3) by
+        hit row (None: the hit's)."""
         from .closures.principled import bsdf_pdf_many
         rows = np.asarray(rows, np.int64)
         wi = np.ascontiguousarray(wi, np.float64)
@@ -134,6 +142,8 @@ class DiffusePdf:
             wd = np.take(self.wd, r)
             with np.errstate(invalid="ignore", divide="ignore"):
                 out[k] = (lobes + wd * out[k]) / (np.take(self.psum, r) + wd)
+        if self.camera is not None:
+            out = np.minimum(out, np.take(self.camera, rows))
         return np.where(np.isnan(out), np.inf, out)
 
     def reject_for(self, pmap, sel):

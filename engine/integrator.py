@@ -2165,6 +2165,8 @@ def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, s
     rows = np.asarray(dsel)[j[i]]
     if medium is not None:
         xhit.medium = np.take(medium, rows)
+    if hit.min_ray_pdf is not None:  # (the entry's path's, for the exits' gather chains)
+        xhit.min_ray_pdf = np.take(hit.min_ray_pdf, rows)
     direct, caustic, indirect = shade_diffuse(
         ctx, xhit, xw, rng, counters, None,
         None if sample_id is None else np.take(sample_id, rows),
@@ -3307,6 +3309,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             w_diffuse = np.zeros(n)
             if nd:
                 w_diffuse[dsel[:nd]] = (wd[:nd, 0] + wd[:nd, 1] + wd[:nd, 2]) / 3.0
+            # (each hit's path min_ray_pdf so far, inf at the camera's first hits: the
+            # gather chains from its diffuse lobe start there, glossysplit.GatherChains)
+            if bounce > 0:
+                hit.min_ray_pdf = fgblur.min_pdf
         if medium is not None:
             # The medium each hit point is in: its shadow and gather rays start there
             # (directlight.direct_light's medium_sigma, gather_indirect).

@@ -324,7 +324,8 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
         if cycles is not None and hasattr(cycles, attr):
             setattr(cycles, attr, COMPARE_BOUNCES)
     # Filter Glossy 0, as set_cycles renders the references: the add-on passes Cycles'
-    # (default 1.0), which engine/glossysplit.py now emulates.
+    # (default 1.0), which our camera paths (engine/filterglossy.py) and the maps' split
+    # (engine/glossysplit.py) now follow.
     if cycles is not None and hasattr(cycles, "blur_glossy"):
         cycles.blur_glossy = 0.0
     # No clamp, as set_cycles renders the references (the add-on reads Cycles' Clamping,
@@ -332,10 +333,6 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
     for owner in (pm, cycles):
         if owner is not None and hasattr(owner, "sample_clamp_indirect"):
             owner.sample_clamp_direct = owner.sample_clamp_indirect = 0.0
-    # No glossy blur, as set_cycles renders the references (the add-on reads Cycles'
-    # Filter Glossy, default 1, which our camera paths follow: engine/filterglossy.py).
-    if cycles is not None and hasattr(cycles, "blur_glossy"):
-        cycles.blur_glossy = 0.0
 
 
 def render_rgba(scene):

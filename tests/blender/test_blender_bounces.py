@@ -264,7 +264,10 @@ def test_glossy_limits_after_camera_chains_match_cycles(bpy_addon, tmp_path, glo
     scene.render.engine = "CYCLES"
     cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3]
     scene.render.engine = "PHOTONMAP"
-    pm = scene.photonmap
+    # (our defaults: make_blends.reset keeps the scene and an earlier test's settings;
+    # this test read 0.975x on the glass ball after eight other test files in one
+    # process, within 1 % alone)
+    pm = default_photonmap(scene)
     pm.spp, pm.seed = 32, 0
     ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "o.exr"))[..., :3]
     ratios = {}
