@@ -34,8 +34,13 @@ import numpy as np
 
 # The split on (Filter Glossy above 0, photon mapping with final gathering); False: the
 # maps and chains as without it (Cycles at Filter Glossy 0), whatever the scene's Filter
-# Glossy.
-ENABLED = True
+# Glossy. Off by default (s46): at a next-event pane (engine/panelight.py) or a lamp's
+# glass shade (engine/shadelight.py) the chains' light sampling adds the light those
+# shadow rays already carry (a floor under a sunlit single-plane pane read 1.51x Cycles,
+# tests/blender/test_pane_sun_cycles.py), and a glass of water read 0.36-0.44 of Cycles
+# (tests/blender/test_glass_of_water_cycles.py); the tests that measure the split switch
+# it on (docs/compatibility.md "fgsplit46", "Off by default").
+ENABLED = False
 # The largest pdf of a Lambert bounce's direction (cos / pi at the normal), 1/sr.
 LAMBERT_PDF_MAX = 1.0 / math.pi
 

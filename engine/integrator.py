@@ -1737,6 +1737,8 @@ def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None):
             continue
         escaped = ~ctx.accel.occluded(o, d, None, cls=GLOSSY)
         counters.shadow_rays += len(keep)
+        # (occlusion rays from the camera's first hits: counted with their shadow rays)
+        counters.count("camera shadow", 0, len(keep))
         for light in ctx.lights:
             if light.has_surface and light.ray_kinds & GLOSSY and escaped.any():
                 met, _, L = light.intersect(o, d, np.full(len(o), np.inf))

@@ -326,8 +326,13 @@ def test_session_stops_inside_the_gather_map_estimate(monkeypatch):
     with one worker (seconds under load), which polls the stop flag every STOP_ROWS rows.
     The hook waits for that call (its rows, argument 13, are the points): since
     worldfast43 a small k-NN estimate of the indirect share (a stride of ~1000 rows) comes
-    first and ended before the stop."""
+    first and ended before the stop. The map of so small a render is estimated lazily
+    (fast46: render.gather_points_lazy), a few rows a lookup: the whole-map estimate
+    larger renders make is the stage under test, so it is asked for."""
+    import importlib
     from engine import photonmap
+    render_module = importlib.import_module("engine.render")  # (also a function's name)
+    monkeypatch.setattr(render_module, "GATHER_POINTS_LAZY", False)
     session, latency, running = stop_inside(
         monkeypatch, photonmap, "_irradiance_rows", cornell_box(16, 12),
         RenderSettings(**SESSION), delay=0.05, when=lambda *args: len(args[13]) > 10_000)
