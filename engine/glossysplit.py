@@ -238,9 +238,9 @@ class GatherChains:
         choice = it.lobe_choice(albedo, tp)
         # (continued's Cycles MIS pdfs: the unblurred lobe weights, the diffuse one's mean
         # channel, by row of y)
-        alb = np.asarray(albedo, np.float64)
-        self._vertex = (choice[1], choice[3], (alb[:, 0, 0] + alb[:, 0, 1] + alb[:, 0, 2]) / 3.0,
-                        np.asarray(y.ns, np.float64))
+        from .closures.principled import L_DIFFUSE
+        wd = np.asarray(albedo, np.float64)[:, L_DIFFUSE, :].mean(axis=1)  # (as DiffusePdf's)
+        self._vertex = (choice[1], choice[3], wd, np.asarray(y.ns, np.float64))
         blurred = np.flatnonzero(mp < self.fg)
         if not len(blurred):
             return choice
