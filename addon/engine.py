@@ -746,7 +746,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         # lamps, the World, the emissive meshes' triangles); the export's count of lamps
         # where a render gives none (a cancel before the lights were prepared).
         n = info['lights']
-        lit = stats.get("light_census") or f"{n} light{'' if n == 1 else 's'}"
+        lit = (f"lights: {stats['light_census']}" if stats.get("light_census")
+               else f"{n} light{'' if n == 1 else 's'}")
         compiled = stats["time_compile"]
         adaptive = (f"adaptive: {stats['adaptive_mean_spp']:.1f} of {stats['adaptive_spp']} "
                     "samples a pixel, " if "adaptive_mean_spp" in stats else "")

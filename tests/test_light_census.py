@@ -27,7 +27,7 @@ def _room(background=(0.0, 0.0, 0.0)):
 
 def test_lamps_world_and_emitting_triangles_are_each_counted():
     s = _room()
-    assert _census(s) == "no lights"
+    assert _census(s) == "none"
     s.add_rect_area_light((0, -0.5, 3), (1, 1), power=400, name="Area")
     assert _census(s) == "1 lamp"
     s.add_point_light((1, 0, 2), power=60, name="Point")

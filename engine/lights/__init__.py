@@ -84,8 +84,9 @@ def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable,
 
 
 def light_census(lights: list[Light], scene: Scene | None = None) -> str:
-    """What lights the scene, short enough for Blender's stats line: "2 lamps + world +
-    64 emitting triangles", "1 lamp", "world", "no lights".
+    """What lights the scene, short enough for Blender's stats line ("lights: 2 lamps +
+    world + 64 emitting triangles"): "2 lamps + world + 64 emitting triangles", "1 lamp",
+    "world", "none".
 
     lights: prepare_lights' list (what the render samples and traces photons from); a
     Sky Texture's sun disc (a SUN light the export adds for the world, named as
@@ -106,7 +107,7 @@ def light_census(lights: list[Light], scene: Scene | None = None) -> str:
     parts = ([f"{lamps} lamp{'' if lamps == 1 else 's'}"] if lamps else []) + (
         ["world"] if world else []) + (
         [f"{triangles} emitting triangle{'' if triangles == 1 else 's'}"] if triangles else [])
-    return " + ".join(parts) or "no lights"
+    return " + ".join(parts) or "none"
 
 
 # A light portal is covered when a surface crosses the window's normal within this share
