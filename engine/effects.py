@@ -1055,11 +1055,17 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # dim World colour was called a sunlit room.
             lit = ("sunlit" if any(li.kind == SUN for li in emitting) else
                    "sky-lit (World)")
+            # (the probe ran and found no light's first diffuse bounce over the clamp:
+            # said, as the rest is a possibility; newuser45's room, which Cycles' clamp
+            # leaves as it is)
+            probed = (": a probe of its first diffuse bounces here finds none over it"
+                      if probe_clamp and has_tris else "")
             glass_note = ("; Cycles clamps each path sample, and the bounce light of a "
                           f"{lit} room comes to its paths in rare bright samples that the "
                           "clamp cuts, while photon estimates are smooth and seldom reach "
                           "it: such rooms can read brighter here than in Cycles (where the "
-                          "clamp cuts anything); set Indirect to 0 in both to compare them")
+                          f"clamp cuts anything{probed}); set Indirect to 0 in both to "
+                          "compare them")
         if s.clamp_indirect > 0 and plan.caustics and plan.casters:
             # (newuser41: the rims of glass eyes 1.12x Cycles at Indirect 10, up to 1.9x
             # in a block; 1.000 with Cycles' clamp off)

@@ -868,7 +868,10 @@ def test_clamping_line_names_the_light_whose_bounce_light_cycles_clamp_cuts():
     # Far from the floor nothing is cut: no light named.
     plan = _plan(room(3.0), clamp_indirect=10.0)
     assert plan.clamped == {}, plan.clamped
-    assert "the bounce light of 'Area'" not in _line(plan, "clamping: on")
+    line = _line(plan, "clamping: on")
+    assert "the bounce light of 'Area'" not in line, line
+    # (the World's possibility note, saying the probe found nothing)
+    assert "a probe of its first diffuse bounces here finds none over it" in line, line
     # The lamp alone (no sun, no World): the cut is named all the same (the note was
     # for scenes a sun or the World lights only).
     s = room(1.0)
