@@ -54,3 +54,15 @@ def test_a_world_alone_one_emitting_triangle_and_a_sky_sun():
     assert light_census(ctx.lights, ctx.scene) == "1 lamp"
     sky = SimpleNamespace(environment=SimpleNamespace(sun_light={"name": "Sky sun"}))
     assert light_census(ctx.lights, sky) == "world"
+
+
+def test_a_render_and_a_progressive_render_carry_it_in_their_stats():
+    """The add-on's Done line reads film.stats["light_census"] from either render."""
+    from engine.progressive import Budget, render_progressive
+    from engine.render import render
+    s = _room(background=(0.2, 0.3, 0.4))
+    s.add_point_light((1, 0, 2), power=60, name="Point")
+    settings = RenderSettings(photons=500, spp=1, workers=1)
+    assert render(s, settings).stats["light_census"] == "1 lamp + world"
+    film = render_progressive(s, settings, Budget(passes=1))
+    assert film.stats["light_census"] == "1 lamp + world"
