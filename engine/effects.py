@@ -1035,12 +1035,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             kinds_of = {li.name: li.kind for li in emitting}
             which = ", ".join(_light_words(k, kinds_of.get(k), v)
                               for k, v in named[:REPORT_NAMES_MAX])
+            lights_it = "it lights" if len(named) == 1 else "they light"
             glass_note = ("; Cycles clamps each path sample, and the bounce light of "
                           + which + " comes to its paths in samples brighter than the "
                           "clamp, which it cuts (that share of the first diffuse bounce's "
                           "light off the surfaces in view, by a probe of Cycles' samples "
                           "here), while photon estimates are smooth and "
-                          f"seldom reach it: what {'it lights' if len(named) == 1 else 'they light'} "
+                          f"seldom reach it: what {lights_it} "
                           "can read brighter here than in Cycles; set Indirect to 0 in both "
                           "to compare them")
         elif s.clamp_indirect > 0 and any(li.kind in (SUN, WORLD) for li in emitting):
@@ -1534,7 +1535,7 @@ def _light_words(name: str, kind, share: float) -> str:
 # light's bounce light (newuser46's kitchen; docs/accuracy.md, report47).
 CLAMP_PROBE = 64           # probe grid: camera rays along the image's longer side
 CLAMP_PROBE_REPEATS = 8    # bounce samples per probe ray
-CLAMP_CUT_MIN = 0.002      # a light is named when the clamp cuts this share of the probed bounce light
+CLAMP_CUT_MIN = 0.002      # named when the clamp cuts this share of the probed bounce light
 CLAMP_PROBE_LIGHTS = 16    # the brightest lights probed (by photon flux; one kernel call each)
 
 
