@@ -742,11 +742,16 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         _previous_frame_warnings.update(
             scene=scene.name, frame=scene.frame_current,
             keys={warning_key(w) for w in [*early, *film.warnings]})
+        # What lights the scene as the render found it (engine.lights.light_census: the
+        # lamps, the World, the emissive meshes' triangles); the export's count of lamps
+        # where a render gives none (a cancel before the lights were prepared).
         n = info['lights']
+        lit = (f"lights: {stats['light_census']}" if stats.get("light_census")
+               else f"{n} light{'' if n == 1 else 's'}")
         compiled = stats["time_compile"]
         adaptive = (f"adaptive: {stats['adaptive_mean_spp']:.1f} of {stats['adaptive_spp']} "
                     "samples a pixel, " if "adaptive_mean_spp" in stats else "")
-        summary = (f"{info['triangles']} triangles, {n} light{'' if n == 1 else 's'}, "
+        summary = (f"{info['triangles']} triangles, {lit}, "
                    + adaptive +
                    f"{elapsed:.1f} s" + (f" (+ {compiled:.1f} s "
                                          f"{kernel_words(compiling)})"

@@ -133,6 +133,9 @@ class EffectPlan:
     # glossy photons" and the maps line that explains it (render.py GLOW_SHOT).
     glow_label: str = ""
     trapped: dict = field(default_factory=dict)  # light name -> closed mesh it is shut in
+    # light name -> share of the probed bounce light Cycles' Indirect clamp cuts from it
+    # (clamped_bounce_light; only where that clamp is on)
+    clamped: dict = field(default_factory=dict)
     decisions: list = field(default_factory=list)
     warnings: list = field(default_factory=list)  # students' mistakes, explained
 
@@ -419,7 +422,11 @@ def _light_path_line(plan, geo, table) -> None:
                  "; ".join(parts) + "; photons and diffuse rays see the material itself")
 
 
-def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, settings) -> EffectPlan:
+def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, settings,
+            probe_clamp: bool = True) -> EffectPlan:
+    # probe_clamp: measure what Cycles' Indirect clamp cuts for the clamping line
+    # (clamped_bounce_light, ~0.1-0.3 s); a viewport session, which shows no report,
+    # leaves it out.
     plan = EffectPlan()
     s = settings
     rng = np.random.default_rng([s.seed, 99])
@@ -1009,6 +1016,14 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           and d.effect.startswith(("sun through glass", "world through glass",
                                                    "lamp through shade"))})
         glass_note = ""
+        # Which lights' bounce light the clamp cuts, measured by a probe of Cycles'
+        # samples (clamped_bounce_light): the note named the World for a kitchen whose
+        # cut was its window Area light's (newuser46; docs/accuracy.md, report47).
+        if s.clamp_indirect > 0 and has_tris and probe_clamp:
+            plan.clamped = clamped_bounce_light(scene, geo, table, emitting, accel,
+                                                3.0 * s.clamp_indirect,
+                                                np.random.default_rng([s.seed, 95]))
+        named = [(k, v) for k, v in plan.clamped.items() if v >= CLAMP_CUT_MIN]
         if s.clamp_indirect > 0 and through:
             glass_note = ("; light through window glass and lamp shades (" + ", ".join(through)
                           + ") is indirect light to Cycles, whose clamp cuts much of it "
@@ -1016,6 +1031,19 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           "samples): ours takes it by shadow rays, smoothly, and keeps it, "
                           "so Cycles renders such a room darker than ours; set Indirect to 0 "
                           "in both to compare them")
+        elif named:
+            kinds_of = {li.name: li.kind for li in emitting}
+            which = ", ".join(_light_words(k, kinds_of.get(k), v)
+                              for k, v in named[:REPORT_NAMES_MAX])
+            lights_it = "it lights" if len(named) == 1 else "they light"
+            glass_note = ("; Cycles clamps each path sample, and the bounce light of "
+                          + which + " comes to its paths in samples brighter than the "
+                          "clamp, which it cuts (that share of the first diffuse bounce's "
+                          "light off the surfaces in view, by a probe of Cycles' samples "
+                          "here), while photon estimates are smooth and "
+                          f"seldom reach it: what {lights_it} "
+                          "can read brighter here than in Cycles; set Indirect to 0 in both "
+                          "to compare them")
         elif s.clamp_indirect > 0 and any(li.kind in (SUN, WORLD) for li in emitting):
             # Cycles clamps each path sample; a sunlit room's bounce light reaches its
             # paths in rare bright samples, which the clamp cuts, while our photon
@@ -1028,11 +1056,17 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # dim World colour was called a sunlit room.
             lit = ("sunlit" if any(li.kind == SUN for li in emitting) else
                    "sky-lit (World)")
+            # (the probe ran and found no light's first diffuse bounce over the clamp:
+            # said, as the rest is a possibility; newuser45's room, which Cycles' clamp
+            # leaves as it is)
+            probed = (": a probe of its first diffuse bounces here finds none over it"
+                      if probe_clamp and has_tris else "")
             glass_note = ("; Cycles clamps each path sample, and the bounce light of a "
                           f"{lit} room comes to its paths in rare bright samples that the "
                           "clamp cuts, while photon estimates are smooth and seldom reach "
                           "it: such rooms can read brighter here than in Cycles (where the "
-                          "clamp cuts anything); set Indirect to 0 in both to compare them")
+                          f"clamp cuts anything{probed}); set Indirect to 0 in both to "
+                          "compare them")
         if s.clamp_indirect > 0 and plan.caustics and plan.casters:
             # (newuser41: the rims of glass eyes 1.12x Cycles at Indirect 10, up to 1.9x
             # in a block; 1.000 with Cycles' clamp off)
@@ -1479,3 +1513,112 @@ def _visible_specular(scene, geo, table, accel, probe=96, through=3) -> list:
         tmax = tmax - t - step
     ids = np.unique(geo.object_id[np.concatenate(seen)])
     return [geo.object_names[i] for i in ids]
+
+
+
+def _light_words(name: str, kind, share: float) -> str:
+    """A light and the share of the bounce light the clamp cuts from it, as the
+    clamping line names them: "'Window' (area light, 0.7 %)", "the World (0.5 %)", "the
+    emissive meshes (1.0 %)"."""
+    pct = f"{100 * share:.1f} %"
+    if kind == WORLD:
+        return f"the World ({pct})"
+    if kind == MESH:
+        return f"the emissive meshes ({pct})"
+    what = {"AREA": "area light", "POINT": "point light", "SPOT": "spot light",
+            "SUN": "sun"}.get(str(kind), "light")
+    return f"'{name}' ({what}, {pct})"
+
+# The clamping line names the lights whose bounce light Cycles' Indirect clamp cuts, by a
+# probe of the samples Cycles' paths would make here (clamped_bounce_light), not by a
+# light's kind: the line credited the World for what the clamp cut off a window Area
+# light's bounce light (newuser46's kitchen; docs/accuracy.md, report47).
+CLAMP_PROBE = 64           # probe grid: camera rays along the image's longer side
+CLAMP_PROBE_REPEATS = 8    # bounce samples per probe ray
+CLAMP_CUT_MIN = 0.002      # named when the clamp cuts this share of the probed bounce light
+CLAMP_PROBE_LIGHTS = 16    # the brightest lights probed (by photon flux; one kernel call each)
+
+
+def clamped_bounce_light(scene, geo: Geometry, table: MaterialTable, lights: list, accel,
+                         limit: float, rng, probe: int = CLAMP_PROBE,
+                         repeats: int = CLAMP_PROBE_REPEATS) -> dict:
+    """{light name: the share of the probed bounce light that Cycles' clamp cuts from that
+    light's samples}, for each emitting light with a cut above 0 (sorted by it, largest
+    first).
+
+    The samples are Cycles' at its first indirect bounce, diffuse to diffuse: a probe
+    grid of camera rays (probe along the image's longer side, each `repeats` times)
+    meets x; a cosine-sampled ray from x (the diffuse lobe's albedo a_x,
+    datapasses.lobe_albedo) meets y; each light's one shadow-ray sample at y
+    (integrator.light_shadow_rays: irradiance E as the kernels sample it, occluded rays
+    0) gives the sample a_x a_y / pi E (W sr^-1 m^-2, RGB), which Cycles' film_clamp_light
+    scales to |R| + |G| + |B| <= limit (engine/sampleclamp.py; limit = 3 x Indirect). The
+    share is the cut summed over the samples over every light's samples summed. Left
+    out: Cycles' light tree picks one light per sample (its sample is E / P_pick, so it
+    cuts more where several lights share a point), glossy lobes at x or y (a glossy
+    worktop's glints) and deeper bounces; surfaces past glass (the camera's first hit
+    only). Measured against Cycles (docs/accuracy.md, report47): a floor under a 400 W
+    1 m area light 1 m above it, 11 % here, Cycles' Diffuse Indirect 8.9 % lower at
+    Indirect 10 than off; at 3 m none, Cycles 0.0 %; newuser46's kitchen 0.7 % of its
+    window Area light, none of its HDRI and Point lamp (Cycles: the window light's
+    bounce light 1 % lower on the walls, the HDRI's and the lamp's within 0.6 %)."""
+    from types import SimpleNamespace
+    from .bsdf import surface_hit
+    from .datapasses import lobe_albedo
+    from .integrator import camera_rays, light_shadow_rays
+    flux = [float(luminance(np.asarray(li.photon_flux))) for li in lights]
+    emitting = sorted((i for i, f in enumerate(flux) if f > 0),
+                      key=lambda i: -flux[i])[:CLAMP_PROBE_LIGHTS]
+    if not emitting or geo.count == 0 or scene.camera is None or not np.isfinite(limit):
+        return {}
+    W, H = scene.width, scene.height
+    nx = max(1, int(round(probe * W / max(W, H))))
+    ny = max(1, int(round(probe * H / max(W, H))))
+    px = np.tile(np.repeat((np.arange(nx) + 0.5) / nx * W, ny), repeats)
+    py = np.tile(np.tile((np.arange(ny) + 0.5) / ny * H, nx), repeats)
+    o, d, tmax = camera_rays(scene.camera, geo.offset, W, H, np.floor(px), np.floor(py),
+                             rng.random(len(px)), rng.random(len(py)))
+    _, prim, u, v = accel.intersect(o, d, tmax)
+    rows = np.nonzero(prim >= 0)[0]
+    if not len(rows):
+        return {}
+    hx = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
+    a_x = lobe_albedo(table, hx)[1][:, 0, :]
+    keep = np.nonzero(a_x.sum(axis=1) > 0)[0]
+    if not len(keep):
+        return {}
+    # Cosine-weighted directions about the shading normal (pdf cos / pi: the sample's
+    # weight is the diffuse albedo).
+    n = hx.ns[keep]
+    r1, r2 = rng.random(len(keep)), rng.random(len(keep))
+    s, phi = np.sqrt(r1), 2.0 * math.pi * r2
+    a = np.where(np.abs(n[:, :1]) > 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    t1 = np.cross(n, a)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    wd = (t1 * (s * np.cos(phi))[:, None] + t2 * (s * np.sin(phi))[:, None]
+          + n * np.sqrt(np.maximum(1.0 - r1, 0.0))[:, None])
+    o2 = hx.clear(keep, wd)
+    _, prim2, u2, v2 = accel.intersect(o2, wd)
+    on = np.nonzero(prim2 >= 0)[0]
+    if not len(on):
+        return {}
+    hy = surface_hit(geo, table, prim2[on], u2[on], v2[on], wd[on])
+    weight = a_x[keep][on] * lobe_albedo(table, hy)[1][:, 0, :] / math.pi
+    ctx = SimpleNamespace(lights=lights, geo=geo)
+    cut, total = {}, 0.0
+    for i in emitting:
+        lit, irr, o32, d32, t32 = light_shadow_rays(ctx, hy, i, rng)
+        if not len(lit) or len(o32) != len(lit):
+            continue
+        seen = ~np.asarray(accel.occluded(o32, d32, t32), bool)
+        sample = weight[lit] * irr * seen[:, None]
+        sums = np.abs(sample).sum(axis=1)
+        over = sums > limit
+        total += float(sample.sum())
+        c = float((sample[over] * (1.0 - limit / sums[over])[:, None]).sum())
+        if c > 0:
+            cut[lights[i].name] = cut.get(lights[i].name, 0.0) + c
+    if total <= 0:
+        return {}
+    return dict(sorted(((k, c / total) for k, c in cut.items()), key=lambda kv: -kv[1]))

@@ -38,6 +38,7 @@ import numpy as np
 
 from .datapasses import FIRST_SAMPLE
 from .film import EFFECTS, Film
+from .lights import light_census
 from .mallocheap import render_heap
 from .parallel import Cancelled
 from .render import (_check_region, close_context, prepare_context, render_cryptomatte,
@@ -288,7 +289,8 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     film = merger.film
     film.stats.update(progressive=True, passes=i, error_estimate=merger.error,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
-                      effects=ctx.plan.report(), time_total=time.perf_counter() - t_start)
+                      effects=ctx.plan.report(), light_census=light_census(ctx.lights, scene),
+                      time_total=time.perf_counter() - t_start)
     film.warnings = scene.all_warnings() + ctx.plan.warnings + pass_warnings
     tell(film.warnings)
     return film

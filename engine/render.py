@@ -22,7 +22,7 @@ from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons, smooth_per_pixel
 from .jit import ensure_compiled
 from .lightlinking import links_for
-from .lights import allocate_photons, prepare_lights
+from .lights import allocate_photons, light_census, prepare_lights
 from .lights.base import InfiniteLight
 from .lights import packing as pk
 from .lights.packing import pack_lights
@@ -629,6 +629,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
         settings, film.stats, glow_only=ctx.plan.caustics_glow_only,
         glow_words=ctx.plan.glow_words),
                       triangles=ctx.geo.count, lights=len(ctx.lights),
+                      light_census=light_census(ctx.lights, ctx.scene),
                       extent=ctx.geo.extent, time_prepare=t_prepare,
                       time_total=time.perf_counter() - t_start)
     film.warnings = (scene.all_warnings() + ctx.plan.warnings + early

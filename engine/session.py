@@ -406,7 +406,9 @@ class Session:
         # The view may have moved without a rebuild: Camera / Window coordinates follow it.
         set_camera_view(ctx.geo, scene)
         ctx.settings = s
-        ctx.plan = analyse(scene, ctx.geo, ctx.table, ctx.lights, ctx.accel, s)
+        # (no clamp probe: the viewport shows no effect report)
+        ctx.plan = analyse(scene, ctx.geo, ctx.table, ctx.lights, ctx.accel, s,
+                           probe_clamp=False)
         key = _photon_plan_key(ctx.plan)
         if key != self._plan_key:
             self._photons.clear()

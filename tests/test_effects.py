@@ -842,6 +842,44 @@ def test_report_says_when_clamping_is_on():
     assert "clamping" not in effects(dark.render(dataclasses.replace(base, clamp_indirect=10.0)))
 
 
+def test_clamping_line_names_the_light_whose_bounce_light_cycles_clamp_cuts():
+    """The clamping line names the light whose bounce light Cycles' Indirect clamp cuts,
+    measured by a probe of Cycles' first diffuse bounces (effects.clamped_bounce_light),
+    not by the lights' kinds: newuser46's kitchen (a window Area light, an HDRI) read
+    "the bounce light of a sky-lit (World) room" where Cycles' clamp cut the Area
+    light's (docs/accuracy.md, newuser46 / report47). A 400 W 1 m area light 1 m over
+    the floor under a dim World: Cycles' Diffuse Indirect 8.9 % lower at Indirect 10 than
+    off; at 3 m 0.0 %."""
+    def room(height):
+        s = PaperScene(width=24, height=18, background=(0.2, 0.3, 0.4))
+        s.add_material(Material("white", (0.8, 0.8, 0.8)))
+        s.add_plane((0, 0, 0), (0, 0, 1), 6, "white", name="Floor")
+        s.add_plane((0, 2.0, 1.5), (0, -1, 0), (6, 3), "white", name="BackWall")
+        s.add_rect_area_light((0, 0.5, height), (1, 1), power=400, name="Area")
+        s.set_camera((0, -5, 2.5), (0, 0.5, 0.5), view_angle=50)
+        return s
+
+    plan = _plan(room(1.0), clamp_indirect=10.0)
+    line = _line(plan, "clamping: on")
+    assert "the bounce light of 'Area' (area light, " in line, line
+    assert "sky-lit (World)" not in line, line
+    assert 0.05 < plan.clamped["Area"] < 0.2, plan.clamped
+    assert "world" not in plan.clamped, plan.clamped
+    # Far from the floor nothing is cut: no light named.
+    plan = _plan(room(3.0), clamp_indirect=10.0)
+    assert plan.clamped == {}, plan.clamped
+    line = _line(plan, "clamping: on")
+    assert "the bounce light of 'Area'" not in line, line
+    # (the World's possibility note, saying the probe found nothing)
+    assert "a probe of its first diffuse bounces here finds none over it" in line, line
+    # The lamp alone (no sun, no World): the cut is named all the same (the note was
+    # for scenes a sun or the World lights only).
+    s = room(1.0)
+    s.background = (0.0, 0.0, 0.0)
+    assert "the bounce light of 'Area' (area light, " in _line(
+        _plan(s, clamp_indirect=10.0), "clamping: on")
+
+
 def test_clamping_line_names_the_light_seen_through_glass():
     """newuser46's bottle in front of a window Area light read 1.18x Cycles at its default
     Indirect 10 (0.99x with both clamps off): the lamp seen through a closed glass object

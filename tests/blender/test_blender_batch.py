@@ -17,6 +17,11 @@ pytestmark = pytest.mark.blender
 OLD = b"the previous frame, which must survive"
 SMALL = ["--samples", "2", "--photons", "5000", "--caustic-photons", "2000",
          "--resolution-percentage", "25"]
+# What lights the scene in the closing line (engine.lights.light_census): "lights: 2
+# lamps + world + 64 emitting triangles", "lights: 1 lamp", "lights: world", "lights:
+# none" (report47).
+LIT = (r"lights: (?:none|(?:\d+ lamps?|world|\d+ emitting triangles?)"
+       r"(?: \+ (?:world|\d+ emitting triangles?))*)")
 
 
 def _batch(*args):
@@ -41,7 +46,8 @@ def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
     assert re.search(r"\d+% \[\d\d:\d\d<\d\d:\d\d\]", err), err[-2000:]  # bar with ETA
     assert "100%" in err
     # the closing summary whole, on its own line (the bar's column cut it off)
-    assert re.search(r"^Done: \d+ triangles, \d+ lights?, [\d.]+ s", err, re.M), err[-2000:]
+    assert re.search(rf"^Done: \d+ triangles, {LIT}, [\d.]+ s", err, re.M), err[-2000:]
+    assert re.search(r"^Done: \d+ triangles, lights: 1 lamp, ", err, re.M), err[-2000:]
     assert re.search(r"^  indirect light .*: on", err, re.M), err[-2000:]  # effect report
     assert re.search(r"^  caustics: on", err, re.M)
     states = _states(err)  # each drawn once in a log (s30: each twice)
@@ -53,6 +59,17 @@ def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
                      r"\.blend and "
                      r"writing the image [\d.]+ s\)", res.stdout), res.stdout[-2000:]
     assert out.is_file()
+
+
+def test_batch_done_line_counts_the_world_as_a_light(tmp_path):
+    """hdri_sphere's HDRI lights it alone: the closing line says "lights: world" (it said
+    "0 lights", the lamps alone, as a lamp shade of Emission went uncounted: newuser45 /
+    newuser46, docs/accuracy.md report47)."""
+    res = _batch(os.path.join(BLENDS, "hdri_sphere.blend"), "-o", str(tmp_path / "h.png"),
+                 *SMALL)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert re.search(r"^Done: \d+ triangles, lights: world, [\d.]+ s", res.stderr,
+                     re.M), res.stderr[-2000:]
 
 
 @pytest.fixture(scope="module")
@@ -370,7 +387,7 @@ def test_batch_time_split_counts_every_render_of_the_run(tmp_path):
     assert rendering <= total
     res = _batch(blend, "-o", str(tmp_path / "f_####.png"), "--frames", "1..2", *SMALL)
     assert res.returncode == 0, res.stderr[-2000:]
-    frames = [float(t) for t in re.findall(r"^Done: \d+ triangles, \d+ lights?, ([\d.]+) s",
+    frames = [float(t) for t in re.findall(rf"^Done: \d+ triangles, {LIT}, ([\d.]+) s",
                                            res.stderr, re.M)]
     assert len(frames) == 2, res.stderr[-2000:]
     total, rendering = _run_split(res.stdout)
