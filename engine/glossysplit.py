@@ -71,6 +71,58 @@ def maps_blurred(ctx) -> bool:
     return split_filter_glossy(ctx) > 0.0
 
 
+def lambert_only_materials(table) -> np.ndarray:
+    """(M,) bool: the materials whose every hit with a diffuse lobe has no lobe of density
+    beside it but a transparent pass (DiffusePdf's `lambert` rows at every hit): no
+    metal, glass, specular (weight or IOR level 0), coat, sheen or translucent layer, no
+    texture-driven closure input and no subsurface walk; and those with no diffuse lobe
+    at all (geometry.MaterialTable.has_diffuse false, untextured: no photon is read there).
+    table: geometry.MaterialTable."""
+    from .closures import principled as pr
+    q = np.asarray(table.closure_params, np.float64)
+    m = len(q)
+    if m == 0:
+        return np.zeros(0, bool)
+    scalar = np.array([x is not None for x in (table.scalar_textures or [None] * m)], bool)
+    sss = np.array([x is not None for x in (getattr(table, "subsurface", None)
+                                            or [None] * m)], bool)
+    # (NaN compares false: a NaN column is not Lambert)
+    no_layer = ((q[:, pr.M_METALLIC] <= 0.0) & (q[:, pr.M_TRANS] <= 0.0)
+                & ((q[:, pr.M_SPEC] <= 0.0) | (q[:, pr.M_LEVEL] == 0.0))
+                & (q[:, pr.M_TL] <= 0.0) & (q[:, pr.M_SHEEN_W] <= 0.0)
+                & (q[:, pr.M_COAT_W] <= 0.0) & (q[:, pr.M_NODE] == pr.NODE_PRINCIPLED))
+    lambert = no_layer & ~scalar & ~sss
+    # (a colour texture may lift a base colour the table holds as black)
+    textured = np.array([x is not None for x in (table.textures or [None] * m)], bool)
+    return lambert | (~np.asarray(table.has_diffuse, bool) & ~textured & ~scalar)
+
+
+def scene_materials(geo, table) -> np.ndarray:
+    """(K,) int64: the material rows a render's surfaces use (geo.material's, and the
+    rows their Light Path variants remap them to: table.ray_remap)."""
+    used = np.unique(np.asarray(geo.material, np.int64))
+    for rows in (getattr(table, "ray_remap", None) or {}).values():
+        used = np.union1d(used, np.take(np.asarray(rows, np.int64), used))
+    return used
+
+
+def maps_unread(settings, table, materials=None) -> bool:
+    """Whether no caustic or glow photon can be read anywhere in a render with these
+    RenderSettings and geometry.MaterialTable (materials: the rows its surfaces use,
+    scene_materials; None: every row), given it builds a gather map (the split's
+    condition, split_filter_glossy): the split is on above 1/pi (a Lambert-only D's
+    largest pdf, DiffusePdf.largest, is at most 1/pi, so every photon there is
+    blurred; the camera path's min_ray_pdf only lowers it) and every material a camera
+    path can read the maps at is Lambert-only (lambert_only_materials). Then every
+    estimate is left out whole (DiffusePdf.none_unblurred at every lookup) and the caustic
+    / glow shots need not be traced (render._photon_pass)."""
+    fg = settings_filter_glossy(settings)
+    if not fg > LAMBERT_PDF_MAX:
+        return False
+    ok = lambert_only_materials(table)
+    return bool((ok if materials is None else np.take(ok, materials)).all())
+
+
 class DiffusePdf:
     """Cycles' one-sample MIS pdf (1/sr) at the camera's diffuse hits D (hit (N rows),
     bsdf.closures' lobes: the same numbers on the maps' side and the chains' side) of a

@@ -233,6 +233,50 @@ def test_filter_glossy_1e_6_keeps_the_bits_of_0():
     np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
 
 
+def test_unread_caustic_and_glow_shots_are_not_traced(monkeypatch):
+    """glossy_floor's only diffuse surface is a matte wall: above Filter Glossy 1/pi the
+    split reads no caustic or glow photon there (glossysplit.maps_unread), so the shots
+    are left untraced (render.SKIP_UNREAD_SHOTS; fgroom46: 3.1 of 67 CPU s spent on them
+    on newuser44's table). The image keeps its bits (the shots' streams are their own and
+    no estimate read them), the pass emits fewer photons, and the maps line says why.
+    With a specular layer on the wall (a D whose pdf may reach Filter Glossy) or at
+    Filter Glossy 0.3 (below 1/pi) they are traced."""
+    import sys
+    from engine.geometry import MaterialTable
+    rd = sys.modules["engine.render"]  # (engine.render is also the function's name)
+    kw = dict(photons=20_000, caustic_photons=20_000, spp=2, seed=1, workers=1,
+              cycles_filter_glossy=1.0)
+    skipped = render(_glossy_floor(), RenderSettings(**kw))
+    monkeypatch.setattr(rd, "SKIP_UNREAD_SHOTS", False)
+    traced = render(_glossy_floor(), RenderSettings(**kw))
+    np.testing.assert_array_equal(np.asarray(skipped.combined), np.asarray(traced.combined))
+    np.testing.assert_array_equal(np.asarray(skipped.caustic), np.asarray(traced.caustic))
+    assert traced.stats["caustic_photons_emitted"] > 0
+    assert skipped.stats["caustic_photons_emitted"] == 0
+    assert "caustic" in skipped.stats["shots_unread"]
+    assert "shots_unread" not in traced.stats
+    assert (skipped.stats["photons_emitted_all"]
+            <= traced.stats["photons_emitted_all"] - traced.stats["caustic_photons_emitted"])
+    line = next(e for e in skipped.stats["effects"] if e.startswith("photon maps"))
+    assert "no caustic" in line and "photons traced: at Filter Glossy 1" in line, line
+    monkeypatch.setattr(rd, "SKIP_UNREAD_SHOTS", True)
+    # The predicate: a specular layer on the diffuse wall keeps the shots; a metal or
+    # glass without a diffuse lobe does not; Filter Glossy at or below 1/pi keeps them.
+    mats = [Material("metal", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.2),
+            Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0),
+            Material("white", (0.8, 0.8, 0.8), specular=0.0)]
+    on = RenderSettings(cycles_filter_glossy=1.0)
+    assert glossysplit.maps_unread(on, MaterialTable.build(mats))
+    assert not glossysplit.maps_unread(RenderSettings(cycles_filter_glossy=0.3),
+                                       MaterialTable.build(mats))
+    plastic = Material("plastic", (0.8, 0.8, 0.8), specular=0.5, roughness=0.3)
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [plastic]))
+    sheen = Material("cloth", (0.8, 0.8, 0.8), specular=0.0, sheen_weight=0.5)
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [sheen]))
+    monkeypatch.setattr(glossysplit, "ENABLED", False)
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats))
+
+
 def test_the_chains_return_what_the_maps_dropped():
     """Roughness 0.7 (alpha 0.49, above the blur's 0.41-0.5: the blur changes little):
     at Filter Glossy 1 the split renders the floor's glow on the wall by the chains'
