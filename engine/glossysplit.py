@@ -273,13 +273,17 @@ class GatherChains:
         maps' own predicate; cos / pi on a Lambert-only D)."""
         self.min_pdf[idx] = self.d_pdf.pdf(idx, d, ns)
 
-    def vertex(self, y, rows_idx, tp, E, G, rng, counters):
+    def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None):
         """At chain hits y (the rows that continue: their hit rows rows_idx (M,), ray
         throughputs tp (M,3)): blur y's lobes by the chains' min_pdf (y.prm raised in
         place after the closures' set-up, the albedos kept), add light sampling through
         the blurred lobes (radiance towards y.wo) at the blurred rows to E, and return the
         continuation's lobe choice (integrator.lobe_choice of the unblurred albedos) for
-        continue_specular."""
+        continue_specular. counts: (M,4) int64 the camera-side bounce counts the hits
+        are reached with (B_TOTAL order, D's diffuse bounce included; None: D's alone):
+        a hit past the Light Paths limits takes no light sample (Cycles shades no vertex
+        a terminated path reaches: docs/design.md, Bounce limits), and the shadow rays
+        of the others cross flat passages as those limits allow."""
         from . import integrator as it
         from .bsdf import closures
         from .glasslight import rough_transmission_rows, transmitted_light
@@ -293,9 +297,11 @@ class GatherChains:
         from .closures.principled import L_DIFFUSE
         wd = np.asarray(albedo, np.float64)[:, L_DIFFUSE, :].mean(axis=1)  # (as DiffusePdf's)
         self._vertex = (choice[1], choice[3], wd, np.asarray(y.ns, np.float64))
-        blurred = np.flatnonzero(mp < self.fg)
+        counts = self.vertex_counts(len(mp), counts)
+        blurred = np.flatnonzero((mp < self.fg) & self.shaded(counts))
         if not len(blurred):
             return choice
+        counts = np.ascontiguousarray(counts[blurred])
         sub = y if len(blurred) == len(mp) else y.take(blurred)
         if sub is not y:
             sub.prm = np.ascontiguousarray(prm[blurred])
@@ -305,17 +311,37 @@ class GatherChains:
         # heuristic).
         no_sel = np.zeros((n, choice[0].shape[1]))
         L = it.direct_irradiance(ctx, sub, rng, counters, bsdf=(np.zeros((n, 3)), sub.prm,
-                                                               no_sel))
+                                                               no_sel), counts=counts)
         # ... and by their rough refraction (engine/glasslight.py), in full as well.
         gl = rough_transmission_rows(sub.prm, np.arange(n, dtype=np.int64))
         if len(gl):
             samples = it.light_sample_list(ctx, len(gl), rng, modes=self.modes)
             L[gl] += transmitted_light(ctx, sub, gl, sub.prm, no_sel, np.ones(n),
-                                       self.modes, samples, counters)
+                                       self.modes, samples, counters,
+                                       counts=np.ascontiguousarray(counts[gl]))
         rows = rows_idx[blurred]
         add = np.take(np.asarray(tp, np.float64), blurred, axis=0) * (math.pi / G) * L
         np.add.at(E, rows, add)
         return choice
+
+    # D's diffuse bounce: the counts (B_TOTAL order) of a chain's first hit past D on a
+    # camera path that reached D with none.
+    D_BOUNCE = (1, 1, 0, 0)
+
+    @classmethod
+    def vertex_counts(cls, m, counts=None) -> np.ndarray:
+        """(m,4) int64: the chain hits' counts as given, or D's bounce alone (None)."""
+        if counts is None:
+            return np.broadcast_to(np.asarray(cls.D_BOUNCE, np.int64), (m, 4))
+        return np.asarray(counts, np.int64)
+
+    def shaded(self, counts) -> np.ndarray:
+        """(M,) bool: the chain hits reached with counts (M,4) that Cycles still shades
+        (light sample and bounce): every count within the scene's Light Paths limits
+        (chaincounts.within, as the lookups and the photons' usable test count them, so
+        the maps and the chains drop the same paths)."""
+        from . import chaincounts
+        return chaincounts.within(counts, self.ctx.settings.bounce_limits)
 
     def continued(self, rows_idx, pdf, rows_y=None, d=None):
         """The continued rays' chains (hit rows rows_idx (K,), continuation pdfs (K,):
@@ -336,20 +362,23 @@ class GatherChains:
                           np.take(wd, rows_y), cos_i)
         self.min_pdf[rows_idx] = np.minimum(self.min_pdf[rows_idx], pdf)
 
-    def emission(self, rows_idx, o, d, tp, cls, E, G):
+    def emission(self, rows_idx, o, d, tp, cls, E, G, counts=None):
         """The emitters that the continued rays (hit rows rows_idx (K,), origins o,
         directions d (K,3), throughputs tp (K,3), ray classes cls (K,)) leaving a blurred
         vertex meet and light sampling leaves to them: the lights of MODE_CONTINUATION
         (lamp surfaces, sun discs, a constant world) and the mesh sides no shadow ray
         samples. Added to E in full (tp pi Le / G). A background that is no light (no
-        photons either) is not counted."""
+        photons either) is not counted. counts: (K,4) the counts the vertex they left was
+        reached with (vertex's; None: D's bounce alone): past the limits it took no
+        bounce."""
         from . import integrator as it
         from .bsdf import surface_hit
         from . import worldmedium
         ctx = self.ctx
         if not self.continuation_lights and not self.unsampled:
             return
-        go = np.flatnonzero(self.from_blurred[rows_idx])
+        go = np.flatnonzero(self.from_blurred[rows_idx]
+                            & self.shaded(self.vertex_counts(len(rows_idx), counts)))
         if not len(go):
             return
         rows_idx = rows_idx[go]
