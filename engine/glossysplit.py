@@ -71,30 +71,49 @@ def maps_blurred(ctx) -> bool:
     return split_filter_glossy(ctx) > 0.0
 
 
-def lambert_only_materials(table) -> np.ndarray:
-    """(M,) bool: the materials whose every hit with a diffuse lobe has no lobe of density
-    beside it but a transparent pass (DiffusePdf's `lambert` rows at every hit): no
-    metal, glass, specular (weight or IOR level 0), coat, sheen or translucent layer, no
-    texture-driven closure input and no subsurface walk; and those with no diffuse lobe
-    at all (geometry.MaterialTable.has_diffuse false, untextured: no photon is read there).
-    table: geometry.MaterialTable."""
+def largest_pdfs(table) -> np.ndarray:
+    """(M,) float64, 1/sr: per material, a bound on DiffusePdf's pdf_D at any hit of it,
+    for any view and any direction on the viewer's side (the maps' photons arrive there):
+    1/pi for a Lambert-only material (a transparent pass beside it only lowers it);
+    max(1/pi, 1 / (2 pi alpha^3)) over its rough isotropic GGX reflective lobes (specular,
+    metal, glass reflection: alpha = roughness^2; coat: its roughness^2), the largest
+    visible-normal pdf G1(wo) D(h) / (4 cos_o) can take (D <= 1 / (pi alpha^2), G1 /
+    cos_o <= 2 / alpha; principled.bsdf_pdf is that pdf); the MIS mixture over the lobes
+    and the diffuse one is at most the largest of theirs. A camera path's blur only raises
+    the alphas (lowers the bound). inf where no bound is known here: a mirror-like,
+    anisotropic, sheen or translucent lobe, a texture-driven closure input, a subsurface
+    walk or a NaN. 0 for a material with no diffuse lobe at all (MaterialTable.has_diffuse
+    false, untextured): no photon is read there. table: geometry.MaterialTable."""
+    from .closures import ggx
     from .closures import principled as pr
     q = np.asarray(table.closure_params, np.float64)
     m = len(q)
     if m == 0:
-        return np.zeros(0, bool)
-    scalar = np.array([x is not None for x in (table.scalar_textures or [None] * m)], bool)
-    sss = np.array([x is not None for x in (getattr(table, "subsurface", None)
-                                            or [None] * m)], bool)
-    # (NaN compares false: a NaN column is not Lambert)
-    no_layer = ((q[:, pr.M_METALLIC] <= 0.0) & (q[:, pr.M_TRANS] <= 0.0)
-                & ((q[:, pr.M_SPEC] <= 0.0) | (q[:, pr.M_LEVEL] == 0.0))
-                & (q[:, pr.M_TL] <= 0.0) & (q[:, pr.M_SHEEN_W] <= 0.0)
-                & (q[:, pr.M_COAT_W] <= 0.0) & (q[:, pr.M_NODE] == pr.NODE_PRINCIPLED))
-    lambert = no_layer & ~scalar & ~sss
+        return np.zeros(0)
+
+    def flags(items):
+        return np.array([x is not None for x in (items or [None] * m)], bool)
+    scalar, sss = flags(table.scalar_textures), flags(getattr(table, "subsurface", None))
+    textured = flags(table.textures)
+
+    def ggx_bound(weight, rough):
+        alpha = rough * rough
+        with np.errstate(divide="ignore", invalid="ignore"):
+            b = np.where(alpha >= ggx.ALPHA_MIN, 1.0 / (2.0 * math.pi * alpha ** 3), np.inf)
+        # (NaN weights compare false: unbounded)
+        return np.where(weight <= 0.0, 0.0, np.where(weight > 0.0, b, np.inf))
+    spec_w = np.where(q[:, pr.M_LEVEL] == 0.0, 0.0, q[:, pr.M_SPEC])
+    rough = q[:, pr.M_ROUGH]
+    bound = np.maximum.reduce([
+        np.full(m, LAMBERT_PDF_MAX), ggx_bound(spec_w, rough),
+        ggx_bound(q[:, pr.M_METALLIC], rough), ggx_bound(q[:, pr.M_TRANS], rough),
+        ggx_bound(q[:, pr.M_COAT_W], q[:, pr.M_COAT_ROUGH])])
+    unknown = (~(q[:, pr.M_SHEEN_W] <= 0.0) | ~(q[:, pr.M_TL] <= 0.0)
+               | ~(q[:, pr.M_ANISO] == 0.0) | scalar | sss | np.isnan(bound))
+    bound = np.where(unknown, np.inf, bound)
     # (a colour texture may lift a base colour the table holds as black)
-    textured = np.array([x is not None for x in (table.textures or [None] * m)], bool)
-    return lambert | (~np.asarray(table.has_diffuse, bool) & ~textured & ~scalar)
+    none = ~np.asarray(table.has_diffuse, bool) & ~textured & ~scalar
+    return np.where(none, 0.0, bound)
 
 
 def scene_materials(geo, table) -> np.ndarray:
@@ -110,17 +129,17 @@ def maps_unread(settings, table, materials=None) -> bool:
     """Whether no caustic or glow photon can be read anywhere in a render with these
     RenderSettings and geometry.MaterialTable (materials: the rows its surfaces use,
     scene_materials; None: every row), given it builds a gather map (the split's
-    condition, split_filter_glossy): the split is on above 1/pi (a Lambert-only D's
-    largest pdf, DiffusePdf.largest, is at most 1/pi, so every photon there is
-    blurred; the camera path's min_ray_pdf only lowers it) and every material a camera
-    path can read the maps at is Lambert-only (lambert_only_materials). Then every
+    condition, split_filter_glossy): the split is on above 1/pi and every material a
+    camera path can read the maps at has a largest pdf_D below Filter Glossy
+    (largest_pdfs: 1/pi on a Lambert-only one, its rough GGX layers' bound on the others;
+    the camera path's min_ray_pdf only lowers it), so every photon there is blurred. Then every
     estimate is left out whole (DiffusePdf.none_unblurred at every lookup) and the caustic
     / glow shots need not be traced (render._photon_pass)."""
     fg = settings_filter_glossy(settings)
     if not fg > LAMBERT_PDF_MAX:
         return False
-    ok = lambert_only_materials(table)
-    return bool((ok if materials is None else np.take(ok, materials)).all())
+    bound = largest_pdfs(table)
+    return bool(((bound if materials is None else np.take(bound, materials)) < fg).all())
 
 
 class DiffusePdf:

@@ -314,8 +314,57 @@ def test_unread_caustic_and_glow_shots_are_not_traced(monkeypatch):
     assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [plastic]))
     sheen = Material("cloth", (0.8, 0.8, 0.8), specular=0.0, sheen_weight=0.5)
     assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [sheen]))
+    # A very rough specular layer (roughness 0.9: alpha 0.81, its pdf at most
+    # 1 / (2 pi 0.81^3) = 0.30 < 1/pi) reads none at 1 either; at roughness 0.7 (1.27)
+    # it may.
+    rough = Material("matte_plastic", (0.8, 0.8, 0.8), specular=0.5, roughness=0.9)
+    assert glossysplit.maps_unread(on, MaterialTable.build(mats + [rough]))
+    rough.roughness = 0.7
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [rough]))
     monkeypatch.setattr(glossysplit, "ENABLED", False)
     assert not glossysplit.maps_unread(on, MaterialTable.build(mats))
+
+
+def test_largest_pdfs_bound_the_diffuse_hits_pdf():
+    """glossysplit.largest_pdfs (what maps_unread reads) bounds DiffusePdf's pdf_D (the
+    one-sample MIS pdf over the hit's lobes, principled.bsdf_pdf for the rough ones) for
+    every view and direction: random pairs, grazing views among them, on Principled
+    materials with a specular layer, a coat, a metal share and glass, and a Lambert one.
+    (A bound, loose where the lobe weights dilute a sharp layer: plastic's pdf_D reached
+    0.48 against 3.4.)"""
+    from engine.closures.principled import bsdf_pdf_many
+    from engine.geometry import MaterialTable
+    rng = np.random.default_rng(2)
+    mats = [Material("plastic", (0.6, 0.5, 0.4), specular=0.5, roughness=0.6),
+            Material("coated", (0.6, 0.5, 0.4), specular=0.5, roughness=0.8,
+                     coat_weight=1.0, coat_roughness=0.7),
+            Material("half_metal", (0.9, 0.7, 0.5), metallic=0.5, roughness=0.5),
+            Material("frosted", (0.9, 0.9, 0.9), transmission=0.5, roughness=0.6),
+            Material("matte", (0.8, 0.8, 0.8), specular=0.0)]
+    bound = glossysplit.largest_pdfs(MaterialTable.build(mats))
+    assert bound[-1] == pytest.approx(1.0 / math.pi)
+    k = 4000
+    for m, b in zip(mats, bound):
+        top = 0.0
+        for cos_o in (0.02, 0.1, 0.4, 1.0):
+            prm, w = _setup(m, cos_o)
+            wo = np.tile([math.sqrt(1.0 - cos_o * cos_o), 0.0, cos_o], (k, 1))
+            wi = _hemisphere(rng, k, min_z=0.0)
+            # (half of them about the mirror direction, where the pdf peaks)
+            wi[: k // 2] = np.array([-wo[0, 0], 0.0, cos_o]) + 0.3 * rng.normal(size=(k // 2, 3))
+            wi[: k // 2, 2] = np.abs(wi[: k // 2, 2])
+            wi /= np.linalg.norm(wi, axis=1)[:, None]
+            p = w[0, 1:].max(axis=1)
+            sel = np.zeros((k, pr.N_LOBES))
+            sel[:, 1:] = p
+            lobes = np.empty(k)
+            bsdf_pdf_many(np.repeat(prm, k, axis=0), sel, np.tile([0.0, 0.0, 1.0], (k, 1)),
+                          wo, np.ascontiguousarray(wi), lobes)
+            wd = w[0, 0].mean()
+            pdf = (lobes + wd * wi[:, 2] / math.pi) / (p.sum() + wd)
+            top = max(top, float(pdf.max()))
+        assert top <= b * (1 + 1e-9), (m.name, top, b)
+        assert top > 0.2 * min(b, 1.0)  # (the pairs reach the lobes' peaks)
 
 
 def test_the_chains_return_what_the_maps_dropped():
