@@ -23,7 +23,10 @@ sample has no density under the blurred one), so:
   decides both sides: each path is counted once.
 
 For any Filter Glossy above 0 (fgsplit46 built it above 1 / pi with D's Lambert pdf;
-docs/compatibility.md "fgphoton46" the per-photon test).
+docs/compatibility.md "fgphoton46" the per-photon test). The chains keep the Light Paths
+limits as the lookups and the photons count the same path; where no material's pdf_D can
+reach Filter Glossy (maps_unread) the caustic / glow shots are not traced; a photon's
+reverse pdf through rough glass is the far side's (docs/compatibility.md "splitmaps47").
 """
 from __future__ import annotations
 
