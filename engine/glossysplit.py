@@ -23,7 +23,10 @@ sample has no density under the blurred one), so:
   decides both sides: each path is counted once.
 
 For any Filter Glossy above 0 (fgsplit46 built it above 1 / pi with D's Lambert pdf;
-docs/compatibility.md "fgphoton46" the per-photon test).
+docs/compatibility.md "fgphoton46" the per-photon test). The chains keep the Light Paths
+limits as the lookups and the photons count the same path; where no material's pdf_D can
+reach Filter Glossy (maps_unread) the caustic / glow shots are not traced; a photon's
+reverse pdf through rough glass is the far side's (docs/compatibility.md "splitmaps47").
 """
 from __future__ import annotations
 
@@ -69,6 +72,77 @@ def maps_blurred(ctx) -> bool:
     diffuse hits count only the photons Cycles does not blur (DiffusePdf), the gather
     chains the rest."""
     return split_filter_glossy(ctx) > 0.0
+
+
+def largest_pdfs(table) -> np.ndarray:
+    """(M,) float64, 1/sr: per material, a bound on DiffusePdf's pdf_D at any hit of it,
+    for any view and any direction on the viewer's side (the maps' photons arrive there):
+    1/pi for a Lambert-only material (a transparent pass beside it only lowers it);
+    max(1/pi, 1 / (2 pi alpha^3)) over its rough isotropic GGX reflective lobes (specular,
+    metal, glass reflection: alpha = roughness^2; coat: its roughness^2), the largest
+    visible-normal pdf G1(wo) D(h) / (4 cos_o) can take (D <= 1 / (pi alpha^2), G1 /
+    cos_o <= 2 / alpha; principled.bsdf_pdf is that pdf); the MIS mixture over the lobes
+    and the diffuse one is at most the largest of theirs. A camera path's blur only raises
+    the alphas (lowers the bound). inf where no bound is known here: a mirror-like,
+    anisotropic, sheen or translucent lobe, a texture-driven closure input, a subsurface
+    walk or a NaN. 0 for a material with no diffuse lobe at all (MaterialTable.has_diffuse
+    false, untextured): no photon is read there. table: geometry.MaterialTable."""
+    from .closures import ggx
+    from .closures import principled as pr
+    q = np.asarray(table.closure_params, np.float64)
+    m = len(q)
+    if m == 0:
+        return np.zeros(0)
+
+    def flags(items):
+        return np.array([x is not None for x in (items or [None] * m)], bool)
+    scalar, sss = flags(table.scalar_textures), flags(getattr(table, "subsurface", None))
+    textured = flags(table.textures)
+
+    def ggx_bound(weight, rough):
+        alpha = rough * rough
+        with np.errstate(divide="ignore", invalid="ignore"):
+            b = np.where(alpha >= ggx.ALPHA_MIN, 1.0 / (2.0 * math.pi * alpha ** 3), np.inf)
+        # (NaN weights compare false: unbounded)
+        return np.where(weight <= 0.0, 0.0, np.where(weight > 0.0, b, np.inf))
+    spec_w = np.where(q[:, pr.M_LEVEL] == 0.0, 0.0, q[:, pr.M_SPEC])
+    rough = q[:, pr.M_ROUGH]
+    bound = np.maximum.reduce([
+        np.full(m, LAMBERT_PDF_MAX), ggx_bound(spec_w, rough),
+        ggx_bound(q[:, pr.M_METALLIC], rough), ggx_bound(q[:, pr.M_TRANS], rough),
+        ggx_bound(q[:, pr.M_COAT_W], q[:, pr.M_COAT_ROUGH])])
+    unknown = (~(q[:, pr.M_SHEEN_W] <= 0.0) | ~(q[:, pr.M_TL] <= 0.0)
+               | ~(q[:, pr.M_ANISO] == 0.0) | scalar | sss | np.isnan(bound))
+    bound = np.where(unknown, np.inf, bound)
+    # (a colour texture may lift a base colour the table holds as black)
+    none = ~np.asarray(table.has_diffuse, bool) & ~textured & ~scalar
+    return np.where(none, 0.0, bound)
+
+
+def scene_materials(geo, table) -> np.ndarray:
+    """(K,) int64: the material rows a render's surfaces use (geo.material's, and the
+    rows their Light Path variants remap them to: table.ray_remap)."""
+    used = np.unique(np.asarray(geo.material, np.int64))
+    for rows in (getattr(table, "ray_remap", None) or {}).values():
+        used = np.union1d(used, np.take(np.asarray(rows, np.int64), used))
+    return used
+
+
+def maps_unread(settings, table, materials=None) -> bool:
+    """Whether no caustic or glow photon can be read anywhere in a render with these
+    RenderSettings and geometry.MaterialTable (materials: the rows its surfaces use,
+    scene_materials; None: every row), given it builds a gather map (the split's
+    condition, split_filter_glossy): the split is on above 1/pi and every material a
+    camera path can read the maps at has a largest pdf_D below Filter Glossy
+    (largest_pdfs: 1/pi on a Lambert-only one, its rough GGX layers' bound on the others;
+    the camera path's min_ray_pdf only lowers it), so every photon there is blurred. Then every
+    estimate is left out whole (DiffusePdf.none_unblurred at every lookup) and the caustic
+    / glow shots need not be traced (render._photon_pass)."""
+    fg = settings_filter_glossy(settings)
+    if not fg > LAMBERT_PDF_MAX:
+        return False
+    bound = largest_pdfs(table)
+    return bool(((bound if materials is None else np.take(bound, materials)) < fg).all())
 
 
 class DiffusePdf:
@@ -221,13 +295,17 @@ class GatherChains:
         maps' own predicate; cos / pi on a Lambert-only D)."""
         self.min_pdf[idx] = self.d_pdf.pdf(idx, d, ns)
 
-    def vertex(self, y, rows_idx, tp, E, G, rng, counters):
+    def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None):
         """At chain hits y (the rows that continue: their hit rows rows_idx (M,), ray
         throughputs tp (M,3)): blur y's lobes by the chains' min_pdf (y.prm raised in
         place after the closures' set-up, the albedos kept), add light sampling through
         the blurred lobes (radiance towards y.wo) at the blurred rows to E, and return the
         continuation's lobe choice (integrator.lobe_choice of the unblurred albedos) for
-        continue_specular."""
+        continue_specular. counts: (M,4) int64 the camera-side bounce counts the hits
+        are reached with (B_TOTAL order, D's diffuse bounce included; None: D's alone):
+        a hit past the Light Paths limits takes no light sample (Cycles shades no vertex
+        a terminated path reaches: docs/design.md, Bounce limits), and the shadow rays
+        of the others cross flat passages as those limits allow."""
         from . import integrator as it
         from .bsdf import closures
         from .glasslight import rough_transmission_rows, transmitted_light
@@ -241,9 +319,11 @@ class GatherChains:
         from .closures.principled import L_DIFFUSE
         wd = np.asarray(albedo, np.float64)[:, L_DIFFUSE, :].mean(axis=1)  # (as DiffusePdf's)
         self._vertex = (choice[1], choice[3], wd, np.asarray(y.ns, np.float64))
-        blurred = np.flatnonzero(mp < self.fg)
+        counts = self.vertex_counts(len(mp), counts)
+        blurred = np.flatnonzero((mp < self.fg) & self.shaded(counts))
         if not len(blurred):
             return choice
+        counts = np.ascontiguousarray(counts[blurred])
         sub = y if len(blurred) == len(mp) else y.take(blurred)
         if sub is not y:
             sub.prm = np.ascontiguousarray(prm[blurred])
@@ -253,17 +333,37 @@ class GatherChains:
         # heuristic).
         no_sel = np.zeros((n, choice[0].shape[1]))
         L = it.direct_irradiance(ctx, sub, rng, counters, bsdf=(np.zeros((n, 3)), sub.prm,
-                                                               no_sel))
+                                                               no_sel), counts=counts)
         # ... and by their rough refraction (engine/glasslight.py), in full as well.
         gl = rough_transmission_rows(sub.prm, np.arange(n, dtype=np.int64))
         if len(gl):
             samples = it.light_sample_list(ctx, len(gl), rng, modes=self.modes)
             L[gl] += transmitted_light(ctx, sub, gl, sub.prm, no_sel, np.ones(n),
-                                       self.modes, samples, counters)
+                                       self.modes, samples, counters,
+                                       counts=np.ascontiguousarray(counts[gl]))
         rows = rows_idx[blurred]
         add = np.take(np.asarray(tp, np.float64), blurred, axis=0) * (math.pi / G) * L
         np.add.at(E, rows, add)
         return choice
+
+    # D's diffuse bounce: the counts (B_TOTAL order) of a chain's first hit past D on a
+    # camera path that reached D with none.
+    D_BOUNCE = (1, 1, 0, 0)
+
+    @classmethod
+    def vertex_counts(cls, m, counts=None) -> np.ndarray:
+        """(m,4) int64: the chain hits' counts as given, or D's bounce alone (None)."""
+        if counts is None:
+            return np.broadcast_to(np.asarray(cls.D_BOUNCE, np.int64), (m, 4))
+        return np.asarray(counts, np.int64)
+
+    def shaded(self, counts) -> np.ndarray:
+        """(M,) bool: the chain hits reached with counts (M,4) that Cycles still shades
+        (light sample and bounce): every count within the scene's Light Paths limits
+        (chaincounts.within, as the lookups and the photons' usable test count them, so
+        the maps and the chains drop the same paths)."""
+        from . import chaincounts
+        return chaincounts.within(counts, self.ctx.settings.bounce_limits)
 
     def continued(self, rows_idx, pdf, rows_y=None, d=None):
         """The continued rays' chains (hit rows rows_idx (K,), continuation pdfs (K,):
@@ -284,20 +384,23 @@ class GatherChains:
                           np.take(wd, rows_y), cos_i)
         self.min_pdf[rows_idx] = np.minimum(self.min_pdf[rows_idx], pdf)
 
-    def emission(self, rows_idx, o, d, tp, cls, E, G):
+    def emission(self, rows_idx, o, d, tp, cls, E, G, counts=None):
         """The emitters that the continued rays (hit rows rows_idx (K,), origins o,
         directions d (K,3), throughputs tp (K,3), ray classes cls (K,)) leaving a blurred
         vertex meet and light sampling leaves to them: the lights of MODE_CONTINUATION
         (lamp surfaces, sun discs, a constant world) and the mesh sides no shadow ray
         samples. Added to E in full (tp pi Le / G). A background that is no light (no
-        photons either) is not counted."""
+        photons either) is not counted. counts: (K,4) the counts the vertex they left was
+        reached with (vertex's; None: D's bounce alone): past the limits it took no
+        bounce."""
         from . import integrator as it
         from .bsdf import surface_hit
         from . import worldmedium
         ctx = self.ctx
         if not self.continuation_lights and not self.unsampled:
             return
-        go = np.flatnonzero(self.from_blurred[rows_idx])
+        go = np.flatnonzero(self.from_blurred[rows_idx]
+                            & self.shaded(self.vertex_counts(len(rows_idx), counts)))
         if not len(go):
             return
         rows_idx = rows_idx[go]

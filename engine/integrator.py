@@ -1224,7 +1224,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # through their blurred reflective lobes (glossysplit.GatherChains).
                 rows_f = slice(None) if yf is y else full
                 choice = chains.vertex(yf, idx[rows_f], tp[rows_f], E_chain, G, rng,
-                                       counters)
+                                       counters, counts=None if cnt is None else
+                                       chaincounts.camera_counts(cnt[idx[rows_f]],
+                                                                 chains.D_BOUNCE))
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d
@@ -1246,7 +1248,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 keep = full[keep]
             if chains is not None:
                 chains.continued(idx[keep], pdf[0], keep_f, d)
-                chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G)
+                chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G,
+                                counts=None if cnt is None else
+                                chaincounts.camera_counts(cnt[idx[keep]], chains.D_BOUNCE))
             if turned_refl is not None and turned_refl.escapes:
                 turned_h[idx[keep]] = (turned_h[idx[keep]]
                                        | turned_refl.turned(y, keep, d_in[keep], d))

@@ -1319,9 +1319,9 @@ def reverse_pdf(prm, rsel, jc, wj, probs, transmitted, ix, iy, iz, lx, ly, lz):
     (sum_l p_l pdf_l(wo, wi) + w_d max(cos_i, 0) / pi) / (sum_l p_l + w_d), p_l the
     non-diffuse lobes' weights (probs: their albedo's max channel, as choose_lobes), w_d
     the diffuse weight's mean channel (wj[L_DIFFUSE]). Reflections: principled.bsdf_pdf;
-    transmissions: transmission_pdf of the photon's own direction pair (the lobes are set
-    up at the photon's arriving side: the forward pdf stands for the reverse one, exact for
-    the translucent lobe, within the rough glass's eta^2 cosine ratio otherwise). rsel
+    transmissions: principled.reverse_transmission_pdf (the lobes are set up at the
+    photon's arriving side; the camera side samples from the far one, whose pdf differs by
+    the rough glass's eta^2 and the two sides' cosines: Cycles' bsdf_microfacet.h). rsel
     (>= jc + 1, N_LOBES) scratch, row jc overwritten. NaN: inf (never a minimum)."""
     psum = 0.0
     rsel[jc, pr.L_DIFFUSE] = 0.0
@@ -1333,7 +1333,7 @@ def reverse_pdf(prm, rsel, jc, wj, probs, transmitted, ix, iy, iz, lx, ly, lz):
     if not den > 0.0:
         return np.inf
     if transmitted:
-        lp = pr.transmission_pdf(prm, rsel, jc, lx, ly, lz, ix, iy, iz)
+        lp = pr.reverse_transmission_pdf(prm, rsel, jc, lx, ly, lz, ix, iy, iz)
     else:
         lp = (pr.bsdf_pdf(prm, rsel, jc, ix, iy, iz, lx, ly, lz)
               + max(wd, 0.0) * max(lz, 0.0) / math.pi)

@@ -28,7 +28,7 @@ from .lights import packing as pk
 from .lights.packing import pack_lights
 from .mallocheap import render_heap
 from .edgeimages import edge_images
-from .glossysplit import settings_filter_glossy
+from .glossysplit import maps_unread, scene_materials, settings_filter_glossy
 from .guiding import AUTO_GAIN, GatherGuide, can_guide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
@@ -737,6 +737,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # shot, up to GLOW_SPLIT x the global one, parked the bar at the end of its photon
     # span with no estimate: newuser33).
     global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
+    # Filter Glossy's split (engine/glossysplit.py) above 1/pi with only matte diffuse
+    # surfaces: no caustic or glow photon is read anywhere (every estimate left out
+    # whole), so those shots are not traced where the gather map that carries their light
+    # is built (its photons known after the global shot; docs/compatibility.md
+    # "splitmaps47": 3.1 of 67 CPU s on newuser44's table).
+    unread = (SKIP_UNREAD_SHOTS and global_shot and plan.indirect and s.final_gather
+              and maps_unread(s, ctx.table, scene_materials(geo, ctx.table)))
     emitters = counts = g_emitters = g_counts = pre_radius = None
     camera_map_radius = [None]  # (without final gathering: _camera_map_radius's)
     known_secondary = None  # (radius, the secondary share there) measured with the glow's
@@ -751,8 +758,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
         if GLOW_SHOT and glow_from_global and _importance_aimed(emitters):
             g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n))
     sizes = (int(sum(counts)) if global_shot else 0,
-             int(sum(g_counts)) if g_emitters is not None else 0,
-             int(s.caustic_photons) if use_caustic_shot else 0)
+             int(sum(g_counts)) if g_emitters is not None and not unread else 0,
+             int(s.caustic_photons) if use_caustic_shot and not unread else 0)
     if on_plan is not None:
         on_plan({"photons": int(sum(sizes))})
     if global_shot:
@@ -760,6 +767,12 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
                              progress=_shot_progress(progress, sizes, 0),
                              should_cancel=should_cancel,
                              first_hit=None if split is None else (split, False))
+        # (without a gather map the split is off and the maps are read: the shots stay)
+        unread = unread and bool(shot.usable(s.bounce_limits, camera=(1, 1, 0, 0)).any())
+        if unread:
+            stats["shots_unread"] = tuple(
+                name for name, planned in (("caustic", use_caustic_shot),
+                                           ("glow", g_emitters is not None)) if planned)
         if g_emitters is not None:
             # The glow shot's size from the glow's share of what the camera sees, now
             # that the global shot holds its caustic-kind photons (glow_split).
@@ -799,18 +812,22 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             # beside "caustics: off - nothing focuses light" read as a contradiction
             # (newuser33), "Tracing glow photons" said nothing to a user (newuser37).
             label = f"{plan.glow_label or 'soft glow'} photons"
-            glow = trace_photons(ctx, g_emitters, g_counts, caustic_only=True,
-                                 stream=GLOW_STREAM, progress=_shot_progress(progress, sizes, 1),
-                                 should_cancel=should_cancel,
-                                 first_hit=None if split is None else (split, False),
-                                 label=label)
-            stats["glow_photons_emitted"] = glow.emitted
-            stats["glow_label"] = label
-            stats["glow_words"] = plan.glow_words or " and ".join(
-                GLOW_KIND_WORDS[k] for k in plan.glow_label.split("/") if k) or "soft glow"
+            if not unread:
+                glow = trace_photons(ctx, g_emitters, g_counts, caustic_only=True,
+                                     stream=GLOW_STREAM,
+                                     progress=_shot_progress(progress, sizes, 1),
+                                     should_cancel=should_cancel,
+                                     first_hit=None if split is None else (split, False),
+                                     label=label)
+                stats["glow_photons_emitted"] = glow.emitted
+                stats["glow_label"] = label
+                stats["glow_words"] = plan.glow_words or " and ".join(
+                    GLOW_KIND_WORDS[k] for k in plan.glow_label.split("/") if k) or "soft glow"
     caustic = Photons.empty()
     glow_apart = None  # the glow shot as a map of its own (GLOW_MAP_APART)
-    if use_caustic_shot:
+    if use_caustic_shot and unread:
+        pass  # (not traced: an empty caustic map)
+    elif use_caustic_shot:
         if targets is None:
             ccounts = allocate_photons(ctx.lights, s.caustic_photons)
         else:
@@ -1570,6 +1587,8 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
         unread = _maps_unread_words(settings)
         if unread:
             parts.append(unread)
+    elif stats.get("shots_unread"):
+        parts.append(_shots_unread_words(settings, stats["shots_unread"]))
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
     if stats.get("photon_portals"):
@@ -1624,6 +1643,19 @@ def _maps_unread_words(settings: RenderSettings) -> str:
     return (f"at Filter Glossy {fg:g} (Light Paths > Caustics) the caustic and glow photons "
             f"are read only on paths Cycles leaves unblurred{matte}: the final gather's rays "
             "carry the rest of that light instead, through blurred lobes, into the Caustic "
+            "pass")
+
+
+def _shots_unread_words(settings: RenderSettings, shots) -> str:
+    """The maps line's words where _photon_pass left the caustic / glow shots untraced
+    (stats shots_unread: their names, "caustic", "glow"; glossysplit.maps_unread): the
+    scene's Filter Glossy blurs every path of that light onto its matte surfaces, and
+    the final gather's chains carry it. Without them the line said nothing of caustics."""
+    what = " and ".join(shots)
+    fg = settings_filter_glossy(settings)
+    return (f"no {what} photons traced: at Filter Glossy {fg:g} (Light Paths > Caustics) "
+            "Cycles blurs every path of that light onto this scene's matte surfaces, so the "
+            "final gather's rays carry it instead, through blurred lobes, into the Caustic "
             "pass")
 
 
@@ -1840,6 +1872,10 @@ GLOW_KIND_WORDS = {"glossy": "soft glow off rough specular layers",
                    "glass": "light off or through glass",
                    "translucent": "light through translucent surfaces"}
 GLOW_SHOT = True  # False: the glow from the global shot's photons, as before (A/B benches)
+# The caustic and glow shots left untraced where no photon of theirs can be read
+# (glossysplit.maps_unread; _photon_pass). False: traced as before (A/B benches; the same
+# image bits).
+SKIP_UNREAD_SHOTS = True
 GLOW_STREAM = 3  # trace_photons' random stream of the glow shot (global 1, caustic 2)
 GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one (glow_emitters)
 # The glow shot's split follows the glow's share of the light the camera sees

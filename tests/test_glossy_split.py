@@ -148,6 +148,47 @@ def test_photon_reverse_pdf_is_the_chains_mis_pdf():
         assert np.ptp(got) > 0.1  # (directions the lobe peaks at and directions it does not)
 
 
+def test_photon_reverse_pdf_through_the_surface_is_the_camera_sides():
+    """Through a rough glass or a translucent surface the pdf is not symmetric: the camera
+    side, arriving at S from the photon's next vertex (the far side, where Cycles sets the
+    glass up with the inverse IOR: bsdf_microfacet.h's pdf D G1(wi) |wi.H wo.H| /
+    (cos_NI (wi.H + eta wo.H)^2 / eta^2), wi the camera's side), samples the direction back
+    with its own pdf, which the gather chains take there (continue_specular's
+    transmission_pdf of the far side's set-up). The photon's stored reverse pdf
+    (photonkernels.reverse_pdf, transmitted) is that one, not the photon's own forward
+    pdf (they differ by eta^2 and the two sides' cosines and G1): a glass of roughness
+    0.4 (IOR 1.5, from outside in) and a translucent surface."""
+    from engine import photonkernels as pk
+    from engine.filterglossy import mis_pdf
+    rng = np.random.default_rng(11)
+    for m in (Material("glass", (1.0, 1.0, 1.0), transmission=1.0, roughness=0.4, ior=1.5),
+              Material("leaf", (0.5, 0.8, 0.3), translucent=1.0)):
+        from engine.geometry import closure_params
+        prm_f, w_f = _setup(m, 0.6)  # the photon's arriving side (front)
+        prm_b, w_b = pr.setup_np(closure_params([m]), np.zeros(1, np.int64),
+                                 np.asarray([m.base_color], np.float64), np.full(1, 0.6),
+                                 np.zeros(1, bool))  # the camera's side (behind)
+        came = _hemisphere(rng, 400)  # -w_photon on arrival: the front side (z > 0)
+        left = -_hemisphere(rng, 400)  # the photon's outgoing direction: behind (z < 0)
+        probs = w_f[0].max(axis=1)
+        rsel = np.zeros((1, pr.N_LOBES))
+        got = np.array([pk.reverse_pdf(prm_f, rsel, 0, np.ascontiguousarray(w_f[0]), probs,
+                                       True, *left[j], *came[j]) for j in range(len(came))])
+        # The chains at S, from behind (their frame's z towards the camera's side).
+        flip = np.array([1.0, 1.0, -1.0])
+        p = w_b[0, 1:].max(axis=1)
+        psum = p.sum()
+        sel = np.zeros((1, pr.N_LOBES))
+        sel[0, 1:] = p / psum
+        choice = np.array([pr.transmission_pdf(prm_b, sel, 0, *(left[j] * flip),
+                                                *(came[j] * flip)) for j in range(len(came))])
+        want = mis_pdf(choice, np.ones(len(came)), np.full(len(came), psum),
+                       np.full(len(came), w_b[0, 0].mean()), -came[:, 2])
+        valid = want > 0
+        assert valid.sum() > 50  # (pairs that are a refraction through some microfacet)
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-300)
+
+
 def test_maps_and_chains_decide_each_path_alike():
     """Hand-made paths L S_1 S_2 D: D a Principled floor of roughness 0.1 (specular 0.5)
     seen at a grazing angle, S_2 a rough metal. The maps count the photon (DiffusePdf's
@@ -233,6 +274,99 @@ def test_filter_glossy_1e_6_keeps_the_bits_of_0():
     np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
 
 
+def test_unread_caustic_and_glow_shots_are_not_traced(monkeypatch):
+    """glossy_floor's only diffuse surface is a matte wall: above Filter Glossy 1/pi the
+    split reads no caustic or glow photon there (glossysplit.maps_unread), so the shots
+    are left untraced (render.SKIP_UNREAD_SHOTS; fgroom46: 3.1 of 67 CPU s spent on them
+    on newuser44's table). The image keeps its bits (the shots' streams are their own and
+    no estimate read them), the pass emits fewer photons, and the maps line says why.
+    With a specular layer on the wall (a D whose pdf may reach Filter Glossy) or at
+    Filter Glossy 0.3 (below 1/pi) they are traced."""
+    import sys
+    from engine.geometry import MaterialTable
+    rd = sys.modules["engine.render"]  # (engine.render is also the function's name)
+    kw = dict(photons=20_000, caustic_photons=20_000, spp=2, seed=1, workers=1,
+              cycles_filter_glossy=1.0)
+    skipped = render(_glossy_floor(), RenderSettings(**kw))
+    monkeypatch.setattr(rd, "SKIP_UNREAD_SHOTS", False)
+    traced = render(_glossy_floor(), RenderSettings(**kw))
+    np.testing.assert_array_equal(np.asarray(skipped.combined), np.asarray(traced.combined))
+    np.testing.assert_array_equal(np.asarray(skipped.caustic), np.asarray(traced.caustic))
+    assert traced.stats["caustic_photons_emitted"] > 0
+    assert skipped.stats["caustic_photons_emitted"] == 0
+    assert "caustic" in skipped.stats["shots_unread"]
+    assert "shots_unread" not in traced.stats
+    assert (skipped.stats["photons_emitted_all"]
+            <= traced.stats["photons_emitted_all"] - traced.stats["caustic_photons_emitted"])
+    line = next(e for e in skipped.stats["effects"] if e.startswith("photon maps"))
+    assert "no caustic" in line and "photons traced: at Filter Glossy 1" in line, line
+    monkeypatch.setattr(rd, "SKIP_UNREAD_SHOTS", True)
+    # The predicate: a specular layer on the diffuse wall keeps the shots; a metal or
+    # glass without a diffuse lobe does not; Filter Glossy at or below 1/pi keeps them.
+    mats = [Material("metal", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.2),
+            Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0),
+            Material("white", (0.8, 0.8, 0.8), specular=0.0)]
+    on = RenderSettings(cycles_filter_glossy=1.0)
+    assert glossysplit.maps_unread(on, MaterialTable.build(mats))
+    assert not glossysplit.maps_unread(RenderSettings(cycles_filter_glossy=0.3),
+                                       MaterialTable.build(mats))
+    plastic = Material("plastic", (0.8, 0.8, 0.8), specular=0.5, roughness=0.3)
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [plastic]))
+    sheen = Material("cloth", (0.8, 0.8, 0.8), specular=0.0, sheen_weight=0.5)
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [sheen]))
+    # A very rough specular layer (roughness 0.9: alpha 0.81, its pdf at most
+    # 1 / (2 pi 0.81^3) = 0.30 < 1/pi) reads none at 1 either; at roughness 0.7 (1.27)
+    # it may.
+    rough = Material("matte_plastic", (0.8, 0.8, 0.8), specular=0.5, roughness=0.9)
+    assert glossysplit.maps_unread(on, MaterialTable.build(mats + [rough]))
+    rough.roughness = 0.7
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats + [rough]))
+    monkeypatch.setattr(glossysplit, "ENABLED", False)
+    assert not glossysplit.maps_unread(on, MaterialTable.build(mats))
+
+
+def test_largest_pdfs_bound_the_diffuse_hits_pdf():
+    """glossysplit.largest_pdfs (what maps_unread reads) bounds DiffusePdf's pdf_D (the
+    one-sample MIS pdf over the hit's lobes, principled.bsdf_pdf for the rough ones) for
+    every view and direction: random pairs, grazing views among them, on Principled
+    materials with a specular layer, a coat, a metal share and glass, and a Lambert one.
+    (A bound, loose where the lobe weights dilute a sharp layer: plastic's pdf_D reached
+    0.48 against 3.4.)"""
+    from engine.closures.principled import bsdf_pdf_many
+    from engine.geometry import MaterialTable
+    rng = np.random.default_rng(2)
+    mats = [Material("plastic", (0.6, 0.5, 0.4), specular=0.5, roughness=0.6),
+            Material("coated", (0.6, 0.5, 0.4), specular=0.5, roughness=0.8,
+                     coat_weight=1.0, coat_roughness=0.7),
+            Material("half_metal", (0.9, 0.7, 0.5), metallic=0.5, roughness=0.5),
+            Material("frosted", (0.9, 0.9, 0.9), transmission=0.5, roughness=0.6),
+            Material("matte", (0.8, 0.8, 0.8), specular=0.0)]
+    bound = glossysplit.largest_pdfs(MaterialTable.build(mats))
+    assert bound[-1] == pytest.approx(1.0 / math.pi)
+    k = 4000
+    for m, b in zip(mats, bound):
+        top = 0.0
+        for cos_o in (0.02, 0.1, 0.4, 1.0):
+            prm, w = _setup(m, cos_o)
+            wo = np.tile([math.sqrt(1.0 - cos_o * cos_o), 0.0, cos_o], (k, 1))
+            wi = _hemisphere(rng, k, min_z=0.0)
+            # (half of them about the mirror direction, where the pdf peaks)
+            wi[: k // 2] = np.array([-wo[0, 0], 0.0, cos_o]) + 0.3 * rng.normal(size=(k // 2, 3))
+            wi[: k // 2, 2] = np.abs(wi[: k // 2, 2])
+            wi /= np.linalg.norm(wi, axis=1)[:, None]
+            p = w[0, 1:].max(axis=1)
+            sel = np.zeros((k, pr.N_LOBES))
+            sel[:, 1:] = p
+            lobes = np.empty(k)
+            bsdf_pdf_many(np.repeat(prm, k, axis=0), sel, np.tile([0.0, 0.0, 1.0], (k, 1)),
+                          wo, np.ascontiguousarray(wi), lobes)
+            wd = w[0, 0].mean()
+            pdf = (lobes + wd * wi[:, 2] / math.pi) / (p.sum() + wd)
+            top = max(top, float(pdf.max()))
+        assert top <= b * (1 + 1e-9), (m.name, top, b)
+        assert top > 0.2 * min(b, 1.0)  # (the pairs reach the lobes' peaks)
+
+
 def test_the_chains_return_what_the_maps_dropped():
     """Roughness 0.7 (alpha 0.49, above the blur's 0.41-0.5: the blur changes little):
     at Filter Glossy 1 the split renders the floor's glow on the wall by the chains'
@@ -249,6 +383,39 @@ def test_the_chains_return_what_the_maps_dropped():
     assert dropped / m0 > 0.15  # the floor's glow: a share the test can see
     assert added / dropped == pytest.approx(1.0, abs=0.02)
     assert float(np.mean(f1.combined)) / m0 == pytest.approx(1.0, abs=0.01)
+
+
+def _two_metals(roughness=0.7):
+    """_glossy_floor with a second rough metal plane behind the camera, facing the
+    wall: the wall takes the lamp's light off either metal (L S D) and off both in turn
+    (L S S D: two glossy bounces from the camera's side, D -> S -> S -> L)."""
+    s = _glossy_floor(roughness)
+    s.add_plane((0, -3.5, 2.0), normal=(0, 1, 0), size=8.0, material="metal", name="Back")
+    return s
+
+
+def test_the_chains_keep_the_light_paths_limits():
+    """The chains shade a vertex only where Cycles' camera path D -> S .. would still
+    be shaded (Light Paths: max bounces per kind, as the lookups and the photons count
+    them, docs/design.md "Bounce limits"): at Glossy 0 the maps drop the L S S D photons
+    (two glossy scatters seen from the camera) and the chains must drop that light too
+    (their second metal's light samples and emission). Roughness 0.7 (the blur changes
+    little): Glossy 0 keeps the same share of the chains' light at Filter Glossy 1 as of
+    the maps' at 0 (~0.81; the chains without the limits kept all of it: their light
+    read 1.21x the maps' at Glossy 0). Ratios of one seed's renders: the chains' light
+    has a few % of noise at this size."""
+    def caustic(fg, glossy):
+        f = render(_two_metals(), RenderSettings(
+            photons=20_000, caustic_photons=100_000, spp=8, seed=1, workers=1,
+            cycles_filter_glossy=fg, glossy_bounces=glossy))
+        return float(np.mean(f.caustic)), float(np.mean(f.combined))
+    (dropped4, m4), (dropped0, _) = caustic(0.0, 4), caustic(0.0, 0)
+    added4, added0 = caustic(1.0, 4)[0], caustic(1.0, 0)[0]
+    assert dropped4 / m4 > 0.15
+    maps = dropped0 / dropped4
+    assert maps < 0.9  # (L S S D: a share the test can see)
+    assert added0 / added4 == pytest.approx(maps, abs=0.06), (added0 / added4, maps)
+    assert added4 / dropped4 == pytest.approx(1.0, abs=0.06)
 
 
 def test_the_blur_dims_a_sharper_floors_glow():

@@ -840,6 +840,33 @@ def transmission_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
 
 
 @kernel
+def reverse_transmission_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
+    """transmission_pdf seen from the far side: the solid-angle pdf with which a path
+    arriving from wi's side (local, iz < 0: the camera side coming from a photon's next
+    vertex) samples wo (oz > 0) through hit i, whose lobes are set up at wo's side (the
+    photon's arrival). A refraction's pdf is not symmetric: Cycles' bsdf_microfacet.h
+    takes D G1(wi) |wi.h wo.h| / (cos_i (wi.h + eta' wo.h)^2 / eta'^2) with eta' = 1 /
+    eta, wi's side's own IOR, which is transmission_pdf's glass pdf (Walter et al. 2007,
+    wo's side) x cos_o (1 + Lambda(cos_o)) / (|cos_i| eta^2 (1 + Lambda(|cos_i|))) on the
+    glossy normal; the reflect / refract share at h is the same from both sides (a
+    dielectric's Fresnel is). The translucent lobe's pdf is cos_o / pi (the far side's
+    cosine sampling of wo). inf where the transmission has no density."""
+    if not has_rough_transmission(prm, i):
+        return np.inf
+    _, _, _, pg, pl = eval_transmission(prm, i, ox, oy, oz, ix, iy, iz)
+    if pg > 0.0:
+        _, _, qz = _to_glossy(prm, i, ox, oy, oz)
+        _, _, jz = _to_glossy(prm, i, ix, iy, iz)
+        a2 = prm[i, P_GLASS_ALPHA] * prm[i, P_GLASS_ALPHA]
+        eta = prm[i, P_GLASS_ETA]
+        pg *= (qz * (1.0 + ggx.lambda_ggx(qz, a2))
+               / (-jz * eta * eta * (1.0 + ggx.lambda_ggx(-jz, a2))))
+    if pl > 0.0:
+        pl = oz / math.pi
+    return (sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) * pg + sel[i, L_TRANSL] * pl
+
+
+@kernel
 def rough_transmission_rows(prm, cand, out):
     """Writes the rows of cand (int64) with has_rough_transmission into out; returns
     their count."""
