@@ -28,13 +28,6 @@ from engine.render import render
 from engine.scene import Material
 
 
-@pytest.fixture(autouse=True)
-def _split_on(monkeypatch):
-    """The split is off by default (engine/glossysplit.py ENABLED: it double-counts the
-    light panelight / shadelight already carry, s46): these tests measure it on."""
-    monkeypatch.setattr(glossysplit, "ENABLED", True)
-
-
 def test_blur_alpha_is_effects_formula():
     pdfs = [0.0, 0.05, 1.0 / math.pi, 0.5, 0.999, 1.0, 3.0, np.inf]
     for fg in (0.0, 0.1, 1.0, 10.0):
