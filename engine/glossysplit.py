@@ -174,6 +174,25 @@ class DiffusePdf:
         return reject
 
 
+def window_glass(ctx):
+    """(T,) bool: the window glass triangles (photonkernels.window_triangles) whose flat
+    passages the render's shadow rays cross (ctx.shadow.flat_on), or None (none, or no
+    passages); found once and kept on ctx."""
+    from . import photonkernels as pk
+    from .parallel import once_on
+    shadow = getattr(ctx, "shadow", None)
+    if shadow is None or not shadow.flat_on:
+        return None
+
+    def find():
+        flat = pk.flat_glass_materials(ctx.table)
+        if not len(flat) or not flat[ctx.geo.material].any():
+            return None
+        window = pk.window_triangles(ctx.geo, flat, pk.flat_thickness_limits(ctx.geo))
+        return window if window.any() else None
+    return once_on(ctx, "_split_window", find)
+
+
 PDF_BLOCK = 1 << 16  # DiffusePdf.pdf's pairs per call (its gathered lobe rows' memory)
 
 
@@ -204,7 +223,9 @@ class GatherChains:
     lamp's shade (for that lamp) leaves those lights to their shadow rays at D
     (shadelight.next_event_tri, the photons' F_PANE table): no light sample of them
     through its refraction, no emission of them on the rays it refracts (self.carried;
-    docs/compatibility.md "splitpane47")."""
+    docs/compatibility.md "splitpane47"). So do a window glass's entry and exit at the
+    first two vertices for every light (a flat passage its shadow rays cross:
+    window_glass)."""
 
     def __init__(self, ctx, n: int, fg: float, d_pdf: DiffusePdf):
         from . import integrator as it
@@ -234,7 +255,22 @@ class GatherChains:
         # Per gathering hit row: a bit per self.carried entry, set where the vertex its
         # ray left (refracted through) carries that light (emission's exclusion).
         self.left_carrier = np.zeros(n, np.int64)
-        self._carrier = None  # (bits (M,) by row of vertex()'s hits) at a first vertex
+        # Window glass (photonkernels.window_triangles: flat slabs that shadow rays cross
+        # as flat passages, engine/shadowtransmittance.py; None: none, or no passages):
+        # a gather ray that enters it at its first vertex and leaves by its second
+        # crossed a passage, whose light beyond is D's shadow rays' for every light
+        # (its photons leave the passage as the kind they entered: not caustic). Those
+        # two vertices sample no light through their refraction and the rays refracted
+        # there count no emission. in_glass: per gathering hit row, whether its ray
+        # entered window glass at its first vertex; left_passage: whether it was
+        # refracted at such a vertex.
+        self.window = window_glass(ctx)
+        self.in_glass = np.zeros(n, bool)
+        self.left_passage = np.zeros(n, bool)
+        self._depth = 0
+        # At the current vertex: (carried bits (M,) or None, passage (M,) bool or None,
+        # ng (M,3), wo (M,3)) by row of vertex()'s hits; None: nothing carried there.
+        self._carrier = None
 
     def start(self, idx, d, ns):
         """The gather rays (hit rows idx (K,), directions d (K,3)) leave D (shading
@@ -251,15 +287,16 @@ class GatherChains:
             bits |= carried_at(tri, prim).astype(np.int64) << j
         return bits
 
-    def vertex(self, y, rows_idx, tp, E, G, rng, counters, first=False):
+    def vertex(self, y, rows_idx, tp, E, G, rng, counters, depth=0):
         """At chain hits y (the rows that continue: their hit rows rows_idx (M,), ray
         throughputs tp (M,3)): blur y's lobes by the chains' min_pdf (y.prm raised in
         place after the closures' set-up, the albedos kept), add light sampling through
         the blurred lobes (radiance towards y.wo) at the blurred rows to E, and return the
         continuation's lobe choice (integrator.lobe_choice of the unblurred albedos) for
-        continue_specular. first: y are the gather rays' own hits (depth 0), where a
-        next-event pane or lamp shade's refraction leaves its lights to panelight /
-        shadelight (self.carried)."""
+        continue_specular. depth: the chain's vertex number (0: the gather rays' own
+        hits), where a next-event pane or lamp shade's refraction leaves its lights to
+        panelight / shadelight (self.carried, depth 0) and window glass its passage's
+        to every light's shadow rays (self.window, depths 0 and 1)."""
         from . import integrator as it
         from .bsdf import closures
         from .glasslight import rough_transmission_rows, transmitted_light
@@ -274,11 +311,19 @@ class GatherChains:
         wd = np.asarray(albedo, np.float64)[:, L_DIFFUSE, :].mean(axis=1)  # (as DiffusePdf's)
         self._vertex = (choice[1], choice[3], wd, np.asarray(y.ns, np.float64))
         self._carrier = None
-        if first and self.carried:
+        self._depth = depth
+        bits = passage = None
+        if depth == 0 and self.carried:
             bits = self.carrier_bits(np.asarray(y.prim, np.int64))
-            if bits.any():
-                self._carrier = (bits, np.asarray(y.ng, np.float64),
-                                 np.asarray(y.wo, np.float64))
+            bits = bits if bits.any() else None
+        if self.window is not None and depth <= 1:
+            passage = np.take(self.window, np.asarray(y.prim, np.int64))
+            if depth == 1:
+                passage &= np.take(self.in_glass, rows_idx)
+            passage = passage if passage.any() else None
+        if bits is not None or passage is not None:
+            self._carrier = (bits, passage, np.asarray(y.ng, np.float64),
+                             np.asarray(y.wo, np.float64))
         blurred = np.flatnonzero(mp < self.fg)
         if not len(blurred):
             return choice
@@ -297,7 +342,10 @@ class GatherChains:
         # no sample (their modes MODE_CONTINUATION: light_sample_list skips them), by
         # groups of rows with the same carried set (one group, the plain call, elsewhere).
         gl = rough_transmission_rows(sub.prm, np.arange(n, dtype=np.int64))
-        bits = (np.zeros(len(gl), np.int64) if self._carrier is None
+        if self._carrier is not None and self._carrier[1] is not None:
+            gl = gl[~np.take(self._carrier[1], blurred[gl])]  # (a passage's: none)
+        bits = (np.zeros(len(gl), np.int64)
+                if self._carrier is None or self._carrier[0] is None
                 else np.take(self._carrier[0], blurred[gl]))
         for b in np.unique(bits):
             rows = gl[bits == b]
@@ -327,13 +375,22 @@ class GatherChains:
         # The rays refracted through a first vertex that carries lights (vertex(first)):
         # those lights' emission is panelight's / shadelight's.
         self.left_carrier[rows_idx] = 0
+        self.left_passage[rows_idx] = False
+        if self._depth == 0:
+            self.in_glass[rows_idx] = False
         if self._carrier is not None and rows_y is not None and len(rows_idx):
-            bits, ng, wo = self._carrier
+            bits, passage, ng, wo = self._carrier
             rows_y = np.asarray(rows_y, np.int64)
             ngr = np.take(ng, rows_y, axis=0)
             through = (np.einsum("ij,ij->i", ngr, np.asarray(d, np.float64))
                        * np.einsum("ij,ij->i", ngr, np.take(wo, rows_y, axis=0))) < 0.0
-            self.left_carrier[rows_idx] = np.where(through, np.take(bits, rows_y), 0)
+            if bits is not None:
+                self.left_carrier[rows_idx] = np.where(through, np.take(bits, rows_y), 0)
+            if passage is not None:
+                left = through & np.take(passage, rows_y)
+                self.left_passage[rows_idx] = left
+                if self._depth == 0:
+                    self.in_glass[rows_idx] = left
         if rows_y is not None and self._vertex is not None and len(rows_idx):
             q, psum, wd, ns = self._vertex
             rows_y = np.asarray(rows_y, np.int64)
@@ -356,7 +413,7 @@ class GatherChains:
         ctx = self.ctx
         if not self.continuation_lights and not self.unsampled:
             return
-        go = np.flatnonzero(self.from_blurred[rows_idx])
+        go = np.flatnonzero(self.from_blurred[rows_idx] & ~self.left_passage[rows_idx])
         if not len(go):
             return
         rows_idx = rows_idx[go]

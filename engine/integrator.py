@@ -1224,7 +1224,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # through their blurred reflective lobes (glossysplit.GatherChains).
                 rows_f = slice(None) if yf is y else full
                 choice = chains.vertex(yf, idx[rows_f], tp[rows_f], E_chain, G, rng,
-                                       counters, first=depth == 0)
+                                       counters, depth=depth)
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d

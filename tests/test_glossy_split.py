@@ -189,7 +189,10 @@ def test_maps_and_chains_decide_each_path_alike():
         chains.min_pdf = np.full(k, np.inf)
         chains.from_blurred = np.zeros(k, bool)
         chains.start(rows, towards_s.astype(np.float32).astype(np.float64), hit.ns)
-        chains._vertex = None
+        chains._vertex, chains._carrier, chains._depth = None, None, 1
+        chains.left_carrier = np.zeros(k, np.int64)
+        chains.left_passage = np.zeros(k, bool)
+        chains.in_glass = np.zeros(k, bool)
         chains.continued(rows, chain_pdf)
         blurred_chains = chains.min_pdf < fg
         np.testing.assert_array_equal(blurred_maps, blurred_chains)
@@ -327,18 +330,22 @@ def test_sharp_floor_against_cycles(fg):
     assert (got[fg] / got[0.0]) / (c1 / c0) == pytest.approx(1.0, abs=RATIO_TOLERANCE)
 
 
-def _floor_under_pane(sun=True):
+def _floor_under_pane(sun=True, slab=False):
     """A grey floor under a horizontal single-plane glass pane (a next-event pane,
     engine/panelight.py), an orthographic camera between them looking down; lit by a sun
     30 degrees off the zenith with a 3-degree disc (sun) or by a constant white world
     (not sun: the world's light through the pane, paneworld32; grey walls close the room
-    under the pane, so no ray the pane reflects escapes into the world)."""
+    under the pane, so no ray the pane reflects escapes into the world). slab: window
+    glass 1 cm thick instead (a flat passage for every light's shadow rays)."""
     s = PaperScene(width=16, height=16, background=(0, 0, 0) if sun else (1, 1, 1))
     s.add_material(Material("floor", (0.5,) * 3))
     s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.5,
                             roughness=0.0))
     s.add_plane((0, 0, 0), (0, 0, 1), 10.0, "floor", name="floor")
-    s.add_plane((0, 0, 1.0), (0, 0, 1), 6.0, "glass", name="pane")
+    if slab:
+        s.add_box((0, 0, 1.005), (6.0, 6.0, 0.01), "glass", name="pane")
+    else:
+        s.add_plane((0, 0, 1.0), (0, 0, 1), 6.0, "glass", name="pane")
     if not sun:
         for k in range(4):
             a = k * math.pi / 2
@@ -355,8 +362,9 @@ def _floor_under_pane(sun=True):
     return s
 
 
+@pytest.mark.parametrize("glass", ["pane", "slab"])
 @pytest.mark.parametrize("light", ["sun", "world"])
-def test_the_chains_leave_a_panes_light_to_its_shadow_rays(light):
+def test_the_chains_leave_a_panes_light_to_its_shadow_rays(light, glass):
     """A floor under a next-event pane at Filter Glossy 1 (splitpane47): the floor's light
     through the pane is its shadow rays' (the Direct pass, the same bits as at Filter
     Glossy 0), its photons are direct-kind, and the gather chains, whose first vertex is
@@ -364,15 +372,18 @@ def test_the_chains_leave_a_panes_light_to_its_shadow_rays(light):
     world their refracted rays escape into: the Caustic pass (where the chains put their
     light) stays empty. Before, the chains added that light a second time (Caustic 1.05
     of Direct under the sun, 0.97 under the world; tests/blender/test_pane_sun_cycles.py
-    read 1.51x Cycles)."""
-    s = _floor_under_pane(light == "sun")
+    read 1.51x Cycles). The same under window glass 1 cm thick, whose flat passage every
+    light's shadow rays cross: its entry and exit leave their light to them (before:
+    Caustic 0.58 of Direct under either light; now about 2 %: the light reflected inside
+    the slab stays the chains')."""
+    s = _floor_under_pane(light == "sun", glass == "slab")
     base = RenderSettings(photons=20_000, caustic_photons=20_000, spp=4, seed=1, workers=1)
     f0 = render(s, base)
     f1 = render(s, dataclasses.replace(base, cycles_filter_glossy=1.0))
     np.testing.assert_array_equal(f1.direct, f0.direct)
     direct = float(np.mean(f0.direct))
     assert direct > 0.05
-    assert float(np.mean(f1.caustic)) < 1e-3 * direct
+    assert float(np.mean(f1.caustic)) < (0.04 if glass == "slab" else 1e-3) * direct
 
 
 def test_carriers_are_the_panes_for_suns_and_shades_for_their_lamps():
