@@ -6,8 +6,8 @@ the same target. Prints a table.
     PYTHONPATH=$PWD .venv/bin/python bench/bench_split_pane_cycles_fg.py [--ours]
 
 --ours also renders ours (at the scene's Filter Glossy 1, the split as
-glossysplit.ENABLED says; --split on, --no-split off) and prints ours / each. Names given
-select the scenes (substrings).
+glossysplit.ENABLED says; --split on, --no-split off; --no-panes: engine/panelight.py
+off) and prints ours / each. Names given select the scenes (substrings).
 """
 import os
 import sys
@@ -33,6 +33,10 @@ def main():
         glossysplit.ENABLED = True
     if "--no-split" in sys.argv:
         glossysplit.ENABLED = False
+    if "--no-panes" in sys.argv:
+        # (A/B: no next-event panes, the light through them caustic as before pane31)
+        from engine import panelight
+        panelight.ENABLED = False
     tmp = tempfile.mkdtemp(prefix="splitpane47_")
 
     def mean(scene, engine, name):
