@@ -37,13 +37,11 @@ import numpy as np
 
 # The split on (Filter Glossy above 0, photon mapping with final gathering); False: the
 # maps and chains as without it (Cycles at Filter Glossy 0), whatever the scene's Filter
-# Glossy. Off by default (s46): at a next-event pane (engine/panelight.py) or a lamp's
-# glass shade (engine/shadelight.py) the chains' light sampling adds the light those
-# shadow rays already carry (a floor under a sunlit single-plane pane read 1.51x Cycles,
-# tests/blender/test_pane_sun_cycles.py), and a glass of water read 0.36-0.44 of Cycles
-# (tests/blender/test_glass_of_water_cycles.py); the tests that measure the split switch
-# it on (docs/compatibility.md "fgsplit46", "Off by default").
-ENABLED = False
+# Glossy. On by default since splitpane47: the chains leave the lights that next-event
+# panes (engine/panelight.py) and lamp shades (engine/shadelight.py) carry to their
+# shadow rays (GatherChains.carried); off in s46, when they added that light a second
+# time (docs/compatibility.md "fgsplit46" "Off by default", "splitpane47").
+ENABLED = True
 # The largest pdf of a Lambert bounce's direction (cos / pi at the normal), 1/sr.
 LAMBERT_PDF_MAX = 1.0 / math.pi
 
@@ -250,6 +248,25 @@ class DiffusePdf:
         return reject
 
 
+def window_glass(ctx):
+    """(T,) bool: the window glass triangles (photonkernels.window_triangles) whose flat
+    passages the render's shadow rays cross (ctx.shadow.flat_on), or None (none, or no
+    passages); found once and kept on ctx."""
+    from . import photonkernels as pk
+    from .parallel import once_on
+    shadow = getattr(ctx, "shadow", None)
+    if shadow is None or not shadow.flat_on:
+        return None
+
+    def find():
+        flat = pk.flat_glass_materials(ctx.table)
+        if not len(flat) or not flat[ctx.geo.material].any():
+            return None
+        window = pk.window_triangles(ctx.geo, flat, pk.flat_thickness_limits(ctx.geo))
+        return window if window.any() else None
+    return once_on(ctx, "_split_window", find)
+
+
 PDF_BLOCK = 1 << 16  # DiffusePdf.pdf's pairs per call (its gathered lobe rows' memory)
 
 
@@ -274,7 +291,15 @@ class GatherChains:
     importance sampling), so the continued rays count only the emitters light sampling
     leaves to the continuation (integrator.MODE_CONTINUATION: a constant world, a light
     without shadow rays) and the mesh sides no shadow ray samples. A delta lamp through
-    a blurred glass ball is then found, as Cycles finds it (figure8_caustic's spot)."""
+    a blurred glass ball is then found, as Cycles finds it (figure8_caustic's spot).
+
+    A gather ray's own hit that is a next-event pane (for the suns and the world) or a
+    lamp's shade (for that lamp) leaves those lights to their shadow rays at D
+    (shadelight.next_event_tri, the photons' F_PANE table): no light sample of them
+    through its refraction, no emission of them on the rays it refracts (self.carried;
+    docs/compatibility.md "splitpane47"). So do a window glass's entry and exit at the
+    first two vertices for every light (a flat passage its shadow rays cross:
+    window_glass)."""
 
     def __init__(self, ctx, n: int, fg: float, d_pdf: DiffusePdf):
         from . import integrator as it
@@ -288,6 +313,38 @@ class GatherChains:
                                     if m == it.MODE_CONTINUATION]
         self.unsampled = it._unsampled_meshes(ctx)
         self._vertex = None  # (q, psum, w_diffuse, ns) of vertex()'s hits
+        # The lights next-event panes and lamp shades carry by their own shadow rays
+        # (shadelight.next_event_tri): (light index, triangle table) for each light with
+        # one. Where a chain's first vertex (the gather ray's hit) refracts such a light
+        # from a triangle of its table, the path L -> pane / shade -> D is D's direct
+        # light (panelight / shadelight at D; its photons are direct-kind, out of the
+        # caustic map): the chain neither samples that light there nor counts its
+        # emission on the rays refracted there.
+        from .shadelight import next_event_tri
+        self.carried = []
+        for li, light in enumerate(ctx.lights):
+            tri = next_event_tri(ctx, light)
+            if tri is not None and len(tri):
+                self.carried.append((li, tri))
+        # Per gathering hit row: a bit per self.carried entry, set where the vertex its
+        # ray left (refracted through) carries that light (emission's exclusion).
+        self.left_carrier = np.zeros(n, np.int64)
+        # Window glass (photonkernels.window_triangles: flat slabs that shadow rays cross
+        # as flat passages, engine/shadowtransmittance.py; None: none, or no passages):
+        # a gather ray that enters it at its first vertex and leaves by its second
+        # crossed a passage, whose light beyond is D's shadow rays' for every light
+        # (its photons leave the passage as the kind they entered: not caustic). Those
+        # two vertices sample no light through their refraction and the rays refracted
+        # there count no emission. in_glass: per gathering hit row, whether its ray
+        # entered window glass at its first vertex; left_passage: whether it was
+        # refracted at such a vertex.
+        self.window = window_glass(ctx)
+        self.in_glass = np.zeros(n, bool)
+        self.left_passage = np.zeros(n, bool)
+        self._depth = 0
+        # At the current vertex: (carried bits (M,) or None, passage (M,) bool or None,
+        # ng (M,3), wo (M,3)) by row of vertex()'s hits; None: nothing carried there.
+        self._carrier = None
 
     def start(self, idx, d, ns):
         """The gather rays (hit rows idx (K,), directions d (K,3)) leave D (shading
@@ -295,7 +352,16 @@ class GatherChains:
         maps' own predicate; cos / pi on a Lambert-only D)."""
         self.min_pdf[idx] = self.d_pdf.pdf(idx, d, ns)
 
-    def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None):
+    def carrier_bits(self, prim) -> np.ndarray:
+        """(K,) int64: per triangle row of prim (K,), bit j set where it carries the light
+        of self.carried[j] by next-event shadow rays (shadelight.carried_at)."""
+        from .shadelight import carried_at
+        bits = np.zeros(len(prim), np.int64)
+        for j, (_, tri) in enumerate(self.carried):
+            bits |= carried_at(tri, prim).astype(np.int64) << j
+        return bits
+
+    def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None, depth=0):
         """At chain hits y (the rows that continue: their hit rows rows_idx (M,), ray
         throughputs tp (M,3)): blur y's lobes by the chains' min_pdf (y.prm raised in
         place after the closures' set-up, the albedos kept), add light sampling through
@@ -305,7 +371,11 @@ class GatherChains:
         are reached with (B_TOTAL order, D's diffuse bounce included; None: D's alone):
         a hit past the Light Paths limits takes no light sample (Cycles shades no vertex
         a terminated path reaches: docs/design.md, Bounce limits), and the shadow rays
-        of the others cross flat passages as those limits allow."""
+        of the others cross flat passages as those limits allow.
+        depth: the chain's vertex number (0: the gather rays' own
+        hits), where a next-event pane or lamp shade's refraction leaves its lights to
+        panelight / shadelight (self.carried, depth 0) and window glass its passage's
+        to every light's shadow rays (self.window, depths 0 and 1)."""
         from . import integrator as it
         from .bsdf import closures
         from .glasslight import rough_transmission_rows, transmitted_light
@@ -319,6 +389,20 @@ class GatherChains:
         from .closures.principled import L_DIFFUSE
         wd = np.asarray(albedo, np.float64)[:, L_DIFFUSE, :].mean(axis=1)  # (as DiffusePdf's)
         self._vertex = (choice[1], choice[3], wd, np.asarray(y.ns, np.float64))
+        self._carrier = None
+        self._depth = depth
+        bits = passage = None
+        if depth == 0 and self.carried:
+            bits = self.carrier_bits(np.asarray(y.prim, np.int64))
+            bits = bits if bits.any() else None
+        if self.window is not None and depth <= 1:
+            passage = np.take(self.window, np.asarray(y.prim, np.int64))
+            if depth == 1:
+                passage &= np.take(self.in_glass, rows_idx)
+            passage = passage if passage.any() else None
+        if bits is not None or passage is not None:
+            self._carrier = (bits, passage, np.asarray(y.ng, np.float64),
+                             np.asarray(y.wo, np.float64))
         counts = self.vertex_counts(len(mp), counts)
         blurred = np.flatnonzero((mp < self.fg) & self.shaded(counts))
         if not len(blurred):
@@ -335,15 +419,29 @@ class GatherChains:
         L = it.direct_irradiance(ctx, sub, rng, counters, bsdf=(np.zeros((n, 3)), sub.prm,
                                                                no_sel), counts=counts)
         # ... and by their rough refraction (engine/glasslight.py), in full as well.
+        # At a first vertex that is a next-event pane or shade, its carried lights take
+        # no sample (their modes MODE_CONTINUATION: light_sample_list skips them), by
+        # groups of rows with the same carried set (one group, the plain call, elsewhere).
         gl = rough_transmission_rows(sub.prm, np.arange(n, dtype=np.int64))
-        if len(gl):
-            samples = it.light_sample_list(ctx, len(gl), rng, modes=self.modes)
-            L[gl] += transmitted_light(ctx, sub, gl, sub.prm, no_sel, np.ones(n),
-                                       self.modes, samples, counters,
-                                       counts=np.ascontiguousarray(counts[gl]))
-        rows = rows_idx[blurred]
+        if self._carrier is not None and self._carrier[1] is not None:
+            gl = gl[~np.take(self._carrier[1], blurred[gl])]  # (a passage's: none)
+        bits = (np.zeros(len(gl), np.int64)
+                if self._carrier is None or self._carrier[0] is None
+                else np.take(self._carrier[0], blurred[gl]))
+        for b in np.unique(bits):
+            rows = gl[bits == b]
+            modes = self.modes
+            if b:
+                modes = self.modes.copy()
+                for j, (li, _) in enumerate(self.carried):
+                    if b >> j & 1:
+                        modes[li] = it.MODE_CONTINUATION
+            samples = it.light_sample_list(ctx, len(rows), rng, modes=modes)
+            L[rows] += transmitted_light(ctx, sub, rows, sub.prm, no_sel, np.ones(n),
+                                         modes, samples, counters,
+                                         counts=np.ascontiguousarray(counts[rows]))
         add = np.take(np.asarray(tp, np.float64), blurred, axis=0) * (math.pi / G) * L
-        np.add.at(E, rows, add)
+        np.add.at(E, rows_idx[blurred], add)
         return choice
 
     # D's diffuse bounce: the counts (B_TOTAL order) of a chain's first hit past D on a
@@ -375,6 +473,25 @@ class GatherChains:
         itself."""
         from .filterglossy import mis_pdf
         self.from_blurred[rows_idx] = self.min_pdf[rows_idx] < self.fg
+        # The rays refracted through a first vertex that carries lights (vertex(first)):
+        # those lights' emission is panelight's / shadelight's.
+        self.left_carrier[rows_idx] = 0
+        self.left_passage[rows_idx] = False
+        if self._depth == 0:
+            self.in_glass[rows_idx] = False
+        if self._carrier is not None and rows_y is not None and len(rows_idx):
+            bits, passage, ng, wo = self._carrier
+            rows_y = np.asarray(rows_y, np.int64)
+            ngr = np.take(ng, rows_y, axis=0)
+            through = (np.einsum("ij,ij->i", ngr, np.asarray(d, np.float64))
+                       * np.einsum("ij,ij->i", ngr, np.take(wo, rows_y, axis=0))) < 0.0
+            if bits is not None:
+                self.left_carrier[rows_idx] = np.where(through, np.take(bits, rows_y), 0)
+            if passage is not None:
+                left = through & np.take(passage, rows_y)
+                self.left_passage[rows_idx] = left
+                if self._depth == 0:
+                    self.in_glass[rows_idx] = left
         if rows_y is not None and self._vertex is not None and len(rows_idx):
             q, psum, wd, ns = self._vertex
             rows_y = np.asarray(rows_y, np.int64)
@@ -399,7 +516,7 @@ class GatherChains:
         ctx = self.ctx
         if not self.continuation_lights and not self.unsampled:
             return
-        go = np.flatnonzero(self.from_blurred[rows_idx]
+        go = np.flatnonzero(self.from_blurred[rows_idx] & ~self.left_passage[rows_idx]
                             & self.shaded(self.vertex_counts(len(rows_idx), counts)))
         if not len(go):
             return
@@ -413,6 +530,16 @@ class GatherChains:
         t = np.where(prim >= 0, t, np.inf)
         Le = np.zeros((k, 3))
         at_lamp = np.zeros(k, bool)
+        carrier = np.take(self.left_carrier, rows_idx)
+        carried = {li: j for j, (li, _) in enumerate(self.carried)}
+
+        def counted(li, sel=slice(None)):
+            """(rows,) bool: the rays (of sel) that count light li's emission (not those
+            refracted through a first vertex that carries it)."""
+            if li not in carried:
+                return True
+            return (carrier[sel] >> carried[li] & 1) == 0
+
         for li in self.continuation_lights:
             light = ctx.lights[li]
             if not light.has_surface:
@@ -425,7 +552,9 @@ class GatherChains:
                 continue
             mask = mask & sees
             if mask.any():
-                Le[mask] += L[mask]
+                # (a ray that meets the lamp ends there, counted or not)
+                add = mask & counted(li)
+                Le[add] += L[add]
                 t = np.where(mask, tl, t)
                 at_lamp |= mask
         surf = np.flatnonzero((prim >= 0) & ~at_lamp)
@@ -443,6 +572,6 @@ class GatherChains:
                 sun = (worldmedium.background(ctx.scene, dm) if light.kind == it.WORLD
                        else light.seen_at_infinity(dm))
                 if sun is not None:
-                    Le[miss] += sun
+                    Le[miss] += np.where(np.reshape(counted(li, miss), (-1, 1)), sun, 0.0)
         add = tp * (math.pi / G) * Le
         np.add.at(E, rows_idx, add)

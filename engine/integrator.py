@@ -1226,7 +1226,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 choice = chains.vertex(yf, idx[rows_f], tp[rows_f], E_chain, G, rng,
                                        counters, counts=None if cnt is None else
                                        chaincounts.camera_counts(cnt[idx[rows_f]],
-                                                                 chains.D_BOUNCE))
+                                                                 chains.D_BOUNCE),
+                                       depth=depth)
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d

@@ -40,8 +40,7 @@ from .glossysplit import settings_filter_glossy
 from .closures.principled import M_IOR
 from .console import short_count
 from .normalmap import bump_shadowing
-from .panelight import panes_for
-from .shadelight import shades_for
+from .shadelight import next_event_tri
 from .mediumstart import point_medium
 from .scene import AREA, POINT, SPOT
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
@@ -325,13 +324,9 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     bump, tfar, hit_rows, hits = _factor_views(factors, m)
     stored = _Stored(2 * m + 1024, pool, shot)
     # A sun's or the world's photons refracted through a next-event pane stay direct
-    # (engine/panelight.py).
-    panes = panes_for(ctx)
-    pane_tri = panes.photon_tri(light) if panes is not None else None
-    # A lamp's photons through a Translucent BSDF shade stay direct (engine/shadelight.py).
-    shades = shades_for(ctx)
-    if shades is not None:
-        pane_tri = shades.photon_tri(light, pane_tri)
+    # (engine/panelight.py), and a lamp's through its Translucent BSDF or rough glass
+    # shade (engine/shadelight.py).
+    pane_tri = next_event_tri(ctx, light)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,

@@ -353,6 +353,36 @@ def shades_for(ctx):
                    lambda: find_shades(ctx.geo, ctx.table, ctx.lights, ctx.settings))
 
 
+def next_event_tri(ctx, light) -> np.ndarray | None:
+    """The photon kernel's pane_tri for the photons of `light` (photonkernels._scatter's
+    F_PANE test): per triangle row, the next-event pane index (>= 0) where `light` is a
+    sun or the world that the panes serve (engine/panelight.py), SHADE_TRANSLUCENT /
+    SHADE_GLASS on the shade triangles where it is a lamp the shades serve, -1
+    elsewhere; None or empty: no surface whose shadow rays carry this light. The light
+    refracted through (or, at a translucent shade, transmitted by) such a triangle as the
+    first scatter of its path to a diffuse point is that point's direct light, so the
+    caustic map holds no photon of it and the Filter Glossy split's chains
+    (glossysplit.GatherChains) sample none of it there."""
+    from .panelight import panes_for
+    panes = panes_for(ctx)
+    tri = panes.photon_tri(light) if panes is not None else None
+    shades = shades_for(ctx)
+    if shades is not None:
+        tri = shades.photon_tri(light, tri)
+    return tri
+
+
+def carried_at(tri, prim) -> np.ndarray:
+    """(K,) bool: whether the triangle rows prim (K,) int64 carry the light of
+    next_event_tri's table tri by next-event shadow rays through them: a pane, a rough
+    glass shade (its refraction) or a translucent shade (the photon kernel's F_PANE
+    codes)."""
+    if tri is None or not len(tri):
+        return np.zeros(len(prim), bool)
+    code = np.take(tri, np.asarray(prim, np.int64))
+    return (code >= 0) | (code == pk.SHADE_GLASS) | (code == pk.SHADE_TRANSLUCENT)
+
+
 def _lamp_directions(a, r):
     """(N,3) unit directions from a lamp's centre and their solid-angle pdf (N,), from
     numbers r = (r0, r1) (each (N,)): the one-sample mixture, by r0 < LAMP_COSINE_SHARE,

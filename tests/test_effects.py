@@ -572,7 +572,6 @@ def test_maps_line_says_filter_glossy_dims_a_large_glow(monkeypatch):
     glow's share reaches FILTER_GLOSSY_GLOW_SHARE and Filter Glossy is on; not below it,
     nor at Filter Glossy 0, nor where the split blurs that glow as Cycles does."""
     from engine import glossysplit
-    monkeypatch.setattr(glossysplit, "ENABLED", True)  # (off by default, s46)
     from engine.render import FILTER_GLOSSY_GLOW_SHARE, photon_map_report
     glow = dict(global_photons=400_000, radius_global=0.14, caustic_photons=45_000,
                 radius_caustic=0.13, glow_photons_emitted=2_000_000,
@@ -616,7 +615,6 @@ def test_maps_line_says_the_split_leaves_the_caustic_and_glow_maps_unread(monkey
     Glossy 0, without final gathering, with the switch off, nor where no caustic or
     glow photon was shot."""
     from engine import glossysplit
-    monkeypatch.setattr(glossysplit, "ENABLED", True)  # (off by default, s46)
     from engine.render import photon_map_report
     stats = dict(global_photons=400_000, radius_global=0.14, caustic_photons=33_323,
                  radius_caustic=0.13, glow_photons_emitted=2_003_582,
@@ -996,7 +994,6 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
     engine/glossysplit.py on (Filter Glossy above 0) ours blurs that light too: the
     line says so and the image changes; with it off only the line changes."""
     from engine import glossysplit
-    monkeypatch.setattr(glossysplit, "ENABLED", True)  # (off by default, s46)
     from engine.effects import filter_glossy_alpha
     line = _line(_plan(_metal_block_scene(0.4), cycles_filter_glossy=1.0), "glossy blur: on - ")
     assert "'Block' throws onto diffuse surfaces; so does ours" in line, line

@@ -26,14 +26,6 @@ LUM = np.array([0.2126, 0.7152, 0.0722])
 pytestmark = pytest.mark.blender
 
 
-@pytest.fixture(autouse=True)
-def _split_on(monkeypatch):
-    """The split is off by default (engine/glossysplit.py ENABLED: it double-counts the
-    light panelight / shadelight already carry, s46): these tests measure it on."""
-    from engine import glossysplit
-    monkeypatch.setattr(glossysplit, "ENABLED", True)
-
-
 def _ours(fg, seeds=(0, 1), spp=32):
     sys.path.insert(0, os.path.join(ROOT, "tools"))
     import accuracy_scenes as acc

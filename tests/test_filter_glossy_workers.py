@@ -2,20 +2,11 @@
 split between the caustic / glow maps and the gather chains) and the world probes give
 the same image for any worker count: every random stream they draw is the chunk's."""
 import numpy as np
-import pytest
 
 from engine import RenderSettings
 from engine.api import PaperScene
 from engine.render import render
 from engine.scene import Material
-
-
-@pytest.fixture(autouse=True)
-def _split_on(monkeypatch):
-    """The split is off by default (engine/glossysplit.py ENABLED: it double-counts the
-    light panelight / shadelight already carry, s46): these tests measure it on."""
-    from engine import glossysplit
-    monkeypatch.setattr(glossysplit, "ENABLED", True)
 
 
 def _scene():

@@ -33,14 +33,6 @@ pytestmark = [pytest.mark.blender, pytest.mark.slow]  # (12-29 s: two Cycles ren
 W, H, BLOCK = 64, 48, 4
 
 
-@pytest.fixture(autouse=True)
-def _split_on(monkeypatch):
-    """The split is off by default (engine/glossysplit.py ENABLED: it double-counts the
-    light panelight / shadelight already carry, s46): these tests measure it on."""
-    from engine import glossysplit
-    monkeypatch.setattr(glossysplit, "ENABLED", True)
-
-
 def _scene(bpy):
     sys.path.insert(0, BLENDS)
     import make_blends as mb

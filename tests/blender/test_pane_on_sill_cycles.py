@@ -64,7 +64,12 @@ def _scene(bpy, scene):
 def test_ceiling_over_a_pane_standing_on_a_sill_matches_cycles(fresh_scene, bpy_addon,
                                                                  tmp_path):
     """The ceiling's band rows and the whole image within 5 % of Cycles 4096 spp
-    (measured: band 1.000, image 0.978; before, main b71c843: 1.546 and 1.102)."""
+    (measured: band 1.000, image 0.978; before, main b71c843: 1.546 and 1.102). Both at
+    the scene's Filter Glossy 1 (splitpane47: Cycles' image 0.1287, 0.864 of its 0.1490
+    at 0; ours band 0.958, image 0.959 of Cycles at 1: the pane is window glass, whose
+    passage the chains leave to the shadow rays, which miss the light the blurred pane
+    sends up to the ceiling; 1.012 / 0.978 where the chains took that light too, and the
+    image 0.845 of Cycles at 0)."""
     from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
     bpy = bpy_addon
     scene = fresh_scene
@@ -73,7 +78,7 @@ def test_ceiling_over_a_pane_standing_on_a_sill_matches_cycles(fresh_scene, bpy_
     cheap(scene, spp=64, photons=100_000, caustic_photons=100_000)
     ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))[..., :3].mean(axis=2)
     scene.render.engine = "CYCLES"
-    cycles_plain(scene, 4096, 12)
+    cycles_plain(scene, 4096, 12).blur_glossy = 1.0  # (the scene's, ours' too)
     ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3].mean(axis=2)
     band = float(ours[BAND].mean() / ref[BAND].mean())
     image = float(ours.mean() / ref.mean())

@@ -9,6 +9,15 @@ floor's light by shadow rays refracted through the pane; before, it came from th
 photon map alone and the Direct pass was 0. Brightness within 3 % of Cycles, and the
 floor even: ours' 8 x 8 block means within 3 % of their mean (the caustic map's blocks
 spread over +-10 % and more).
+
+Both renderers at the scene's Filter Glossy 1 (Blender's default; Cycles' Light Paths >
+Caustics): Cycles blurs the pane after the floor's diffuse bounce (0.219 against 0.255 at
+Filter Glossy 0: the floor's light reflected back by the blurred pane dims); ours takes
+the sun through the pane by its unblurred shadow rays (a uniform sun over a wide floor:
+the same irradiance as the blurred refraction) and blurs the rest by
+engine/glossysplit.py's chains, which leave the pane's sun to those shadow rays
+(docs/compatibility.md, "splitpane47": ours 0.991 of Cycles; 1.51 before, when the
+chains added it again).
 """
 import math
 
@@ -61,12 +70,13 @@ def test_floor_under_single_plane_pane_matches_cycles(fresh_scene, bpy_addon, tm
     cheap(scene, spp=16, photons=100_000, caustic_photons=100_000)
     ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))[..., :3]
     scene.render.engine = "CYCLES"
-    cycles_plain(scene, 2048, 12)
+    cycles_plain(scene, 2048, 12).blur_glossy = 1.0  # (the scene's, ours' too)
     ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
     got, want = float(ours.mean()), float(ref.mean())
     blocks = _blocks(ours.mean(axis=2))
     spread = float(blocks.max() / blocks.min())
-    print(f"floor under a single-plane pane: ours / Cycles {got / want:.4f}; ours' 8x8 "
+    print(f"floor under a single-plane pane at Filter Glossy 1: ours / Cycles "
+          f"{got / want:.4f} (ours {got:.4f}, Cycles {want:.4f}); ours' 8x8 "
           f"block max / min {spread:.4f}; Cycles' "
           f"{float(_blocks(ref.mean(axis=2)).max() / _blocks(ref.mean(axis=2)).min()):.4f}")
     assert want > 0.05

@@ -27,14 +27,6 @@ LUM = np.array([0.2126, 0.7152, 0.0722])
 CYCLES_FG1 = {"BackWall": 0.5398, "RightWall_c": 0.4277, "Floor": 0.1548, "Curtain": 1.5876}
 
 
-@pytest.fixture(autouse=True)
-def _split_on(monkeypatch):
-    """The split is off by default (engine/glossysplit.py ENABLED: it double-counts the
-    light panelight / shadelight already carry, s46): these tests measure it on."""
-    from engine import glossysplit
-    monkeypatch.setattr(glossysplit, "ENABLED", True)
-
-
 def test_window_lit_walls_match_cycles_at_the_scenes_filter_glossy(bpy_addon, tmp_path):
     bpy = bpy_addon
     import newuser44_table as T
