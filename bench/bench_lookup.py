@@ -130,9 +130,10 @@ def gather_lookup(ctx, shot, radius, k, s, ray, m=200_000):
     o32, d32 = np.empty((M, 3), np.float32), np.empty((M, 3), np.float32)
     t32, ray_row, blocked = np.empty(M, np.float32), np.empty(M, np.int64), np.zeros(M, bool)
     t_kernel, nrays = best(lambda: photonmap._gather_candidates(
-        g.tree.position, g.tree.nodes, g.position, g.normal, g.E, g.boundary, p, n,
-        np.ascontiguousarray(y.offset, dtype=np.float64), rows, np.zeros(M, np.int64),
-        g.radius ** 2, 64, True, out, bnd, o32, d32, t32, ray_row))
+        g.tree.position, g.tree.nodes, *g.neighbours, g.position, g.normal,
+        photonmap.NO_SURFACE, g.E, g.boundary, p, n, photonmap.NO_SURFACE,
+        np.ascontiguousarray(y.offset, dtype=np.float64), rows, g.radius ** 2, 64, True,
+        out, bnd, o32, d32, t32, ray_row, photonmap._NO_POINT))
     t_vis, _ = best(lambda: g.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays],
                                                   blocked[:nrays]))
     per = t_all / M

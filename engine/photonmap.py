@@ -1253,28 +1253,32 @@ class GatherMap:
         def neighbours(stop):
             return tree.neighbour_lists(workers=workers, should_cancel=stop)
 
+        P = len(self.position)
+        kept = len(masks) - len(bound_masks)  # the masks whose (P,3) levels the map keeps
         if lazy:
-            # The arrays the estimates fill (in place: the views below read them).
-            P = len(self.position)
+            # The arrays the estimates fill (in place: the views below read them); the
+            # drop bounds' masks fill their (P,) flags alone (_fill).
             done = (np.zeros((P, 3)), np.ones(P, np.bool_)) + (
-                () if chosen is None else (np.zeros((len(chosen), P, 3)),))
+                () if chosen is None else (np.zeros((kept, P, 3)),))
             self.neighbours = run_tasks([neighbours], 1, should_cancel)[0]
+            hit = [np.zeros(P, np.bool_) for _ in bound_masks]
         else:
             done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
+            if bound_masks:
+                hit = [np.any(b != 0.0, axis=1) for b in done[2][kept:]]
+                # Only the kept levels: the drop bounds' (P,3) estimates, views of one
+                # array with them, would keep it all alive (24 B a point and mask).
+                done = done[:2] + (done[2][:kept].copy(),)
         E, self.boundary = done[0], done[1]
         levels = list(done[2]) if masks else []
-        if bound_masks:
-            hit = [np.any(b != 0.0, axis=1) for b in levels[len(levels) - len(bound_masks):]]
-            levels = levels[:len(levels) - len(bound_masks)]
         for key, j in zip(bound_keys, bound_of):
             self.drop_bounds[key] = hit[j] if j >= 0 else np.zeros(len(self.position), bool)
         if lazy:
-            first = len(chosen) - len(bound_masks) if chosen is not None else 0
             self._lazy = _LazyPoints(
                 estimating, chosen, (k, min_photons, estimator),
                 self.surface if len(self.surface) else None, done[0], done[1],
                 done[2] if chosen is not None else None,
-                [(h, first + j) for j, h in enumerate(hit)] if bound_masks else [])
+                [(h, kept + j) for j, h in enumerate(hit)] if bound_masks else [])
         self.E = E if keep is None else levels.pop(0)
         if len(secondary):
             self.secondary_levels = levels[len(levels) - len(secondary):]
@@ -1319,7 +1323,7 @@ class GatherMap:
         lz.E[new] = got[0]
         lz.boundary[new] = got[1]
         if lz.levels is not None:
-            lz.levels[:, new] = got[2]
+            lz.levels[:, new] = got[2][:len(lz.levels)]
             for hit, row in lz.hits:
                 hit[new] = np.any(got[2][row] != 0.0, axis=1)
         lz.known[new] = True

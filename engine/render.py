@@ -39,7 +39,7 @@ from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
                       concat_blur_pdfs,
                       trace_photons)
-from .resources import check_resources, regather_levels
+from .resources import check_resources, held_bytes, regather_levels
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
 from .stagespans import StageSpans
@@ -138,6 +138,11 @@ class Context:
                        secondary_map=one(self.secondary_map),
                        regather_maps=tuple(one(m) for m in self.regather_maps),
                        regather_secondary=tuple(one(m) for m in self.regather_secondary))
+
+
+# The Context attributes that hold a photon pass' maps (held_bytes counts them).
+MAP_FIELDS = ("global_map", "caustic_map", "glow_map", "gather_map", "secondary_map",
+              "regather_maps", "regather_secondary", "gather_counts")
 
 
 def _check_region(region, width, height):
@@ -911,8 +916,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     stats["time_photon_map"] = time.perf_counter() - t0
     # (The glow shot's photons beside an aimed map are the glow map's: counted, and
     # drawn in the photon-hit view, as when they were the caustic map's.)
-    stats["photon_bytes"] = shot.nbytes + caustic.nbytes + (
+    stats["shot_bytes"] = shot.nbytes + caustic.nbytes + (
         glow_apart.nbytes if glow_apart is not None else 0)
+    # What the maps hold through the camera pass (their photons' copies, trees, gather
+    # points, a lazy gather map's masks and arrays to fill, the counts' classes), each
+    # buffer once: a session keeps these (engine/session.py's photon cache), and it is
+    # the figure per stored photon issue 13 bounds (docs/performance.md "perf47").
+    stats["photon_bytes"] = held_bytes(*(getattr(ctx, name) for name in MAP_FIELDS))
     # For the photon-hit pass (_photon_hit_view), always filled (the caustic shot last).
     return (shot, caustic) if glow_apart is None else (shot, glow_apart, caustic)
 
