@@ -345,11 +345,17 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             shots = tuple((ph.position, ph.kind) for ph in
                           shoot_photons(ctx, stats, progress, should_cancel, on_warning,
                                         on_plan))
+        # The photon-hit view's dots chosen now (at most photon_hit_budget of the image):
+        # the shots' positions and kinds (13 B a stored photon) are not held through the
+        # camera pass, nor is the projection's float64 copy (24 B a photon) made at its
+        # end, the render's peak (docs/performance.md "perf47").
+        dots = _photon_hit_dots(ctx, shots, region)
+        del shots
         # The photon-hit pass, always: with several workers on its own thread, started
         # when the camera pass's last chunk is handed out (it fills a worker the tail
         # leaves idle, when fewer chunks hold memory), else after the camera pass; its
         # view is written to the film once the camera pass ends.
-        hits = _side_job(lambda: _photon_hit_view(ctx, shots, region, film.width,
+        hits = _side_job(lambda: _photon_hit_draw(ctx, *dots, region, film.width,
                                                   film.height), settings.threads > 1)
         try:
             t0 = time.perf_counter()
@@ -1994,10 +2000,23 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     seeded choice per photon made on the whole image, so tiles (region) agree with a full
     render. Returns (view (height, width, 3) float32 or None when no dot is drawn, dots
     drawn, the share of the photons in the image that was drawn). Queries Embree on the
-    calling thread only (Accel.serial), so it may run beside the camera pass."""
+    calling thread only (Accel.serial), so it may run beside the camera pass.
+    _photon_hit_dots then _photon_hit_draw: a render picks the dots before its camera
+    pass and lets the shots go (13 B a stored photon, and the projection's 24 B a photon
+    of float64, off the camera pass' peak: docs/performance.md "perf47")."""
+    return _photon_hit_draw(ctx, *_photon_hit_dots(ctx, shots, region), region, width,
+                            height)
+
+
+def _photon_hit_dots(ctx: Context, shots, region) -> tuple:
+    """_photon_hit_view's choice of dots: (share of the photons in the image drawn, dots
+    or None where none is in the region), dots = (p (D,3) float64 positions, z (D,1) their
+    camera-space depth, px, py (D,) int64 pixels, kinds (D,) uint8), the candidates before
+    the visibility test: at most photon_hit_budget of the image, whatever the shots'
+    size."""
     shots = [(p, kinds) for p, kinds in shots if len(p)]
     if not shots:
-        return None, 0, 1.0
+        return 1.0, None
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
@@ -2043,7 +2062,7 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
         rows_.append(py[fb].astype(np.int64))
     n_frame = int(frame.sum())
     if n_frame == 0:
-        return None, 0, 1.0
+        return 1.0, None
     px, py = np.concatenate(cols), np.concatenate(rows_)  # of the frame's photons, in order
     keep = photon_hit_budget(n_frame, W, H) / n_frame
     chosen = np.ones(n_frame, bool)
@@ -2055,10 +2074,25 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     idx = np.flatnonzero(frame)[inside]
     px, py = px[inside], py[inside]
     if len(idx) == 0:
-        return None, 0, fraction
+        return fraction, None
     p = np.take(position, idx, axis=0).astype(np.float64)
+    kinds = np.concatenate([kinds for _, kinds in shots])[idx]
+    return fraction, (p, local[idx, 2:3], px, py, kinds)
+
+
+def _photon_hit_draw(ctx: Context, fraction: float, dots, region, width: int, height: int):
+    """_photon_hit_view's answer from _photon_hit_dots' (fraction, dots): the dots nothing
+    hides from the camera drawn into the region."""
+    if dots is None:
+        return None, 0, fraction
+    p, z, px, py, kinds = dots
+    cam = ctx.scene.camera
+    x0, y0, x1, y1 = region
+    pos = cam.position - ctx.geo.offset
+    R = cam.rotation
+    idx = np.arange(len(p))
     # Visible only if nothing lies between the camera and the photon.
-    to = p - (pos if cam.kind != "ORTHO" else p + local[idx, 2:3] * R[:, 2])
+    to = p - (pos if cam.kind != "ORTHO" else p + z * R[:, 2])
     dist = np.linalg.norm(to, axis=1)
     d = to / np.maximum(dist, 1e-300)[:, None]
     origin = p - to
@@ -2074,7 +2108,7 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
     for kind, rgb in PHOTON_KIND_COLORS.items():
         table[kind] = rgb
-    colour = table[np.concatenate([kinds for _, kinds in shots])[idx]]
+    colour = table[kinds[idx]]
     size = height * width
     count = np.bincount(flat, minlength=size).astype(np.float64)
     buf = np.zeros((size, 3))

@@ -125,3 +125,25 @@ def test_the_photon_pass_reports_what_its_maps_hold(monkeypatch):
              + g.normal.nbytes + sum(a.nbytes for a in g.neighbours) + ctx.caustic_map.nbytes)
     assert lz.chosen is not None
     assert stats["photon_bytes"] >= parts
+
+
+def test_the_photon_hit_view_keeps_only_its_dots():
+    """A render picks the photon-hit view's dots before its camera pass (the shots' arrays
+    are let go): at most photon_hit_budget of the photons, and the view drawn from them is
+    the view of the whole shots."""
+    ctx = prepare_context(cornell_box(32, 24), RenderSettings(
+        photons=20_000, caustic_photons=5_000, seed=1, workers=1))
+    try:
+        shots = [(ph.position, ph.kind) for ph in shoot_photons(ctx, {})]
+        n = sum(len(p) for p, _ in shots)
+        region = (0, 0, 32, 24)
+        fraction, dots = render_mod._photon_hit_dots(ctx, shots, region)
+        assert dots is not None and 0.0 < fraction < 1.0
+        assert len(dots[0]) <= render_mod.photon_hit_budget(n, 32, 24) < n / 10
+        assert all(len(a) == len(dots[0]) for a in dots)
+        view = render_mod._photon_hit_draw(ctx, fraction, dots, region, 32, 24)
+        whole = render_mod._photon_hit_view(ctx, shots, region, 32, 24)
+        np.testing.assert_array_equal(view[0], whole[0])
+        assert view[1:] == whole[1:] and view[1] > 0
+    finally:
+        ctx.accel.close()
