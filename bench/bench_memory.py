@@ -19,8 +19,9 @@ process per checkout (--roots: e.g. the main branch and this one); at the camera
 start and end, the bytes of the arrays the maps hold (the Context's maps, each buffer
 once, the same walk as engine/resources.held_bytes but self-contained, so an older
 checkout is measured alike) by map, over the stored photons (global + caustic + glow),
-beside the shots' arrays (the figure photon_bytes gave before perf47) and the photon-hit
-view's (the shots' positions and kinds, kept through the camera pass).
+beside the shots' arrays (the figure photon_bytes gave before perf47) and what the
+photon-hit view keeps through the camera pass (before perf47 the shots' positions and
+kinds; since, its chosen dots).
 
     .venv/bin/python bench/bench_memory.py [--quick] [--only HDRI]
     .venv/bin/python bench/bench_memory.py --triangles [--sizes 1000000 5000000] [--smooth]
@@ -245,6 +246,13 @@ def shots_spy(*a, **kw):
     got["hit_view"] = sum(ph.position.nbytes + ph.kind.nbytes for ph in shots)
     return shots
 R.shoot_photons = shots_spy
+if hasattr(R, "_photon_hit_dots"):  # (perf47 on: the view's dots alone are kept)
+    dots_of = R._photon_hit_dots
+    def dots_spy(*a, **kw):
+        fraction, dots = dots_of(*a, **kw)
+        got["hit_view"] = 0 if dots is None else sum(x.nbytes for x in dots)
+        return fraction, dots
+    R._photon_hit_dots = dots_spy
 with open(PICKLE, "rb") as f:
     obj = pickle.load(f)
 scene, kw = obj if isinstance(obj, tuple) else (obj, {})

@@ -1087,14 +1087,15 @@ class _LazyPoints:
     """A lazy GatherMap's estimates still to make (GatherMap._fill), shared by its views:
     the estimating PhotonMap, the masks over its photons ((S, N) bool or None), the
     estimate's (k, min_photons, estimator), the points' surfaces (or None), the arrays to
-    fill ((P,3) E of every photon, (P,) boundary, (S,P,3) the masks' or None), the drop
+    fill ((P,3) E of every photon, None where the map keeps a keep mask's instead, (P,)
+    boundary, (S',P,3) the masks' but the drop bounds' or None), the drop
     bounds' (P,) bool arrays with their mask rows, and which points are known ((P,)
     bool)."""
 
     def __init__(self, estimating, chosen, args, surface, E, boundary, levels, hits):
         self.estimating, self.chosen, self.args, self.surface = estimating, chosen, args, surface
         self.E, self.boundary, self.levels, self.hits = E, boundary, levels, hits
-        self.known = np.zeros(len(E), np.bool_)
+        self.known = np.zeros(len(boundary), np.bool_)
 
 
 class GatherMap:
@@ -1257,8 +1258,9 @@ class GatherMap:
         kept = len(masks) - len(bound_masks)  # the masks whose (P,3) levels the map keeps
         if lazy:
             # The arrays the estimates fill (in place: the views below read them); the
-            # drop bounds' masks fill their (P,) flags alone (_fill).
-            done = (np.zeros((P, 3)), np.ones(P, np.bool_)) + (
+            # drop bounds' masks fill their (P,) flags alone (_fill), and with keep no
+            # view reads the estimate of every photon (E is keep's level): not kept.
+            done = (np.zeros((P, 3)) if keep is None else None, np.ones(P, np.bool_)) + (
                 () if chosen is None else (np.zeros((kept, P, 3)),))
             self.neighbours = run_tasks([neighbours], 1, should_cancel)[0]
             hit = [np.zeros(P, np.bool_) for _ in bound_masks]
@@ -1320,7 +1322,8 @@ class GatherMap:
             np.take(self.position, new, axis=0), np.take(self.normal, new, axis=0),
             self.radius, *lz.args, return_boundary=True, masks=lz.chosen,
             surface=None if lz.surface is None else np.take(lz.surface, new))
-        lz.E[new] = got[0]
+        if lz.E is not None:
+            lz.E[new] = got[0]
         lz.boundary[new] = got[1]
         if lz.levels is not None:
             lz.levels[:, new] = got[2][:len(lz.levels)]

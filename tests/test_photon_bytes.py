@@ -77,6 +77,7 @@ def test_gather_maps_keep_no_estimate_of_their_drop_bounds():
         P = len(g.position)
         if lazy:
             assert g._lazy.levels.shape == (3, P, 3)
+            assert g._lazy.E is None  # (every photon's estimate: no view reads it, keep's)
             assert g._lazy.chosen.shape[0] == 5  # the masks' estimates still come whole
             g.complete()
         for level in (g.E, g.subset_maps[0].E, g.secondary_levels[0]):
@@ -119,7 +120,8 @@ def test_the_photon_pass_reports_what_its_maps_hold(monkeypatch):
     assert stats["photon_bytes"] == held_bytes(*maps)
     assert stats["shot_bytes"] == sum(ph.nbytes for ph in shots)
     lz = g._lazy
-    parts = (g.estimating.nbytes + lz.E.nbytes + lz.boundary.nbytes + lz.known.nbytes
+    parts = (g.estimating.nbytes + (0 if lz.E is None else lz.E.nbytes) + lz.boundary.nbytes
+             + lz.known.nbytes
              + (0 if lz.chosen is None else lz.chosen.nbytes)
              + (0 if lz.levels is None else lz.levels.nbytes) + g.position.nbytes
              + g.normal.nbytes + sum(a.nbytes for a in g.neighbours) + ctx.caustic_map.nbytes)
