@@ -144,6 +144,53 @@ def gather_lookup(ctx, shot, radius, k, s, ray, m=200_000):
             f"{per * 1e6:.2f} us = {per / ray:.1f} rays", "", parts, "")
 
 
+def listing_floor(pm, q, radius, k, ray):
+    """Rows: what listing the estimate's photons alone costs on the compiled kd-tree
+    (kdtree.ball_d2, then kdtree.nearest_first ordering the k nearest), one loop in a
+    compiled harness, the queries in Morton order as the estimate takes them: the whole
+    search sphere, the seeded sphere (1.44 x the k-th squared distance, as
+    photonmap.SEED_GROWTH) and the k nearest exactly (their distance known in advance,
+    which no search has): a floor under any estimate that lists its photons from this
+    tree (docs/performance.md "perf47")."""
+    from numba import njit
+    from scipy.spatial import cKDTree
+    from engine import kdtree
+
+    @njit
+    def listing(pos, axis, split, leaf, q, r2s, cap, m):
+        d2 = np.empty(cap + 1)
+        idx = np.empty(cap + 1, np.int64)
+        o2 = np.empty(cap + 1)
+        oi = np.empty(cap + 1, np.int64)
+        hist = np.empty(cap + 2, np.int64)
+        total = 0
+        for i in range(q.shape[0]):
+            c = kdtree.ball_d2(pos, axis, split, leaf, q[i, 0], q[i, 1], q[i, 2], r2s[i],
+                               d2, idx, cap)
+            if m > 0 and c <= cap:
+                kdtree.nearest_first(d2, idx, c, m, r2s[i], o2, oi, hist)
+            total += c
+        return total
+
+    t = pm.tree
+    qo = np.ascontiguousarray(q[photonmap.morton_order(q)])
+    kth2 = cKDTree(t.position).query(qo, k)[0][:, -1] ** 2
+    cap = photonmap.LIST_FACTOR * k
+    listing(t.position, t.axis, t.split, t.leaf, qo[:4], kth2[:4], cap, k)  # (compile)
+    out = []
+    for label, r2s in (("the whole search sphere", np.full(len(qo), radius * radius)),
+                       ("the seeded sphere (1.44 x the k-th squared distance)",
+                        kth2 * photonmap.SEED_GROWTH),
+                       (f"the {k} nearest exactly (k-th distance given)", kth2 * 1.0001)):
+        t_list, n = best(lambda: listing(t.position, t.axis, t.split, t.leaf, qo, r2s, cap, 0))
+        t_sort, _ = best(lambda: listing(t.position, t.axis, t.split, t.leaf, qo, r2s, cap, k))
+        per, pers = t_list / len(qo), t_sort / len(qo)
+        out.append((f"listing floor: {label}", "", f"{per * 1e6:.2f} us = {per / ray:.1f} rays",
+                    f"+ nearest_first {pers * 1e6:.2f} us = {pers / ray:.1f} rays",
+                    f"{n / len(qo):.0f} photons listed a query", ""))
+    return out
+
+
 CAPTURE = r"""
 import pickle, sys, time
 sys.path.insert(0, ROOT)
@@ -430,6 +477,7 @@ def main(argv=None):
                          f"{t / m * 1e6:.1f} us = {t / m / ray:.0f} rays", "",
                          f"peak numpy memory {peak / 1e6:.1f} MB for {m:,} queries", ""))
 
+    rows.extend(listing_floor(PhotonMap(shot, 1), q, radius, k, ray))
     rows.append(gather_row)
     print("| lookup | build | one estimate, random order | coherent order | note | memory / photon |")
     print("|---|---:|---:|---:|---|---:|")
