@@ -1296,10 +1296,13 @@ class GatherMap:
             # type; the photons' rows in `photons` are not needed after that.
             from .chaincounts import unique_counts
             rows, which = unique_counts(np.take(bounces, estimating.source, axis=0))
-            estimating.source = None
             self.estimating_classes = (rows, which.astype(np.min_scalar_type(len(rows))))
             self.estimate_args = (k, min_photons, estimator)
             self.counts_cache = {}
+        # The estimating photons' rows in `photons` served the masks and count classes
+        # above; a lazy map keeps its estimating photons (8 B a photon less).
+        if getattr(estimating, "source", None) is not None:
+            estimating.source = None
         for E in levels:
             # The same points, trees, neighbour lists and boundary flags (shared).
             view = copy.copy(self)

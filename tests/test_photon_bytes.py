@@ -78,6 +78,7 @@ def test_gather_maps_keep_no_estimate_of_their_drop_bounds():
         if lazy:
             assert g._lazy.levels.shape == (3, P, 3)
             assert g._lazy.E is None  # (every photon's estimate: no view reads it, keep's)
+            assert getattr(g._lazy.estimating, "source", None) is None  # (its rows: used)
             assert g._lazy.chosen.shape[0] == 5  # the masks' estimates still come whole
             g.complete()
         for level in (g.E, g.subset_maps[0].E, g.secondary_levels[0]):
