@@ -8,6 +8,7 @@ import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -345,17 +346,24 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             shots = tuple((ph.position, ph.kind) for ph in
                           shoot_photons(ctx, stats, progress, should_cancel, on_warning,
                                         on_plan))
-        # The photon-hit view's dots chosen now (at most photon_hit_budget of the image):
-        # the shots' positions and kinds (13 B a stored photon) are not held through the
-        # camera pass, nor is the projection's float64 copy (24 B a photon) made at its
-        # end, the render's peak (docs/performance.md "perf47").
-        dots = _photon_hit_dots(ctx, shots, region)
-        del shots
+        # The photon-hit view's dots (at most photon_hit_budget of the image) picked as the
+        # camera pass starts: with several workers on a thread of their own beside its
+        # first chunks (0.05-0.15 CPU s on Figure 6's 0.9 M photons), else now. The
+        # shots' positions and kinds (13 B a stored photon) go once they are picked, not
+        # held through the camera pass, and the projection's float64 copy (24 B a photon)
+        # is no longer made at its end, the render's peak (docs/performance.md "perf47").
+        picked = _side_job(partial(_photon_hit_dots, ctx, shots, region),
+                           settings.threads > 1)
+        shots = None
+        if settings.threads > 1:
+            picked.start()
+        else:
+            picked()
         # The photon-hit pass, always: with several workers on its own thread, started
         # when the camera pass's last chunk is handed out (it fills a worker the tail
         # leaves idle, when fewer chunks hold memory), else after the camera pass; its
         # view is written to the film once the camera pass ends.
-        hits = _side_job(lambda: _photon_hit_draw(ctx, *dots, region, film.width,
+        hits = _side_job(lambda: _photon_hit_draw(ctx, *picked(), region, film.width,
                                                   film.height), settings.threads > 1)
         try:
             t0 = time.perf_counter()
@@ -377,6 +385,7 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             view, shown, fraction = hits()
         finally:
             hits.join()
+            picked.join()
         if view is not None:
             film.photon_hits[...] = view
         stats["photon_hits_shown"] = shown
@@ -476,7 +485,8 @@ class _side_job:
     """fn() on a thread of its own (threaded=True) from start() on; calling the object
     returns its result (re-raising its error), starting it first if need be, after
     waiting for it; join() waits without raising (always call it). threaded=False: start()
-    does nothing and fn runs on the call, inline."""
+    does nothing and fn runs on the first call, inline. fn runs once; it is let go after
+    (with whatever its arguments hold), its result kept."""
 
     def __init__(self, fn, threaded: bool):
         self._fn, self._result, self._error, self._thread = fn, None, None, None
@@ -493,10 +503,14 @@ class _side_job:
             self._result = self._fn()
         except BaseException as e:  # re-raised on the calling thread
             self._error = e
+        finally:
+            self._fn = None  # (what fn's arguments hold goes with it)
 
     def __call__(self):
         if not self._threaded:
-            return self._fn()
+            if self._fn is not None:  # (run once; its result kept)
+                self._result, self._fn = self._fn(), None
+            return self._result
         self.start()
         self._thread.join()
         if self._error is not None:
