@@ -130,9 +130,10 @@ def gather_lookup(ctx, shot, radius, k, s, ray, m=200_000):
     o32, d32 = np.empty((M, 3), np.float32), np.empty((M, 3), np.float32)
     t32, ray_row, blocked = np.empty(M, np.float32), np.empty(M, np.int64), np.zeros(M, bool)
     t_kernel, nrays = best(lambda: photonmap._gather_candidates(
-        g.tree.position, g.tree.nodes, g.position, g.normal, g.E, g.boundary, p, n,
-        np.ascontiguousarray(y.offset, dtype=np.float64), rows, np.zeros(M, np.int64),
-        g.radius ** 2, 64, True, out, bnd, o32, d32, t32, ray_row))
+        g.tree.position, g.tree.nodes, *g.neighbours, g.position, g.normal,
+        photonmap.NO_SURFACE, g.E, g.boundary, p, n, photonmap.NO_SURFACE,
+        np.ascontiguousarray(y.offset, dtype=np.float64), rows, g.radius ** 2, 64, True,
+        out, bnd, o32, d32, t32, ray_row, photonmap._NO_POINT))
     t_vis, _ = best(lambda: g.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays],
                                                   blocked[:nrays]))
     per = t_all / M
@@ -141,6 +142,53 @@ def gather_lookup(ctx, shot, radius, k, s, ray, m=200_000):
              f"({nrays / M:.0%} of lookups cast one)")
     return ("gather-map lookup (default estimator, per sample)", f"{t_build * 1e3:.0f} ms",
             f"{per * 1e6:.2f} us = {per / ray:.1f} rays", "", parts, "")
+
+
+def listing_floor(pm, q, radius, k, ray):
+    """Rows: what listing the estimate's photons alone costs on the compiled kd-tree
+    (kdtree.ball_d2, then kdtree.nearest_first ordering the k nearest), one loop in a
+    compiled harness, the queries in Morton order as the estimate takes them: the whole
+    search sphere, the seeded sphere (1.44 x the k-th squared distance, as
+    photonmap.SEED_GROWTH) and the k nearest exactly (their distance known in advance,
+    which no search has): a floor under any estimate that lists its photons from this
+    tree (docs/performance.md "perf47")."""
+    from numba import njit
+    from scipy.spatial import cKDTree
+    from engine import kdtree
+
+    @njit
+    def listing(pos, axis, split, leaf, q, r2s, cap, m):
+        d2 = np.empty(cap + 1)
+        idx = np.empty(cap + 1, np.int64)
+        o2 = np.empty(cap + 1)
+        oi = np.empty(cap + 1, np.int64)
+        hist = np.empty(cap + 2, np.int64)
+        total = 0
+        for i in range(q.shape[0]):
+            c = kdtree.ball_d2(pos, axis, split, leaf, q[i, 0], q[i, 1], q[i, 2], r2s[i],
+                               d2, idx, cap)
+            if m > 0 and c <= cap:
+                kdtree.nearest_first(d2, idx, c, m, r2s[i], o2, oi, hist)
+            total += c
+        return total
+
+    t = pm.tree
+    qo = np.ascontiguousarray(q[photonmap.morton_order(q)])
+    kth2 = cKDTree(t.position).query(qo, k)[0][:, -1] ** 2
+    cap = photonmap.LIST_FACTOR * k
+    listing(t.position, t.axis, t.split, t.leaf, qo[:4], kth2[:4], cap, k)  # (compile)
+    out = []
+    for label, r2s in (("the whole search sphere", np.full(len(qo), radius * radius)),
+                       ("the seeded sphere (1.44 x the k-th squared distance)",
+                        kth2 * photonmap.SEED_GROWTH),
+                       (f"the {k} nearest exactly (k-th distance given)", kth2 * 1.0001)):
+        t_list, n = best(lambda: listing(t.position, t.axis, t.split, t.leaf, qo, r2s, cap, 0))
+        t_sort, _ = best(lambda: listing(t.position, t.axis, t.split, t.leaf, qo, r2s, cap, k))
+        per, pers = t_list / len(qo), t_sort / len(qo)
+        out.append((f"listing floor: {label}", "", f"{per * 1e6:.2f} us = {per / ray:.1f} rays",
+                    f"+ nearest_first {pers * 1e6:.2f} us = {pers / ray:.1f} rays",
+                    f"{n / len(qo):.0f} photons listed a query", ""))
+    return out
 
 
 CAPTURE = r"""
@@ -429,6 +477,7 @@ def main(argv=None):
                          f"{t / m * 1e6:.1f} us = {t / m / ray:.0f} rays", "",
                          f"peak numpy memory {peak / 1e6:.1f} MB for {m:,} queries", ""))
 
+    rows.extend(listing_floor(PhotonMap(shot, 1), q, radius, k, ray))
     rows.append(gather_row)
     print("| lookup | build | one estimate, random order | coherent order | note | memory / photon |")
     print("|---|---:|---:|---:|---|---:|")

@@ -12,8 +12,21 @@ first, so the compiled kernels it loads are not counted. --smooth gives the grid
 spheres vertex normals and UVs, else no mesh has either. --root measures another
 checkout (e.g. the main branch, for a before/after table).
 
+--photon-bytes prints bytes per stored photon instead (issue 13's "<= 64 B a stored
+photon", docs/performance.md "perf47"): each pickled scene (an example blend's export,
+or a (scene, settings) pair) rendered at 160 x 120, 16 spp, 1 worker, seed 0, in a fresh
+process per checkout (--roots: e.g. the main branch and this one); at the camera pass'
+start and end, the bytes of the arrays the maps hold (the Context's maps, each buffer
+once, the same walk as engine/resources.held_bytes but self-contained, so an older
+checkout is measured alike) by map, over the stored photons (global + caustic + glow),
+beside the shots' arrays (the figure photon_bytes gave before perf47) and what the
+photon-hit view keeps through the camera pass (before perf47 the shots' positions and
+kinds; since, its chosen dots).
+
     .venv/bin/python bench/bench_memory.py [--quick] [--only HDRI]
     .venv/bin/python bench/bench_memory.py --triangles [--sizes 1000000 5000000] [--smooth]
+    .venv/bin/python bench/bench_memory.py --photon-bytes --roots /work/main . \
+        --pickles $TMPDIR/film_hashes/figure6_box.pkl ...
 """
 from __future__ import annotations
 
@@ -174,6 +187,109 @@ def main_triangles(sizes, smooth, root):
               f"{r['t_prepare']:.1f} | {total:.0f}: {arrays} |", flush=True)
 
 
+PHOTON_BYTES_CHILD = r"""
+import importlib, json, pickle, sys
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.jit import ensure_compiled
+from engine.settings import RenderSettings
+R = importlib.import_module("engine.render")
+ensure_compiled()
+FIELDS = ("global_map", "caustic_map", "glow_map", "gather_map", "secondary_map",
+          "regather_maps", "regather_secondary", "gather_counts")
+
+
+def held(roots, seen):
+    total, stack = 0, list(roots)
+    while stack:
+        obj = stack.pop()
+        if isinstance(obj, np.ndarray):
+            base = obj
+            while isinstance(base.base, np.ndarray):
+                base = base.base
+            key = ("a", base.__array_interface__["data"][0], base.nbytes)
+            if key not in seen:
+                seen.add(key)
+                total += base.nbytes
+            continue
+        if obj is None or isinstance(obj, (int, float, str, bool)) or id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, (list, tuple)):
+            stack.extend(obj)
+        elif isinstance(obj, dict):
+            stack.extend(obj.values())
+        elif type(obj).__module__.startswith("engine.") and hasattr(obj, "__dict__"):
+            stack.extend(v for k, v in vars(obj).items() if k != "accel")
+    return total
+
+
+def parts(ctx):
+    seen, out = set(), {}
+    for name in FIELDS:  # (in this order: a regather map shares the gather map's arrays)
+        out[name] = held([getattr(ctx, name, None)], seen)
+    return out
+
+
+got = {}
+camera = R.render_camera
+def spy(ctx, *a, **kw):
+    got["start"] = parts(ctx)
+    try:
+        return camera(ctx, *a, **kw)
+    finally:
+        got["end"] = parts(ctx)
+R.render_camera = spy
+photon_pass = R.shoot_photons
+def shots_spy(*a, **kw):
+    shots = photon_pass(*a, **kw)
+    got["hit_view"] = sum(ph.position.nbytes + ph.kind.nbytes for ph in shots)
+    return shots
+R.shoot_photons = shots_spy
+if hasattr(R, "_photon_hit_dots"):  # (perf47 on: the view's dots alone are kept)
+    dots_of = R._photon_hit_dots
+    def dots_spy(*a, **kw):
+        fraction, dots = dots_of(*a, **kw)
+        got["hit_view"] = 0 if dots is None else sum(x.nbytes for x in dots)
+        return fraction, dots
+    R._photon_hit_dots = dots_spy
+with open(PICKLE, "rb") as f:
+    obj = pickle.load(f)
+scene, kw = obj if isinstance(obj, tuple) else (obj, {})
+scene.width, scene.height = 160, 120
+film = R.render(scene, RenderSettings(**dict(kw, workers=1, spp=16, seed=0)))
+st = film.stats
+stored = st.get("global_photons", 0) + st.get("caustic_photons", 0) + st.get("glow_photons", 0)
+print(json.dumps(dict(stored=stored, shots=st.get("shot_bytes", st.get("photon_bytes", 0)),
+                      stat=st.get("photon_bytes", 0), hit_view=got["hit_view"],
+                      start=got["start"], end=got["end"])))
+"""
+
+
+def main_photon_bytes(pickles, roots):
+    print("160 x 120, 16 spp, 1 worker, seed 0; B a stored photon (global + caustic + glow)")
+    print("| scene | checkout | stored | shots' arrays | maps at the camera pass' start | "
+          "at its end | of which (end): gather map / caustic / counts / other | "
+          "photon_bytes stat | photon-hit view |")
+    print("|---|---|---:|---:|---:|---:|---|---:|---:|")
+    for path in pickles:
+        for root in roots:
+            code = f"ROOT={root!r}; PICKLE={path!r}\n" + PHOTON_BYTES_CHILD
+            out = subprocess.run([sys.executable, "-c", code], capture_output=True,
+                                 text=True, check=True).stdout
+            r = json.loads(out.strip().splitlines()[-1])
+            n = max(r["stored"], 1)
+            start, end = sum(r["start"].values()), sum(r["end"].values())
+            e = r["end"]
+            other = end - e["gather_map"] - e["caustic_map"] - e["gather_counts"]
+            split = " / ".join(f"{v / n:.1f}" for v in (e["gather_map"], e["caustic_map"],
+                                                        e["gather_counts"], other))
+            name = os.path.splitext(os.path.basename(path))[0]
+            print(f"| {name} | {root} | {r['stored']:,} | {r['shots'] / n:.1f} | "
+                  f"{start / n:.1f} | {end / n:.1f} | {split} | {r['stat'] / n:.1f} | "
+                  f"{r['hit_view'] / n:.1f} |", flush=True)
+
+
 def run(case):
     label, name, w, h, settings, tris = case
     code = (f"ROOT={ROOT!r}; NAME={name!r}; W={w}; H={h}; TRIS={tris}; "
@@ -194,7 +310,16 @@ def main():
                     help="--triangles: the grid and the spheres have vertex normals and UVs "
                     "(else no mesh has either)")
     ap.add_argument("--root", default=ROOT, help="--triangles: checkout to measure")
+    ap.add_argument("--photon-bytes", action="store_true",
+                    help="bytes per stored photon of the maps instead (--pickles, --roots)")
+    ap.add_argument("--pickles", nargs="+", default=[],
+                    help="--photon-bytes: pickled scenes (example blends' exports)")
+    ap.add_argument("--roots", nargs="+", default=[ROOT],
+                    help="--photon-bytes: checkouts to measure, each in a fresh process")
     args = ap.parse_args()
+    if args.photon_bytes:
+        main_photon_bytes(args.pickles, [os.path.abspath(r) for r in args.roots])
+        return
     if args.triangles:
         main_triangles(args.sizes, args.smooth, os.path.abspath(args.root))
         return

@@ -244,17 +244,22 @@ class GatherCounts:
     EXACT_MARGIN = 1e-9
 
     def __init__(self, bounces, power, limits, share):
-        self.bounces = bounces
         self.power = np.asarray(power, np.float64)
         self.limits = np.asarray(limits, np.int64)
         self.share = share
         self._cache = {}
+        # The photons' distinct count rows and each photon's, in the smallest unsigned
+        # type (1 B a photon where the counts were 4: bounce_usable is row by row, so a
+        # photon's mask bit is its row's; docs/performance.md "perf47").
+        rows, which = unique_counts(bounces)
+        self.rows = rows
+        self.which = which.astype(np.min_scalar_type(max(len(rows) - 1, 0)))
 
     def _mask(self, key):
         mask = self._cache.get(("mask",) + key)
         if mask is None:
-            mask = self._cache[("mask",) + key] = pk.bounce_usable(self.bounces, self.limits,
-                                                                   key)
+            mask = self._cache[("mask",) + key] = np.take(
+                pk.bounce_usable(self.rows, self.limits, key), self.which)
         return mask
 
     def _classes(self):
@@ -263,9 +268,8 @@ class GatherCounts:
         threads may make it twice: the same values)."""
         got = self._cache.get("classes")
         if got is None:
-            rows, which = unique_counts(self.bounces)
             got = self._cache["classes"] = (
-                rows, np.bincount(which, self.power, minlength=len(rows)),
+                self.rows, np.bincount(self.which, self.power, minlength=len(self.rows)),
                 float(np.abs(self.power).sum()))
         return got
 

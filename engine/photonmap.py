@@ -1087,14 +1087,15 @@ class _LazyPoints:
     """A lazy GatherMap's estimates still to make (GatherMap._fill), shared by its views:
     the estimating PhotonMap, the masks over its photons ((S, N) bool or None), the
     estimate's (k, min_photons, estimator), the points' surfaces (or None), the arrays to
-    fill ((P,3) E of every photon, (P,) boundary, (S,P,3) the masks' or None), the drop
+    fill ((P,3) E of every photon, None where the map keeps a keep mask's instead, (P,)
+    boundary, (S',P,3) the masks' but the drop bounds' or None), the drop
     bounds' (P,) bool arrays with their mask rows, and which points are known ((P,)
     bool)."""
 
     def __init__(self, estimating, chosen, args, surface, E, boundary, levels, hits):
         self.estimating, self.chosen, self.args, self.surface = estimating, chosen, args, surface
         self.E, self.boundary, self.levels, self.hits = E, boundary, levels, hits
-        self.known = np.zeros(len(E), np.bool_)
+        self.known = np.zeros(len(boundary), np.bool_)
 
 
 class GatherMap:
@@ -1253,28 +1254,33 @@ class GatherMap:
         def neighbours(stop):
             return tree.neighbour_lists(workers=workers, should_cancel=stop)
 
+        P = len(self.position)
+        kept = len(masks) - len(bound_masks)  # the masks whose (P,3) levels the map keeps
         if lazy:
-            # The arrays the estimates fill (in place: the views below read them).
-            P = len(self.position)
-            done = (np.zeros((P, 3)), np.ones(P, np.bool_)) + (
-                () if chosen is None else (np.zeros((len(chosen), P, 3)),))
+            # The arrays the estimates fill (in place: the views below read them); the
+            # drop bounds' masks fill their (P,) flags alone (_fill), and with keep no
+            # view reads the estimate of every photon (E is keep's level): not kept.
+            done = (np.zeros((P, 3)) if keep is None else None, np.ones(P, np.bool_)) + (
+                () if chosen is None else (np.zeros((kept, P, 3)),))
             self.neighbours = run_tasks([neighbours], 1, should_cancel)[0]
+            hit = [np.zeros(P, np.bool_) for _ in bound_masks]
         else:
             done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
+            if bound_masks:
+                hit = [np.any(b != 0.0, axis=1) for b in done[2][kept:]]
+                # Only the kept levels: the drop bounds' (P,3) estimates, views of one
+                # array with them, would keep it all alive (24 B a point and mask).
+                done = done[:2] + (done[2][:kept].copy(),)
         E, self.boundary = done[0], done[1]
         levels = list(done[2]) if masks else []
-        if bound_masks:
-            hit = [np.any(b != 0.0, axis=1) for b in levels[len(levels) - len(bound_masks):]]
-            levels = levels[:len(levels) - len(bound_masks)]
         for key, j in zip(bound_keys, bound_of):
             self.drop_bounds[key] = hit[j] if j >= 0 else np.zeros(len(self.position), bool)
         if lazy:
-            first = len(chosen) - len(bound_masks) if chosen is not None else 0
             self._lazy = _LazyPoints(
                 estimating, chosen, (k, min_photons, estimator),
                 self.surface if len(self.surface) else None, done[0], done[1],
                 done[2] if chosen is not None else None,
-                [(h, first + j) for j, h in enumerate(hit)] if bound_masks else [])
+                [(h, kept + j) for j, h in enumerate(hit)] if bound_masks else [])
         self.E = E if keep is None else levels.pop(0)
         if len(secondary):
             self.secondary_levels = levels[len(levels) - len(secondary):]
@@ -1290,10 +1296,13 @@ class GatherMap:
             # type; the photons' rows in `photons` are not needed after that.
             from .chaincounts import unique_counts
             rows, which = unique_counts(np.take(bounces, estimating.source, axis=0))
-            estimating.source = None
             self.estimating_classes = (rows, which.astype(np.min_scalar_type(len(rows))))
             self.estimate_args = (k, min_photons, estimator)
             self.counts_cache = {}
+        # The estimating photons' rows in `photons` served the masks and count classes
+        # above; a lazy map keeps its estimating photons (8 B a photon less).
+        if getattr(estimating, "source", None) is not None:
+            estimating.source = None
         for E in levels:
             # The same points, trees, neighbour lists and boundary flags (shared).
             view = copy.copy(self)
@@ -1316,10 +1325,11 @@ class GatherMap:
             np.take(self.position, new, axis=0), np.take(self.normal, new, axis=0),
             self.radius, *lz.args, return_boundary=True, masks=lz.chosen,
             surface=None if lz.surface is None else np.take(lz.surface, new))
-        lz.E[new] = got[0]
+        if lz.E is not None:
+            lz.E[new] = got[0]
         lz.boundary[new] = got[1]
         if lz.levels is not None:
-            lz.levels[:, new] = got[2]
+            lz.levels[:, new] = got[2][:len(lz.levels)]
             for hit, row in lz.hits:
                 hit[new] = np.any(got[2][row] != 0.0, axis=1)
         lz.known[new] = True

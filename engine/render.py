@@ -8,6 +8,7 @@ import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -39,7 +40,7 @@ from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
                       concat_blur_pdfs,
                       trace_photons)
-from .resources import check_resources, regather_levels
+from .resources import check_resources, held_bytes, regather_levels
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
 from .stagespans import StageSpans
@@ -138,6 +139,11 @@ class Context:
                        secondary_map=one(self.secondary_map),
                        regather_maps=tuple(one(m) for m in self.regather_maps),
                        regather_secondary=tuple(one(m) for m in self.regather_secondary))
+
+
+# The Context attributes that hold a photon pass' maps (held_bytes counts them).
+MAP_FIELDS = ("global_map", "caustic_map", "glow_map", "gather_map", "secondary_map",
+              "regather_maps", "regather_secondary", "gather_counts")
 
 
 def _check_region(region, width, height):
@@ -340,11 +346,24 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             shots = tuple((ph.position, ph.kind) for ph in
                           shoot_photons(ctx, stats, progress, should_cancel, on_warning,
                                         on_plan))
+        # The photon-hit view's dots (at most photon_hit_budget of the image) picked as the
+        # camera pass starts: with several workers on a thread of their own beside its
+        # first chunks (0.05-0.15 CPU s on Figure 6's 0.9 M photons), else now. The
+        # shots' positions and kinds (13 B a stored photon) go once they are picked, not
+        # held through the camera pass, and the projection's float64 copy (24 B a photon)
+        # is no longer made at its end, the render's peak (docs/performance.md "perf47").
+        picked = _side_job(partial(_photon_hit_dots, ctx, shots, region),
+                           settings.threads > 1)
+        shots = None
+        if settings.threads > 1:
+            picked.start()
+        else:
+            picked()
         # The photon-hit pass, always: with several workers on its own thread, started
         # when the camera pass's last chunk is handed out (it fills a worker the tail
         # leaves idle, when fewer chunks hold memory), else after the camera pass; its
         # view is written to the film once the camera pass ends.
-        hits = _side_job(lambda: _photon_hit_view(ctx, shots, region, film.width,
+        hits = _side_job(lambda: _photon_hit_draw(ctx, *picked(), region, film.width,
                                                   film.height), settings.threads > 1)
         try:
             t0 = time.perf_counter()
@@ -366,6 +385,7 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             view, shown, fraction = hits()
         finally:
             hits.join()
+            picked.join()
         if view is not None:
             film.photon_hits[...] = view
         stats["photon_hits_shown"] = shown
@@ -465,7 +485,8 @@ class _side_job:
     """fn() on a thread of its own (threaded=True) from start() on; calling the object
     returns its result (re-raising its error), starting it first if need be, after
     waiting for it; join() waits without raising (always call it). threaded=False: start()
-    does nothing and fn runs on the call, inline."""
+    does nothing and fn runs on the first call, inline. fn runs once; it is let go after
+    (with whatever its arguments hold), its result kept."""
 
     def __init__(self, fn, threaded: bool):
         self._fn, self._result, self._error, self._thread = fn, None, None, None
@@ -482,10 +503,14 @@ class _side_job:
             self._result = self._fn()
         except BaseException as e:  # re-raised on the calling thread
             self._error = e
+        finally:
+            self._fn = None  # (what fn's arguments hold goes with it)
 
     def __call__(self):
         if not self._threaded:
-            return self._fn()
+            if self._fn is not None:  # (run once; its result kept)
+                self._result, self._fn = self._fn(), None
+            return self._result
         self.start()
         self._thread.join()
         if self._error is not None:
@@ -929,8 +954,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     stats["time_photon_map"] = time.perf_counter() - t0
     # (The glow shot's photons beside an aimed map are the glow map's: counted, and
     # drawn in the photon-hit view, as when they were the caustic map's.)
-    stats["photon_bytes"] = shot.nbytes + caustic.nbytes + (
+    stats["shot_bytes"] = shot.nbytes + caustic.nbytes + (
         glow_apart.nbytes if glow_apart is not None else 0)
+    # What the maps hold through the camera pass (their photons' copies, trees, gather
+    # points, a lazy gather map's masks and arrays to fill, the counts' classes), each
+    # buffer once: a session keeps these (engine/session.py's photon cache), and it is
+    # the figure per stored photon issue 13 bounds (docs/performance.md "perf47").
+    stats["photon_bytes"] = held_bytes(*(getattr(ctx, name) for name in MAP_FIELDS))
     # For the photon-hit pass (_photon_hit_view), always filled (the caustic shot last).
     return (shot, caustic) if glow_apart is None else (shot, glow_apart, caustic)
 
@@ -2021,10 +2051,23 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     seeded choice per photon made on the whole image, so tiles (region) agree with a full
     render. Returns (view (height, width, 3) float32 or None when no dot is drawn, dots
     drawn, the share of the photons in the image that was drawn). Queries Embree on the
-    calling thread only (Accel.serial), so it may run beside the camera pass."""
+    calling thread only (Accel.serial), so it may run beside the camera pass.
+    _photon_hit_dots then _photon_hit_draw: a render picks the dots before its camera
+    pass and lets the shots go (13 B a stored photon, and the projection's 24 B a photon
+    of float64, off the camera pass' peak: docs/performance.md "perf47")."""
+    return _photon_hit_draw(ctx, *_photon_hit_dots(ctx, shots, region), region, width,
+                            height)
+
+
+def _photon_hit_dots(ctx: Context, shots, region) -> tuple:
+    """_photon_hit_view's choice of dots: (share of the photons in the image drawn, dots
+    or None where none is in the region), dots = (p (D,3) float64 positions, z (D,1) their
+    camera-space depth, px, py (D,) int64 pixels, kinds (D,) uint8), the candidates before
+    the visibility test: at most photon_hit_budget of the image, whatever the shots'
+    size."""
     shots = [(p, kinds) for p, kinds in shots if len(p)]
     if not shots:
-        return None, 0, 1.0
+        return 1.0, None
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
@@ -2070,7 +2113,7 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
         rows_.append(py[fb].astype(np.int64))
     n_frame = int(frame.sum())
     if n_frame == 0:
-        return None, 0, 1.0
+        return 1.0, None
     px, py = np.concatenate(cols), np.concatenate(rows_)  # of the frame's photons, in order
     keep = photon_hit_budget(n_frame, W, H) / n_frame
     chosen = np.ones(n_frame, bool)
@@ -2082,10 +2125,25 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     idx = np.flatnonzero(frame)[inside]
     px, py = px[inside], py[inside]
     if len(idx) == 0:
-        return None, 0, fraction
+        return fraction, None
     p = np.take(position, idx, axis=0).astype(np.float64)
+    kinds = np.concatenate([kinds for _, kinds in shots])[idx]
+    return fraction, (p, local[idx, 2:3], px, py, kinds)
+
+
+def _photon_hit_draw(ctx: Context, fraction: float, dots, region, width: int, height: int):
+    """_photon_hit_view's answer from _photon_hit_dots' (fraction, dots): the dots nothing
+    hides from the camera drawn into the region."""
+    if dots is None:
+        return None, 0, fraction
+    p, z, px, py, kinds = dots
+    cam = ctx.scene.camera
+    x0, y0, x1, y1 = region
+    pos = cam.position - ctx.geo.offset
+    R = cam.rotation
+    idx = np.arange(len(p))
     # Visible only if nothing lies between the camera and the photon.
-    to = p - (pos if cam.kind != "ORTHO" else p + local[idx, 2:3] * R[:, 2])
+    to = p - (pos if cam.kind != "ORTHO" else p + z * R[:, 2])
     dist = np.linalg.norm(to, axis=1)
     d = to / np.maximum(dist, 1e-300)[:, None]
     origin = p - to
@@ -2101,7 +2159,7 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
     for kind, rgb in PHOTON_KIND_COLORS.items():
         table[kind] = rgb
-    colour = table[np.concatenate([kinds for _, kinds in shots])[idx]]
+    colour = table[kinds[idx]]
     size = height * width
     count = np.bincount(flat, minlength=size).astype(np.float64)
     buf = np.zeros((size, 3))

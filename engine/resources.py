@@ -153,6 +153,47 @@ class MemoryEstimate:
         return ", ".join(f"{name} {format_bytes(b)}" for name, b in ordered if b > 0)
 
 
+# The modules whose objects make up a render's photon maps (held_bytes walks into these
+# alone: an Embree scene or the Geometry a map refers to is not the map's memory).
+MAP_MODULES = ("engine.photonmap", "engine.photons", "engine.kdtree", "engine.hashgrid",
+               "engine.mortontree", "engine.chaincounts", "engine.guiding")
+
+
+def held_bytes(*roots) -> int:
+    """Bytes of the numpy arrays reachable from `roots` (maps, tuples, dicts of them)
+    through the attributes of objects of MAP_MODULES, each buffer once however many views,
+    maps or subset maps share it (a view counts its whole base array: what it keeps
+    alive). Attributes named "accel" (Embree's scene) are not followed. The photon pass'
+    stats["photon_bytes"] (engine/render.py): what its maps hold through the camera
+    pass, lazy gather maps' masks and arrays to fill included."""
+    import numpy as np
+    seen, total = set(), 0
+    stack = list(roots)
+    while stack:
+        obj = stack.pop()
+        if isinstance(obj, np.ndarray):
+            base = obj
+            while isinstance(base.base, np.ndarray):
+                base = base.base
+            key = ("a", base.__array_interface__["data"][0], base.nbytes)
+            if key not in seen:
+                seen.add(key)
+                total += base.nbytes
+            continue
+        if obj is None or isinstance(obj, (int, float, str, bool)) or id(obj) in seen:
+            continue
+        if isinstance(obj, (list, tuple)):
+            seen.add(id(obj))
+            stack.extend(obj)
+        elif isinstance(obj, dict):
+            seen.add(id(obj))
+            stack.extend(obj.values())
+        elif type(obj).__module__ in MAP_MODULES and hasattr(obj, "__dict__"):
+            seen.add(id(obj))
+            stack.extend(v for k, v in vars(obj).items() if k != "accel")
+    return total
+
+
 def format_bytes(n: float) -> str:
     n = float(n)
     for unit in ("B", "KB", "MB", "GB", "TB", "PB"):

@@ -78,13 +78,18 @@ def test_the_glow_map_holds_the_glow_photons_the_caustic_map_held(monkeypatch):
     assert st_two["radius_caustic"] == st_one["radius_caustic"]
     assert two.glow_radius >= two.caustic_radius
     assert two.glow_radius <= 0.1 * two.geo.extent + 1e-12
-    # The photons the pass returns for the photon-hit view, and the bytes it counts: the
-    # same with the glow photons in a map of their own (global, glow, caustic shots).
+    # The photons the pass returns for the photon-hit view, and the shots' bytes it
+    # counts: the same with the glow photons in a map of their own (global, glow, caustic
+    # shots); the maps' bytes count the glow map too.
     assert len(shots_one) == 2 and len(shots_two) == 3
     assert len(shots_two[1]) >= st_two["glow_photons"] > 0
     assert sum(map(len, shots_two)) == sum(map(len, shots_one))
-    assert st_two["photon_bytes"] == st_one["photon_bytes"] == sum(
+    assert st_two["shot_bytes"] == st_one["shot_bytes"] == sum(
         ph.nbytes for ph in shots_two)
+    from engine.resources import held_bytes
+    for ctx, st in ((one, st_one), (two, st_two)):
+        assert st["photon_bytes"] == held_bytes(*(getattr(ctx, f)
+                                                  for f in render_mod.MAP_FIELDS))
     # The stored photons the teaching table counts: the same (glow ones included).
     from engine.teaching import _photons_stored
     assert _photons_stored(st_two) == _photons_stored(st_one) > st_one["global_photons"]
