@@ -6,12 +6,16 @@ time if asked; prints the mean luminance ratio ours / Cycles over the vase's pix
 
     PYTHONPATH=. .venv/bin/python bench/vase47_room.py [--res W H] [--lights L,...]
         [--spp N] [--cycles-spp N] [--cycles-seed S] [--set NAME=VALUE] [--keep DIR]
-        [--reuse] [--seeds N] [--no-clamp] [--filter-glossy F] [--aniso A] [--flat] [--pad PX]
+        [--reuse] [--seeds N] [--passes] [--no-clamp] [--filter-glossy F] [--aniso A]
+        [--flat] [--pad PX]
 
 --lights: a comma list of spot, point, lamp (the emissive shade), world; the others are
 set to 0 (light energy, emission strength, world colour) in both engines; default all.
 --res: the full frame's size (160 x 120 is newuser45's); the border is the vase's box
-at 160 x 120 padded by --pad pixels of that size. --reuse: read DIR's renders if there.
+at 160 x 120 padded by --pad pixels of that size. --reuse: read DIR's renders if there
+(named by lights, size, samples, seed and the scene options). --seeds N: ours at seeds
+0..N-1 against the one Cycles render, and their mean. --passes: ours' effect passes
+(engine/film.py) over the vase and at Cycles' brightest vase pixel.
 Cycles: no denoise, no adaptive sampling, seed --cycles-seed; both engines read the
 scene's Light Paths (clamp 10 indirect unless --no-clamp, Filter Glossy 1 unless set).
 Findings and commands: docs/accuracy.md "vase47".
@@ -166,8 +170,11 @@ def main():
     mask = masks_in(scene, w, h, box, "Vase")
     mask[:box[1] + 1] = mask[box[3] - 1:] = False  # the border's edge rows and columns:
     mask[:, :box[0] + 1] = mask[:, box[2] - 1:] = False  # the filter reads past them
+    opts = (f"{'_noclamp' if a.no_clamp else ''}"
+            f"{'' if a.filter_glossy is None else f'_fg{a.filter_glossy}'}"
+            f"{'' if a.aniso == 0.6 else f'_an{a.aniso}'}{'_flat' if a.flat else ''}")
     ref, tc = render(scene, "CYCLES", os.path.join(
-        d, f"cycles_{a.lights}_{w}_{a.cycles_spp}_{a.cycles_seed}.exr"), a)
+        d, f"cycles_{a.lights}_{w}_{a.cycles_spp}_{a.cycles_seed}{opts}.exr"), a)
     np.save(os.path.join(d, f"mask_{w}.npy"), mask)
     ref, ref_passes = ref
     lr = ref[mask]
@@ -179,7 +186,7 @@ def main():
             a.set = base + [f"seed={seed}"]
         tag = f"lights={a.lights} res={w}x{h} spp={a.spp} cseed={a.cycles_seed} {a.set}"
         ours, to = render(scene, "PHOTONMAP", os.path.join(
-            d, f"ours_{a.lights}_{w}_{a.spp}_{'_'.join(a.set)}.exr"), a)
+            d, f"ours_{a.lights}_{w}_{a.spp}_{'_'.join(a.set)}{opts}.exr"), a)
         ours, ours_passes = ours
         lo = ours[mask]
         ratios.append(lo.sum() / lr.sum())
