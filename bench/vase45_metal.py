@@ -4,7 +4,7 @@ the vase's pixels (all, and those Cycles reads bright / dim).
 
     PYTHONPATH=. .venv/bin/python bench/vase45_metal.py LIGHT [--flat] [--rough R]
         [--aniso A] [--spp N] [--cycles-spp N] [--res W H] [--shape vase|sphere]
-        [--set NAME=VALUE] [--keep DIR] [--room] [--lift M] [--wall-spec S]
+        [--cycles-seed S] [--set NAME=VALUE] [--keep DIR] [--room] [--lift M] [--wall-spec S]
         [--high | --top] [--spot-radius R] [--terminator T] [--scale K] [--metallic M]
         [--diffuse-bounces N] [--filter-glossy F] [--no-reflective-caustics]
 
@@ -124,7 +124,7 @@ def render(scene, engine, out, a):
     r.engine = engine
     if engine == "CYCLES":
         c = scene.cycles
-        c.device, c.samples, c.seed = "CPU", a.cycles_spp, 0
+        c.device, c.samples, c.seed = "CPU", a.cycles_spp, getattr(a, "cycles_seed", 0)
         c.use_denoising = c.use_adaptive_sampling = False
     else:
         scene.photonmap.spp = a.spp
@@ -167,6 +167,7 @@ def main():
     ap.add_argument("--shape", default="vase", choices=("vase", "sphere"))
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--cycles-spp", type=int, default=512)
+    ap.add_argument("--cycles-seed", type=int, default=0)
     ap.add_argument("--res", type=int, nargs=2, default=(64, 96))
     ap.add_argument("--set", action="append", default=[])
     ap.add_argument("--keep")

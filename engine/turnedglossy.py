@@ -11,9 +11,12 @@ Cycles there.
 
 Here a camera path's hits on materials whose lobes are all glossy (Principled Metallic 1
 or a Glossy BSDF: no diffuse, sheen, translucent or transmission lobe) keep their shading
-normal where the guard would replace it (bsdf.surface_hit's `unguarded` rows).
-Materials with a diffuse lobe keep the guard: Cycles' diffuse closure keeps N as it is
-(no turn), which the guard avoids on purpose (black rings); smooth glass follows
+normal where the guard would replace it (bsdf.surface_hit's `unguarded` rows), and so do
+Principled materials with a diffuse lobe and no sheen, translucent or transmission lobe
+(plastic, paint: `diffuse_reflective`, vase47): as in Cycles their glossy lobes take the
+turned normal and their diffuse lobe the interpolated one as it is. With the guard a
+smooth plastic vase under a Spot from above read 1.075 of Cycles (its cap's top quarter
+of rows 1.89; docs/accuracy.md, vase47); smooth glass follows
 turnedlight.camera_unguarded (the photons' adjoint threshold). Rows where the guard
 would not act are never marked, so a batch with no such hit returns None and the fused
 plain-table kernel runs: the same bits as without this module.
@@ -29,6 +32,10 @@ from .closures import principled as pr
 
 # False: camera paths keep the guard at glossy-only hits (as before glossyguard45; A/B runs).
 ENABLED = True
+# True: Principled materials with a diffuse lobe (Metallic < 1: plastic, paint) keep their
+# shading normal too, their glossy lobes turned and their diffuse lobe on the normal as it
+# is, as Cycles' svm/closure.h sets them up (vase47); False: the guard there (glossyguard45).
+DIFFUSE = True
 _GUARD_EPS = 1e-6  # face_shading_normals' threshold on wo . ns
 
 
@@ -44,6 +51,19 @@ def glossy_only(params: np.ndarray) -> np.ndarray:
             & (params[:, pr.M_TL] <= 0.0))
 
 
+def diffuse_reflective(params: np.ndarray) -> np.ndarray:
+    """(M,) bool per material row: Principled without transmission, sheen or
+    translucency whose Metallic is below 1 (a diffuse lobe under the specular and coat
+    layers): Cycles turns the glossy closures' normal and leaves the diffuse closure's N
+    as it is (svm/closure.h: `maybe_ensure_valid_specular_reflection(sd, N)` for the
+    specular layers, the diffuse bsdf on N)."""
+    params = np.asarray(params)
+    node = params[:, pr.M_NODE]
+    return ((node == pr.NODE_PRINCIPLED) & (params[:, pr.M_METALLIC] < 1.0)
+            & (params[:, pr.M_TRANS] <= 0.0) & (params[:, pr.M_SHEEN_W] <= 0.0)
+            & (params[:, pr.M_TL] <= 0.0))
+
+
 def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | None:
     """(N,) bool: camera-path hits (triangles prim (N,), barycentrics u, v (N,), ray
     directions d (N,3); material (N,) the Light Path variant rows or None: the
@@ -56,6 +76,8 @@ def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | N
     if cn is None or not len(cn):
         return None
     ok = glossy_only(table.closure_params)  # (a few comparisons a material row)
+    if DIFFUSE:
+        ok = ok | diffuse_reflective(table.closure_params)
     if not ok.any():
         return None
     prim = np.asarray(prim, np.int64)

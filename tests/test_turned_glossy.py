@@ -1,5 +1,6 @@
 """engine/turnedglossy.py: camera paths keep the smooth shading normal at glossy-only
-hits (metal) where Veach's guard would replace it, as Cycles does (glossyguard45)."""
+hits (metal) where Veach's guard would replace it, as Cycles does (glossyguard45), and
+at Principled materials with a diffuse lobe (plastic: vase47)."""
 import math
 
 import numpy as np
@@ -41,6 +42,20 @@ def test_glossy_only_is_metal_and_glossy_nodes_without_other_lobes():
                                   [True, False, True, False, False, False, False])
 
 
+def test_diffuse_reflective_is_principled_below_metallic_1_without_other_lobes():
+    p = np.zeros((7, pr.N_MAT))
+    p[:, pr.M_NODE] = pr.NODE_PRINCIPLED
+    p[0, pr.M_METALLIC] = 1.0                      # metal: glossy_only's
+    p[1, pr.M_METALLIC] = 0.5                      # half diffuse: yes
+    p[2, pr.M_NODE] = pr.NODE_GLOSSY               # Glossy BSDF: glossy_only's
+    p[3, pr.M_SHEEN_W] = 0.2                       # sheen: no (its lobe needs wo above N)
+    p[4, pr.M_TRANS] = 1.0                         # transmission: turnedlight's rule
+    p[5, pr.M_TL] = 0.5                            # translucent: no
+    # row 6: plastic (Metallic 0): yes
+    np.testing.assert_array_equal(turnedglossy.diffuse_reflective(p),
+                                  [False, True, False, False, False, False, True])
+
+
 def _top_hits(ctx, n=200, seed=4):
     g = np.cross(np.asarray(ctx.geo.e1), np.asarray(ctx.geo.e2))
     g /= np.linalg.norm(g, axis=1)[:, None]
@@ -56,10 +71,10 @@ def _top_hits(ctx, n=200, seed=4):
 
 
 def test_camera_unguarded_marks_exactly_the_rows_the_guard_replaces(monkeypatch):
-    """Rows marked are those on glossy-only material whose interpolated normal puts the
-    viewer below it (face_shading_normals' test); a view from straight above marks none
-    (None: the fused kernel runs, the same bits); a diffuse material, the module off:
-    None."""
+    """Rows marked are those on glossy-only or diffuse-reflective material whose
+    interpolated normal puts the viewer below it (face_shading_normals' test); a view
+    from straight above marks none (None: the fused kernel runs, the same bits); with
+    DIFFUSE off a diffuse material keeps the guard; the module off: None."""
     ctx = _metal_slab(50.0)
     prim, u, v = _top_hits(ctx)
     ns = ctx.geo.shading_normals(prim, u, v)
@@ -72,10 +87,15 @@ def test_camera_unguarded_marks_exactly_the_rows_the_guard_replaces(monkeypatch)
     down = np.tile([0.0, 0.0, -1.0], (len(prim), 1))
     assert turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, down) is None
     mats = np.asarray(ctx.geo.material)[prim].copy()
-    mats[::2] = ctx.table.names.index("floor")  # a Light Path variant that is diffuse: those rows keep the guard
+    mats[::2] = ctx.table.names.index("floor")  # a Light Path variant that is diffuse
+    got = turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d, mats)
+    np.testing.assert_array_equal(got, want)
+    plain = _metal_slab(50.0, metallic=0.0)  # plastic: marked as the metal (vase47)
+    np.testing.assert_array_equal(
+        turnedglossy.camera_unguarded(plain.geo, plain.table, prim, u, v, d), want)
+    monkeypatch.setattr(turnedglossy, "DIFFUSE", False)  # glossyguard45's rule
     got = turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d, mats)
     np.testing.assert_array_equal(got, want & (np.arange(len(prim)) % 2 == 1))
-    plain = _metal_slab(50.0, metallic=0.0)
     assert turnedglossy.camera_unguarded(plain.geo, plain.table, prim, u, v, d) is None
     monkeypatch.setattr(turnedglossy, "ENABLED", False)
     assert turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d) is None
