@@ -2,10 +2,12 @@
 thick, of Glass BSDF (the node's IOR, roughness ROUGH) in a uniform white World of
 strength 1, seen from 3 m at ANGLE degrees from its normal (120 mm lens, 48 x 36), by
 Photon Mapping (the add-on's defaults) or by Cycles (SPP samples, no denoising, no
-adaptive sampling, Filter Glossy 0, Clamp Indirect 0).
+adaptive sampling, Clamp Indirect 0); both engines at Filter Glossy FG (--filter-glossy,
+default 0: ours reads the scene's Filter Glossy as Cycles does, and an unequal pair
+compares the blur, not the glass: docs/accuracy.md, newuser47, "Correction (lead)").
 
     PYTHONPATH=. .venv/bin/python bench/newuser47_furnace.py MODE ANGLE ROUGH [--out DIR]
-        [--distribution MULTI_GGX|GGX|BECKMANN] [--bounces N]
+        [--distribution MULTI_GGX|GGX|BECKMANN] [--bounces N] [--filter-glossy FG]
 
 MODE: ours | cycles:SPP. Prints `FURNACE mode angle rough: slab mean RGB ...`, the mean
 linear RGB over the pixels whose camera ray hits the slab first (Blender's
@@ -44,6 +46,8 @@ def main():
     ap.add_argument("--bounces", type=int,
                     help="Light Paths Total, Glossy and Transmission bounces (read by both; "
                          "default Blender's 12, 4, 12)")
+    ap.add_argument("--filter-glossy", type=float, default=0.0,
+                    help="Light Paths Filter Glossy, read by both engines (default 0)")
     a = ap.parse_args()
     import addon
     addon.register()
@@ -62,22 +66,24 @@ def main():
     if a.bounces:
         c = scene.cycles
         c.max_bounces = c.glossy_bounces = c.transmission_bounces = a.bounces
+    scene.cycles.blur_glossy = a.filter_glossy  # (both engines read it)
     r.engine = "PHOTONMAP" if a.mode == "ours" else "CYCLES"
     if r.engine == "CYCLES":
         c = scene.cycles
         c.device, c.samples = "CPU", int(a.mode.split(":")[1])
         c.use_denoising = c.use_adaptive_sampling = False
-        c.sample_clamp_indirect, c.blur_glossy = 0.0, 0.0
+        c.sample_clamp_indirect = 0.0
     r.image_settings.file_format = "OPEN_EXR"
     r.image_settings.color_depth = "32"
     out = os.path.join(os.path.abspath(a.out), f"newuser47_furnace_"
-                       f"{a.mode.replace(':', '')}_{a.angle:g}_{a.rough:g}_{a.distribution}_{a.bounces or 0}.exr")
+                       f"{a.mode.replace(':', '')}_{a.angle:g}_{a.rough:g}_{a.distribution}_{a.bounces or 0}"
+                       f"_fg{a.filter_glossy:g}.exr")
     r.filepath, r.use_file_extension = out, False
     bpy.ops.render.render(write_still=True)
     img = read_exr(out)
     slab = ids == names.index("Slab")
     world = img[ids < 0].mean(0).round(4) if (ids < 0).any() else "-"
-    print(f"FURNACE {a.mode} {a.distribution} bounces {a.bounces or 'default'} angle {a.angle:g} rough {a.rough:g}: slab mean RGB "
+    print(f"FURNACE {a.mode} {a.distribution} FG {a.filter_glossy:g} bounces {a.bounces or 'default'} angle {a.angle:g} rough {a.rough:g}: slab mean RGB "
           f"{img[slab].mean(0).round(4)} over {int(slab.sum())} px; world {world}")
 
 
