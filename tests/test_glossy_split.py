@@ -541,8 +541,9 @@ def test_the_chains_leave_a_panes_light_to_its_shadow_rays(light, glass):
     of Direct under the sun, 0.97 under the world; tests/blender/test_pane_sun_cycles.py
     read 1.51x Cycles). The same under window glass 1 cm thick, whose flat passage every
     light's shadow rays cross: its entry and exit leave their light to them (before:
-    Caustic 0.58 of Direct under either light; now about 2 %: the light reflected inside
-    the slab stays the chains')."""
+    Caustic 0.58 of Direct under either light; now 3.0 % under the world and 4.2 % under
+    the sun, 3.9 % before roughglass47 evaluated the blurred refraction's light samples as
+    Cycles does: the light reflected inside the slab stays the chains')."""
     s = _floor_under_pane(light == "sun", glass == "slab")
     base = RenderSettings(photons=20_000, caustic_photons=20_000, spp=4, seed=1, workers=1)
     f0 = render(s, base)
@@ -550,7 +551,7 @@ def test_the_chains_leave_a_panes_light_to_its_shadow_rays(light, glass):
     np.testing.assert_array_equal(f1.direct, f0.direct)
     direct = float(np.mean(f0.direct))
     assert direct > 0.05
-    assert float(np.mean(f1.caustic)) < (0.04 if glass == "slab" else 1e-3) * direct
+    assert float(np.mean(f1.caustic)) < (0.05 if glass == "slab" else 1e-3) * direct
 
 
 def test_carriers_are_the_panes_for_suns_and_shades_for_their_lamps():

@@ -235,11 +235,14 @@ def floors():
 def test_floor_under_a_rough_glass_shade_keeps_its_brightness(floors):
     """No double count with the photons (would read ~1.9), nothing lost: the estimator
     on and off (main), same photons, agree, and both agree with the converged
-    reference. Measured: on / off 0.998, on / reference 1.000."""
+    reference. Measured: on / off 0.998 before roughglass47, 1.023 after (the shadow
+    rays evaluate the refraction as Cycles' light sampling does, the pairs whose half
+    vector faces the wrong way included, which the caustic photons' sampler never makes:
+    docs/accuracy.md "roughglass47"), on / reference 1.000."""
     film, on = floors["on"]
     off, ref = floors["off"][1], floors["ref"][1]
     print("on / off", on.mean() / off.mean(), "on / ref", on.mean() / ref.mean())
-    assert abs(on.mean() / off.mean() - 1.0) < 0.02
+    assert 1.0 < on.mean() / off.mean() < 1.045
     assert abs(on.mean() / ref.mean() - 1.0) < 0.02
     assert any(line.startswith("lamp through shade") and "rough glass 'shade'" in line
                and "by shadow rays" in line for line in film.stats["effects"]), \
