@@ -12,6 +12,9 @@ caustic shot. Prints one line per roughness: each seed's Caustic pass / rho / pi
 their mean and its standard error.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_rough_pane_seeds.py
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_rough_pane_seeds.py blender
+        the Blender test's own scene (bench/bench_split_rough_glass.py's pane, GGX, FG 0,
+        clamps off; ours only), roughness 1 and 0.3, seeds 0-5
 """
 import math
 import os
@@ -24,7 +27,44 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 
 
+def blender():
+    import tempfile
+    import bpy
+    import addon
+    import blender_helpers as bh
+    import test_pane_sun_cycles as ps
+    if not hasattr(bpy.types.Scene, "photonmap"):
+        addon.register()
+    tmp = tempfile.mkdtemp(prefix="roughpane_")
+    # rho / pi E_sun T (T at a point sun's 30 degrees, tests/test_rough_pane_photons.py)
+    for rough, want in ((1.0, 0.1544), (0.3, 0.1759)):
+        vals = []
+        for seed in range(6):
+            bpy.ops.wm.read_homefile(use_empty=True)
+            s = bpy.context.scene
+            ps._scene(bpy, s)
+            s.cycles.pixel_filter_type, s.cycles.filter_width = "BOX", 1.0
+            g = bpy.data.materials["Glass"].node_tree.nodes["Glass BSDF"]
+            g.inputs["Roughness"].default_value = rough
+            g.distribution = "GGX"
+            s.cycles.blur_glossy = 0.0
+            s.cycles.sample_clamp_indirect = s.cycles.sample_clamp_direct = 0.0
+            bh.cheap(s, spp=16, photons=100_000, caustic_photons=100_000)
+            s.photonmap.seed = seed
+            s.render.engine = "PHOTONMAP"
+            path = bh.render_exr(bpy, s, os.path.join(tmp, f"o{rough}_{seed}.exr"),
+                                 multilayer=True)
+            vals.append(float(bh.read_layers(path)["Caustic"][..., :3].mean()))
+        print(f"Blender scene, roughness {rough}: Caustic pass "
+              + " ".join(f"{v:.4f}" for v in vals) + "; / rho / pi E_sun T "
+              + " ".join(f"{v / want:.3f}" for v in vals)
+              + f"; mean {sum(vals) / len(vals) / want:.4f}", flush=True)
+
+
 def main():
+    if sys.argv[1:] == ["blender"]:
+        sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
+        return blender()
     from engine import RenderSettings
     import test_rough_pane_photons as t
     seeds = range(8)
