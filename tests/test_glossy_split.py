@@ -589,3 +589,47 @@ def test_carriers_are_the_panes_for_suns_and_shades_for_their_lamps():
         on = (bits >> j & 1) == 1
         assert on.any() and set(obj[on]) == {want}, (name, set(obj[on]))
     assert not bits[np.asarray(obj) == "floor"].any()
+
+
+def _glass_ball_on_matte_floor():
+    """A smooth glass ball (a caustic caster: the caustic shot is planned) over a matte
+    floor under a small point lamp; every diffuse surface Lambert (maps_unread at Filter
+    Glossy 1)."""
+    s = PaperScene(width=16, height=12, background=(0.0, 0.0, 0.0))
+    s.add_material(Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=1.5))
+    s.add_material(Material("white", (0.8, 0.8, 0.8), specular=0.0))
+    s.add_plane((0, 0, 0), size=6.0, material="white", name="Floor")
+    s.add_sphere((0, 0, 0.6), 0.4, material="glass", name="Ball")
+    s.add_point_light((0.3, 0.2, 2.5), power=300.0, radius=0.05)
+    s.set_camera((0.0, -3.0, 2.0), (0.0, 0.0, 0.3), view_angle=40)
+    return s
+
+
+def test_progress_plan_follows_the_unread_refinement():
+    """maps_unread holds (Filter Glossy 1, Lambert floor) but Diffuse bounces 0 leaves no
+    global photon usable at the camera's diffuse hits, so _photon_pass finds the caustic
+    shot read after all and traces it: the progress plan follows (splitfix47; it was
+    planned at size 0, so its fractions sat at 1 while it traced). Read as the CLI's bar
+    reads them (StageSpans re-sized by on_plan), the caustic shot's positions rise past
+    where the global shot left the bar, and on_plan's last count is the photons traced."""
+    from engine.stagespans import StageSpans
+    s = RenderSettings(photons=4000, caustic_photons=4000, spp=1, seed=1, workers=1,
+                       chunk_size=1000, cycles_filter_glossy=1.0, diffuse_bounces=0)
+    spans = StageSpans(True, s.photons + s.caustic_photons, 16 * 12 * s.spp)
+    rec, plans = [], []
+
+    def on_plan(work):
+        plans.append(work.get("photons"))
+        spans.plan(work)
+    f = render(_glass_ball_on_matte_floor(), s, on_plan=on_plan,
+               progress=lambda stage, fraction, text: rec.append(
+                   (spans.whole(stage, fraction), fraction, stage == "photons" and "caustic" in text)))
+    assert "shots_unread" not in f.stats
+    assert f.stats["caustic_photons_emitted"] > 0
+    caustic = [w for w, _, c in rec if c]
+    before = [w for w, _, c in rec[:next(i for i, r in enumerate(rec) if r[2])]]
+    assert len(caustic) >= 2 and before, rec
+    assert all(b > a for a, b in zip(caustic, caustic[1:])), caustic
+    assert caustic[-1] > max(before), (before, caustic)
+    assert [fr for _, fr, c in rec if c][-1] == pytest.approx(1.0)
+    assert plans[-1] == f.stats["photons_emitted_all"], (plans, f.stats)
