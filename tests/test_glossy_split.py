@@ -633,3 +633,43 @@ def test_progress_plan_follows_the_unread_refinement():
     assert caustic[-1] > max(before), (before, caustic)
     assert [fr for _, fr, c in rec if c][-1] == pytest.approx(1.0)
     assert plans[-1] == f.stats["photons_emitted_all"], (plans, f.stats)
+
+
+def _panel_over_slab(mode="NONE", slab=True):
+    """A grey Lambert floor under window glass 1 cm thick (a flat passage), above it an
+    emissive panel (radiance 10, 2 m square at 1.5 m) facing the floor, its Emission
+    Sampling mode (NONE: no shadow ray samples it); an orthographic camera under the
+    glass looks down, so the floor's light is the panel's through the slab."""
+    from engine.scene import Camera
+    s = PaperScene(width=16, height=16, background=(0, 0, 0))
+    s.add_material(Material("floor", (0.5,) * 3, specular=0.0))
+    s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.5,
+                            roughness=0.0))
+    s.add_material(Material("lamp", (0.0, 0.0, 0.0), emission=(10.0,) * 3,
+                            emission_sampling=mode))
+    s.add_plane((0, 0, 0), (0, 0, 1), 10.0, "floor", name="floor")
+    if slab:
+        s.add_box((0, 0, 1.005), (6.0, 6.0, 0.01), "glass", name="pane")
+    s.add_plane((0, 0, 1.5), (0, 0, -1), 2.0, "lamp", name="panel")
+    s.camera = Camera(position=(0, 0, 0.8), rotation=np.eye(3), kind="ORTHO",
+                      ortho_scale=1.5)
+    return s
+
+
+# Cycles 4.x (the .venv's bpy) on _panel_over_slab("NONE") at Filter Glossy 1: mean RGB of
+# the 16 x 16 floor, 1024 spp, seed 0, Max Bounces 12, box filter
+# (tests/blender/test_window_unsampled_cycles.py builds the same scene; docs/compatibility.md
+# "splitfix47").
+PANEL_OVER_SLAB_CYCLES_FG1 = 1.0052
+
+
+def test_the_chains_keep_an_unsampled_emitters_light_through_window_glass():
+    """GatherChains.emission leaves a window passage's light to D's shadow rays only for
+    the lights those rays sample (splitfix47): an emissive panel of Emission Sampling
+    None seen through window glass stays the chains' at Filter Glossy 1. Before, it was
+    dropped (the floor read 0.036 for Cycles' 1.005); now 1.012, 1.007 of Cycles
+    (blurred refraction through the slab: 0.64 of the panel without it, 1.565)."""
+    base = RenderSettings(photons=20_000, caustic_photons=20_000, spp=4, seed=1,
+                          workers=1, cycles_filter_glossy=1.0)
+    none = float(np.mean(render(_panel_over_slab("NONE"), base).combined))
+    assert none / PANEL_OVER_SLAB_CYCLES_FG1 == pytest.approx(1.0, abs=0.04), none
