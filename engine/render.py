@@ -286,7 +286,8 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     on_plan({"photons": n}) is told, before the first photon is traced, how many photons
     the pass will emit over all its shots (global, glow, caustic: the effect analysis
     decides which; 0 when it leaves the photon pass out), so a progress bar can size
-    the photon stage (None: nobody)."""
+    the photon stage (None: nobody); told again after the global shot where it finds
+    the caustic / glow shots read after all (_photon_pass, maps_unread)."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     ctx.glow_map = None
     ctx.regather_maps = ctx.regather_secondary = ()
@@ -793,7 +794,15 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
                              should_cancel=should_cancel,
                              first_hit=None if split is None else (split, False))
         # (without a gather map the split is off and the maps are read: the shots stay)
+        planned = unread
         unread = unread and bool(shot.usable(s.bounce_limits, camera=(1, 1, 0, 0)).any())
+        if unread != planned:
+            # The plan follows: the glow / caustic shots are traced after all (planned
+            # at 0, the caustic shot's bar sat at 100 % while it traced: splitfix47).
+            sizes = (sizes[0], int(sum(g_counts)) if g_emitters is not None else 0,
+                     int(s.caustic_photons) if use_caustic_shot else 0)
+            if on_plan is not None:
+                on_plan({"photons": int(sum(sizes))})
         if unread:
             stats["shots_unread"] = tuple(
                 name for name, planned in (("caustic", use_caustic_shot),
@@ -828,7 +837,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             stats["glow_share"], stats["glow_split"] = g_share, g_split
             g_emitters, g_counts = glow_emitters(emitters, counts, photon_counts(ctx, n),
                                                  g_split)
-            sizes = (sizes[0], int(sum(g_counts)), sizes[2])
+            sizes = (sizes[0], 0 if unread else int(sum(g_counts)), sizes[2])
             # The glow's caustic paths (light off rough specular layers first, or window
             # glass: L S+ D, the first S not a caster) from a shot of their own whose
             # photons are lighter (GLOW_STREAM's comment).
