@@ -16,7 +16,7 @@ import numpy as np
 from .closures.ggx import ALPHA_MIN
 from .closures.principled import M_ANISO
 from .geometry import CAMERA, SHADOW, Geometry, MaterialTable
-from .glossysplit import settings_filter_glossy
+from .glossysplit import maps_unread, scene_materials, settings_filter_glossy
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
@@ -633,6 +633,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
+            from .render import SKIP_UNREAD_SHOTS
+            if (SKIP_UNREAD_SHOTS and plan.indirect and getattr(s, "final_gather", True)
+                    and maps_unread(s, table, scene_materials(geo, table))):
+                # Filter Glossy's split reads no caustic photon on these matte surfaces
+                # (render._photon_pass leaves the shot out): the line said "200,000
+                # photons aimed at" beside the maps line's "no caustic photons traced"
+                # (cleanuser47, make render's figure6_box).
+                why = (f"from {names_r}, through the final gather's blurred lobes (no "
+                       "caustic photons traced: see the glossy blur line)" + rough_note)
         elif rough_reached or ((plan.window_glass or plan.pane_glass) and emitting):
             # Nothing focuses light: no caustic in a student's sense (a plain room's rough
             # Principled walls read "caustics: on" to a new user). Their specular layers

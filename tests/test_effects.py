@@ -1166,3 +1166,17 @@ def test_an_open_scene_says_why_photons_are_not_aimed():
     text = effects(s.render(RenderSettings(photons=2000, spp=1)))
     assert ("no visual importance: the final-gather rays from the surfaces in view leave the "
             "scene or end on metal and glass") in text, text
+
+
+def test_caustics_line_says_no_photons_are_traced_where_filter_glossy_reads_none():
+    """At Filter Glossy 1 over matte surfaces the split reads no caustic photon and the
+    shot is left out (glossysplit.maps_unread; render._photon_pass): the caustics line
+    said "200,000 photons aimed at 'Ball'" beside the maps line's "no caustic photons
+    traced" (cleanuser47: make render's figure6_box). At Filter Glossy 0 they are aimed."""
+    s = _room(Material("white_diffuse", (0.7, 0.7, 0.7)), extra=(("glass", "Ball"),))
+    blurred = _line(_plan(s, cycles_filter_glossy=1.0), "caustics:")
+    assert blurred.startswith("caustics: on - from 'Ball', through the final gather's "
+                              "blurred lobes (no caustic photons traced"), blurred
+    assert "photons aimed" not in blurred, blurred
+    sharp = _line(_plan(s, cycles_filter_glossy=0.0), "caustics:")
+    assert sharp.startswith("caustics: on - 200,000 photons aimed at 'Ball'"), sharp
