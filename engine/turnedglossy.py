@@ -35,7 +35,12 @@ ENABLED = True
 # True: Principled materials with a diffuse lobe (Metallic < 1: plastic, paint) keep their
 # shading normal too, their glossy lobes turned and their diffuse lobe on the normal as it
 # is, as Cycles' svm/closure.h sets them up (vase47); False: the guard there (glossyguard45).
-DIFFUSE = True
+# Off by default (lead, s47): instanced geometry is not covered (camera_unguarded returns
+# None there), so a plastic object rendered 6 % apart as instances and as copies
+# (tests/test_scenefile_instances.py), and shading normals pointing into the surface
+# (broken custom normals) left the diffuse lobe black where the guard falls back to the
+# face (tests/test_stability_geometry.py); the tests that measure it switch it on.
+DIFFUSE = False
 _GUARD_EPS = 1e-6  # face_shading_normals' threshold on wo . ns
 
 

@@ -75,6 +75,7 @@ def test_camera_unguarded_marks_exactly_the_rows_the_guard_replaces(monkeypatch)
     interpolated normal puts the viewer below it (face_shading_normals' test); a view
     from straight above marks none (None: the fused kernel runs, the same bits); with
     DIFFUSE off a diffuse material keeps the guard; the module off: None."""
+    monkeypatch.setattr(turnedglossy, "DIFFUSE", True)  # (vase47's rule; off by default)
     ctx = _metal_slab(50.0)
     prim, u, v = _top_hits(ctx)
     ns = ctx.geo.shading_normals(prim, u, v)
