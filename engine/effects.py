@@ -16,7 +16,7 @@ import numpy as np
 from .closures.ggx import ALPHA_MIN
 from .closures.principled import M_ANISO
 from .geometry import CAMERA, SHADOW, Geometry, MaterialTable
-from .glossysplit import maps_unread, scene_materials, settings_filter_glossy
+from .glossysplit import settings_filter_glossy, shots_unread
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
@@ -634,8 +634,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
             from .render import SKIP_UNREAD_SHOTS
-            if (SKIP_UNREAD_SHOTS and plan.indirect and getattr(s, "final_gather", True)
-                    and maps_unread(s, table, scene_materials(geo, table))):
+            if SKIP_UNREAD_SHOTS and shots_unread(s, geo, table, plan.indirect):
                 # Filter Glossy's split reads no caustic photon on these matte surfaces
                 # (render._photon_pass leaves the shot out): the line said "200,000
                 # photons aimed at" beside the maps line's "no caustic photons traced"
@@ -1522,7 +1521,6 @@ def _visible_specular(scene, geo, table, accel, probe=96, through=3) -> list:
         tmax = tmax - t - step
     ids = np.unique(geo.object_id[np.concatenate(seen)])
     return [geo.object_names[i] for i in ids]
-
 
 
 def _light_words(name: str, kind, share: float) -> str:

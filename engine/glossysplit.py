@@ -143,6 +143,16 @@ def maps_unread(settings, table, materials=None) -> bool:
     return bool(((bound if materials is None else np.take(bound, materials)) < fg).all())
 
 
+def shots_unread(settings, geo, table, indirect: bool) -> bool:
+    """Whether a render with these RenderSettings of geometry geo (MaterialTable table)
+    reads no caustic or glow photon: indirect light (indirect: the effect plan's) with
+    final gathering, and maps_unread over the materials its surfaces use. The one test
+    behind render._photon_pass leaving those shots untraced and the effect report's
+    caustics line saying so."""
+    return bool(indirect and getattr(settings, "final_gather", True)
+                and maps_unread(settings, table, scene_materials(geo, table)))
+
+
 class DiffusePdf:
     """Cycles' one-sample MIS pdf (1/sr) at the camera's diffuse hits D (hit (N rows),
     bsdf.closures' lobes: the same numbers on the maps' side and the chains' side) of a

@@ -29,7 +29,7 @@ from .lights import packing as pk
 from .lights.packing import pack_lights
 from .mallocheap import render_heap
 from .edgeimages import edge_images
-from .glossysplit import maps_unread, scene_materials, settings_filter_glossy
+from .glossysplit import settings_filter_glossy, shots_unread
 from .guiding import AUTO_GAIN, GatherGuide, can_guide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
@@ -768,8 +768,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # whole), so those shots are not traced where the gather map that carries their light
     # is built (its photons known after the global shot; docs/compatibility.md
     # "splitmaps47": 3.1 of 67 CPU s on newuser44's table).
-    unread = (SKIP_UNREAD_SHOTS and global_shot and plan.indirect and s.final_gather
-              and maps_unread(s, ctx.table, scene_materials(geo, ctx.table)))
+    unread = SKIP_UNREAD_SHOTS and global_shot and shots_unread(s, geo, ctx.table,
+                                                                plan.indirect)
     emitters = counts = g_emitters = g_counts = pre_radius = None
     camera_map_radius = [None]  # (without final gathering: _camera_map_radius's)
     known_secondary = None  # (radius, the secondary share there) measured with the glow's
