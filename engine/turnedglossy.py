@@ -21,8 +21,15 @@ turnedlight.camera_unguarded (the photons' adjoint threshold). Rows where the gu
 would not act are never marked, so a batch with no such hit returns None and the fused
 plain-table kernel runs: the same bits as without this module.
 
-Not covered: instanced geometry (None), texture-driven Metallic (the material's table
-row decides), the final-gather chains and the photon pass (they keep the guard).
+Instanced geometry is covered (the hits' rows gathered, world-space normals and the
+instance's material slot: engine/sharedrows.py), so instances render as their copies
+(tests/test_scenefile_instances.py). Shading normals pointing into the surface (ns . ng
+<= 0: broken custom normals) keep the guard's fall-back to the face at every row kind:
+Cycles would light such a diffuse lobe only from below the face (black); ours stays
+stable (tests/test_stability_geometry.py; docs/accuracy.md, vase48).
+
+Not covered: texture-driven Metallic (the material's table row decides), the
+final-gather chains and the photon pass (they keep the guard).
 """
 from __future__ import annotations
 
@@ -34,13 +41,9 @@ from .closures import principled as pr
 ENABLED = True
 # True: Principled materials with a diffuse lobe (Metallic < 1: plastic, paint) keep their
 # shading normal too, their glossy lobes turned and their diffuse lobe on the normal as it
-# is, as Cycles' svm/closure.h sets them up (vase47); False: the guard there (glossyguard45).
-# Off by default (lead, s47): instanced geometry is not covered (camera_unguarded returns
-# None there), so a plastic object rendered 6 % apart as instances and as copies
-# (tests/test_scenefile_instances.py), and shading normals pointing into the surface
-# (broken custom normals) left the diffuse lobe black where the guard falls back to the
-# face (tests/test_stability_geometry.py); the tests that measure it switch it on.
-DIFFUSE = False
+# is, as Cycles' svm/closure.h sets them up (vase47); False: the guard there (glossyguard45,
+# for A/B runs). On since vase48 (instances covered, broken normals keep the guard).
+DIFFUSE = True
 _GUARD_EPS = 1e-6  # face_shading_normals' threshold on wo . ns
 
 
@@ -74,8 +77,10 @@ def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | N
     directions d (N,3); material (N,) the Light Path variant rows or None: the
     triangles') on glossy_only materials whose interpolated shading normal puts the
     viewer wo = -d below it (wo . ns <= 1e-6 on the ray's side: where
-    face_shading_normals would use the face normal); None where no row is."""
-    if not ENABLED or getattr(geo, "instances", None) is not None:
+    face_shading_normals would use the face normal), unless that normal points into the
+    surface (ns . ng <= 0: the guard stays); None where no row is. geo may share its
+    instanced rows (engine/sharedrows.py): only the hits' rows are read."""
+    if not ENABLED:
         return None
     cn = getattr(geo, "corner_normals", None)
     if cn is None or not len(cn):
@@ -86,7 +91,9 @@ def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | N
     if not ok.any():
         return None
     prim = np.asarray(prim, np.int64)
-    mat = np.asarray(geo.material)[prim] if material is None else np.asarray(material)
+    # (geo.material[prim] gathers only the hits' rows: an instance's material slot where
+    # the rows are shared, engine/sharedrows.py; the whole column is never built.)
+    mat = geo.material[prim] if material is None else np.asarray(material)
     rows = np.flatnonzero(ok[mat])
     if not len(rows):
         return None
@@ -95,9 +102,13 @@ def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | N
                              np.asarray(v, np.float64)[rows])
     ng = np.asarray(geo.ng[p], np.float64)
     dd = np.asarray(d, np.float64)[rows]
-    # The ray's side of the winding normal (hit_geometry's front), then the guard's test.
+    # The ray's side of the winding normal (hit_geometry's front), then the guard's test;
+    # a shading normal pointing into the surface (ns . ng <= 0: broken custom normals,
+    # on either side, as both turn together) keeps the guard's fall-back to the face:
+    # Cycles would light a diffuse lobe on it only from below the face (vase48).
     side = np.where(np.einsum("ij,ij->i", dd, ng) < 0.0, 1.0, -1.0)
-    below = side * np.einsum("ij,ij->i", ns, -dd) <= _GUARD_EPS
+    below = ((side * np.einsum("ij,ij->i", ns, -dd) <= _GUARD_EPS)
+             & (np.einsum("ij,ij->i", ns, ng) > 0.0))
     if not below.any():
         return None
     out = np.zeros(len(prim), bool)

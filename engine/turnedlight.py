@@ -70,11 +70,24 @@ class TurnedReflections:
     suns they may then see. Built once per prepared geometry (for_context)."""
 
     def __init__(self, glass_mat: np.ndarray, bend_cos: float, suns: list,
-                 glass_tri: np.ndarray = None):
+                 glass_tri: np.ndarray = None, glass_rows: np.ndarray = None):
         self.glass_mat = glass_mat  # (M,) bool: SMOOTH_GLASS material rows
         self.bend_cos = bend_cos    # cos of GLASS_ADJOINT_MIN_BEND_DEG
         self.suns = suns            # suns with a disc (angle > 0)
         self.glass_tri = glass_tri  # (T,) bool: SMOOTH_GLASS triangles bent past it
+        # (R,) int64 ascending: those rows where the Geometry shares its instanced rows
+        # (engine/sharedrows.py; glass_tri None there: no (T,) column is built)
+        self.glass_rows = glass_rows
+
+    def bent_triangles(self, prim) -> np.ndarray:
+        """(N,) bool: the rows prim (N,) int among the SMOOTH_GLASS triangles bent past
+        the threshold (glass_tri, or glass_rows where the rows are shared)."""
+        prim = np.asarray(prim, np.int64)
+        if self.glass_tri is not None:
+            return self.glass_tri[prim]
+        rows = self.glass_rows
+        at = np.minimum(np.searchsorted(rows, prim), max(len(rows) - 1, 0))
+        return (rows[at] == prim) if len(rows) else np.zeros(len(prim), bool)
 
     @classmethod
     def for_context(cls, ctx) -> "TurnedReflections | None":
@@ -100,21 +113,31 @@ class TurnedReflections:
         suns = [light for light in ctx.lights
                 if hasattr(light, "seen_at_infinity") and getattr(light, "has_size", False)
                 and getattr(light, "cos_half_angle", 1.0) < 1.0]
-        cn = np.asarray(getattr(ctx.geo, "corner_normals", np.zeros((0, 3, 3))))
-        if not len(cn) or getattr(ctx.geo, "instances", None) is not None:
+        geo = ctx.geo
+        cn = getattr(geo, "corner_normals", None)
+        if cn is None or not len(cn):
             return None
         glass_mat = lobe_classes(np.asarray(ctx.table.closure_params)) == SMOOTH_GLASS
-        tri = np.nonzero(glass_mat[np.asarray(ctx.geo.material)])[0]
+        # Instanced rows (geometry.Instances) are covered as their copies: the photons
+        # take glassadjoint's rule at every hit, instanced or not. Where the rows are
+        # shared (engine/sharedrows.py) only the glass rows are gathered, world-space.
+        shared = getattr(geo, "shared", None)
+        if shared is None:
+            tri = np.nonzero(glass_mat[np.asarray(geo.material)])[0]
+        else:
+            tri = shared.rows_of(np.flatnonzero(glass_mat))
         if not len(tri):
             return None
         bend_cos = math.cos(math.radians(photonkernels.GLASS_ADJOINT_MIN_BEND_DEG))
-        e1, e2 = np.asarray(ctx.geo.e1)[tri], np.asarray(ctx.geo.e2)[tri]
-        g = np.cross(e1, e2)
+        # (x[tri] gathers those rows alone, of an array or a shared column alike)
+        g = np.cross(geo.e1[tri], geo.e2[tri])
         g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
         c = np.abs(np.einsum("tkj,tj->tk", cn[tri].astype(np.float64), g))
         bent = (c < bend_cos).any(axis=1)
         if not bent.any():
             return None
+        if shared is not None:
+            return cls(glass_mat, bend_cos, suns, glass_rows=tri[bent])
         glass_tri = np.zeros(len(cn), bool)
         glass_tri[tri[bent]] = True
         return cls(glass_mat, bend_cos, suns, glass_tri)
@@ -124,7 +147,7 @@ class TurnedReflections:
         interpolated shading normal bends more than the threshold from the face (where the
         photons take glassadjoint's rule): bsdf.surface_hit's unguarded rows."""
         prim = np.asarray(prim, np.int64)
-        out = self.glass_tri[prim] & UNGUARD
+        out = self.bent_triangles(prim) & UNGUARD
         rows = np.flatnonzero(out)
         if len(rows):
             n = geo.shading_normals(prim[rows], np.asarray(u)[rows], np.asarray(v)[rows])

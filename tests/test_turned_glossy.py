@@ -75,7 +75,6 @@ def test_camera_unguarded_marks_exactly_the_rows_the_guard_replaces(monkeypatch)
     interpolated normal puts the viewer below it (face_shading_normals' test); a view
     from straight above marks none (None: the fused kernel runs, the same bits); with
     DIFFUSE off a diffuse material keeps the guard; the module off: None."""
-    monkeypatch.setattr(turnedglossy, "DIFFUSE", True)  # (vase47's rule; off by default)
     ctx = _metal_slab(50.0)
     prim, u, v = _top_hits(ctx)
     ns = ctx.geo.shading_normals(prim, u, v)
@@ -100,3 +99,84 @@ def test_camera_unguarded_marks_exactly_the_rows_the_guard_replaces(monkeypatch)
     assert turnedglossy.camera_unguarded(plain.geo, plain.table, prim, u, v, d) is None
     monkeypatch.setattr(turnedglossy, "ENABLED", False)
     assert turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d) is None
+
+
+def _placed_slabs(monkeypatch, material, bend_deg):
+    """tests/test_glass_adjoint.py's slab (material an engine.scene.Material) placed
+    twice as instances of one prototype (the second mirrored, so its corners run 0, 2,
+    1), prepared with shared rows (engine/sharedrows.py), and the same scene with
+    world-space copies: (instanced, copies) as (geo, table) pairs, and the rows of the
+    slabs' top faces (the same rows in both)."""
+    from test_glass_adjoint import _slab
+    from engine import resources
+    from engine.geometry import prepare
+    from engine.scene import Mesh, Prototype
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    out = []
+    for instanced in (True, False):
+        s = _slab(bend_deg, material)
+        slab = next(m for m in s.meshes if m.name == "Slab")
+        s.meshes.remove(slab)
+        proto = Prototype("slab", slab.vertices, slab.faces, normals=slab.normals)
+        for i, M in enumerate((np.eye(4)[:3], [[-1.0, 0, 0, 3.0], [0, 1, 0, 0], [0, 0, 1, 0]])):
+            mesh = s.add_instance(proto, np.asarray(M, float), material=material.name,
+                                  name=f"Slab{i}")
+            if not instanced:  # (a copy: no instance record)
+                e = mesh.expanded()
+                s.meshes[s.meshes.index(mesh)] = Mesh(e.name, e.vertices, e.faces,
+                                                      normals=e.normals,
+                                                      materials=list(e.materials))
+        s.validate()
+        out.append(prepare(s))
+    (gi, ti), (gc, tc) = out
+    assert gi.shared is not None and gc.shared is None
+    g = np.cross(np.asarray(gc.e1), np.asarray(gc.e2))
+    top = np.flatnonzero((g[:, 2] > 0.0) & (np.abs(g[:, 2]) > 0.9 * np.linalg.norm(g, axis=1))
+                         & (np.asarray(gc.material) == tc.names.index(material.name)))
+    assert len(top) == 4  # two triangles a slab
+    np.testing.assert_allclose(gi.v0[top], np.asarray(gc.v0)[top], atol=1e-9)
+    return (gi, ti), (gc, tc), top
+
+
+def _grazing(top, n=400, seed=6):
+    """Hits spread over the rows top (barycentrics u, v) seen from -y, 30 degrees over
+    the faces: (prim, u, v, d)."""
+    prim = np.repeat(top.astype(np.int64), n // len(top))
+    rng = np.random.default_rng(seed)
+    u, v = rng.random((2, len(prim)))
+    flip = u + v > 1.0
+    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+    d = np.tile([0.0, math.cos(math.radians(30)), -math.sin(math.radians(30))], (len(prim), 1))
+    return prim, u, v, d
+
+
+def test_instanced_hits_are_marked_as_their_copies(monkeypatch):
+    """Instances whose rows are shared (a mirrored one among them) mark the same rows as
+    their world-space copies: a plastic scene rendered 6.4 % apart as instances and as
+    copies while instances kept the guard (tests/test_scenefile_instances.py; vase48)."""
+    from engine.scene import Material
+    plastic = Material("plastic", (0.8, 0.3, 0.2), roughness=0.25)
+    (gi, ti), (gc, tc), top = _placed_slabs(monkeypatch, plastic, 50.0)
+    prim, u, v, d = _grazing(top)
+    want = turnedglossy.camera_unguarded(gc, tc, prim, u, v, d)
+    assert want is not None and not want.all()
+    ns = gc.shading_normals(prim, u, v)
+    np.testing.assert_array_equal(want, np.einsum("ij,ij->i", ns, -d) <= 1e-6)
+    np.testing.assert_array_equal(turnedglossy.camera_unguarded(gi, ti, prim, u, v, d), want)
+
+
+def test_normals_pointing_into_the_surface_keep_the_guard(monkeypatch):
+    """A shading normal with ns . ng <= 0 (corners leaning 100 degrees: broken custom
+    normals) is never marked, plastic or metal, from either side: the guard's fall-back
+    to the face keeps it from rendering black (tests/test_stability_geometry.py); the
+    same slab's rows bent 50 degrees are marked (above)."""
+    for metallic in (0.0, 1.0):
+        ctx = _metal_slab(100.0, metallic=metallic)
+        prim, u, v = _top_hits(ctx)
+        ns = ctx.geo.shading_normals(prim, u, v)
+        ng = np.asarray(ctx.geo.ng[prim])
+        assert (np.einsum("ij,ij->i", ns, ng) < 0.0).all()
+        for d in ([0.0, 0.0, -1.0], [0.0, math.cos(math.radians(30)), -math.sin(
+                math.radians(30))], [0.0, 0.0, 1.0]):
+            d = np.tile(d, (len(prim), 1))
+            assert turnedglossy.camera_unguarded(ctx.geo, ctx.table, prim, u, v, d) is None

@@ -185,3 +185,29 @@ def test_camera_paths_unguard_the_same_hits_as_the_gather_chains(monkeypatch):
     assert tr.camera_unguarded(ctx.geo, flat, u[:4], v[:4]) is None
     monkeypatch.setattr(turnedlight, "CAMERA", False)
     assert tr.camera_unguarded(ctx.geo, prim, u, v) is None
+
+
+def test_instanced_glass_is_unguarded_as_its_copies(monkeypatch):
+    """Instances whose rows are shared (engine/sharedrows.py; a mirrored one among them)
+    give the same bent glass rows and unguarded hits as their world-space copies (the
+    photons take glassadjoint's rule at every hit, instanced or not), and no (T,)
+    column: glass_tri None, the rows kept as glass_rows (for_context was None for any
+    scene with instances; vase48)."""
+    from test_turned_glossy import _grazing, _placed_slabs
+    from engine.scene import Material
+    glass = Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=IOR)
+    (gi, ti), (gc, tc), top = _placed_slabs(monkeypatch, glass, 20.0)
+    tr_c = turnedlight.TurnedReflections.for_context(SimpleNamespace(geo=gc, table=tc,
+                                                                     lights=[]))
+    tr_i = turnedlight.TurnedReflections.for_context(SimpleNamespace(geo=gi, table=ti,
+                                                                     lights=[]))
+    assert tr_c is not None and tr_i is not None and tr_i.glass_tri is None
+    np.testing.assert_array_equal(tr_i.glass_rows, np.flatnonzero(tr_c.glass_tri))
+    np.testing.assert_array_equal(np.sort(top), tr_i.glass_rows)  # the top faces alone
+    prim, u, v, _ = _grazing(top)
+    want = tr_c.unguarded(gc, prim, u, v)
+    assert want.any() and not want.all()
+    np.testing.assert_array_equal(tr_i.unguarded(gi, prim, u, v), want)
+    np.testing.assert_array_equal(tr_i.camera_unguarded(gi, prim, u, v), want)
+    others = np.setdiff1d(np.arange(gi.count), top)
+    assert not tr_i.bent_triangles(others).any()

@@ -22,13 +22,6 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-
-@pytest.fixture(autouse=True)
-def _diffuse_turn(monkeypatch):
-    """vase47's rule (engine/turnedglossy.py DIFFUSE), off by default: these tests measure it."""
-    from engine import turnedglossy
-    monkeypatch.setattr(turnedglossy, "DIFFUSE", True)
-
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 REF_PATH = os.path.join(ROOT, "tests", "references", "vase47_plastic.json")
 RES = (128, 192)
