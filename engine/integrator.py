@@ -57,6 +57,7 @@ from .panelight import pane_irradiance, panes_for
 from .shadelight import shade_bsdf_weights, shade_light, shades_for
 from .mediumstart import point_medium
 from .shadowtransmittance import CameraPassages
+from .gatherpassages import GatherPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
 
@@ -933,6 +934,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
     unsampled = _unsampled_meshes(ctx) if level == 0 and not glow_only else []
+    # The rays that crossed only window glass and transparent passes, which count those
+    # sides where they meet them as at their first hit (engine/gatherpassages.py; None:
+    # no surface shadow rays cross, or no such side).
+    passed = GatherPassages.for_context(ctx, n) if n and unsampled else None
     # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
     # per gathering hit, whether its rays may meet one where they leave (near) and
     # whether it is glass (its rays may be inside the glass), once for all G rays.
@@ -1015,6 +1020,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             buf.tp_ones = k
         if chains is not None:
             chains.start(idx, d, ns)
+        if passed is not None:
+            passed.start(idx)
         if guide is not None:
             tp *= np.take(g_w, idx)[:, None]
             buf.tp_ones = 0
@@ -1161,6 +1168,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if np.any(Le > 0):
                     Le = unsampled_emission(ctx, unsampled, prim, d, Le)
                     E[idx] += tp * math.pi * Le / G
+            elif depth > 0 and passed is not None:
+                _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx,
+                                 hit.prim, E, G)
             if lean is None:
                 wd = c(lobe_weights(ctx.table, y)["diffuse"], np.float64)
                 yf = y
@@ -1247,6 +1257,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     go_u=go_u[full], choice=choice, want_pdf=chains is not None)
                 keep_f = keep
                 keep = full[keep]
+            if passed is not None:
+                passed.step(prim, d_in, y.p, idx, keep, d)
             if chains is not None:
                 chains.continued(idx[keep], pdf[0], keep_f, d)
                 chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G,
@@ -1270,6 +1282,32 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+def _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx, from_prim, E, G):
+    """E[idx] += the emission of the mesh sides no shadow ray samples (unsampled:
+    _unsampled_meshes) that level 0's gather rays (hits y, triangles prim (m,),
+    directions d, throughputs tp (m,3), gathering hit rows idx (m,)) meet past their
+    first hit across window glass and transparent passes alone (passed: GatherPassages),
+    as a first hit counts them: D's shadow rays carry the sampled sides through those
+    surfaces, and the photons through them are direct-kind, in no map D reads
+    (docs/compatibility.md "passages48"). With Filter Glossy's split (chains) the rays
+    from a blurred vertex are left to the chains' emission (glossysplit.GatherChains.
+    emission), which counts those sides already."""
+    if y.emission is None:
+        return
+    rows = passed.clear_rows(idx)
+    if chains is not None and len(rows):
+        rows = rows[~np.take(chains.from_blurred, np.take(idx, rows))]
+    if not len(rows):
+        return
+    Le = np.asarray(y.emission, np.float64)[rows]
+    if not np.any(Le > 0):
+        return
+    at = np.take(idx, rows)
+    Le = _linked_emission(ctx, Le, prim[rows], from_prim, at)
+    Le = unsampled_emission(ctx, unsampled, prim[rows], np.take(d, rows, axis=0), Le)
+    E[at] += np.take(tp, rows, axis=0) * math.pi * Le / G
 
 
 def _gather_escaping(ctx, scatter, glow, world_row, prim, o, d, tp, idx, medium_h, E, G,
