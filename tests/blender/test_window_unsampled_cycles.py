@@ -68,15 +68,7 @@ def test_diffuse_invisible_area_light_through_window_glass(fresh_scene, bpy_addo
     Cycles (0.050 before splitfix47); within 8 %."""
     from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
     bpy, scene = bpy_addon, fresh_scene
-    _scene(bpy, scene)
-    panel = next(o for o in scene.objects if o.type == "MESH" and o.active_material
-                 and o.active_material.name == "Panel")
-    bpy.data.objects.remove(panel)
-    lamp = bpy.data.objects.new("Area", bpy.data.lights.new("Area", "AREA"))
-    lamp.data.size, lamp.data.energy = 2.0, 100.0
-    lamp.location = (0.0, 0.0, 1.5)
-    lamp.visible_diffuse = False
-    scene.collection.objects.link(lamp)
+    _area_light_scene(bpy, scene)
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     scene.render.engine = "PHOTONMAP"
     cheap(scene, spp=4, photons=20_000, caustic_photons=20_000)
