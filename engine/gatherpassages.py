@@ -7,14 +7,16 @@ So the light of an emitter seen through a window is direct light: D's shadow ray
 the sides they sample, and its photons are direct-kind, out of the caustic map. The
 sides no shadow ray samples (a material's Emission Sampling None / Front / Back, Cycles'
 SD_MIS_FRONT / SD_MIS_BACK unset) reach a diffuse surface only by the level-0 gather
-rays that meet them (integrator.unsampled_emission). A gather ray counted that emission
-at its own first hit only, so behind a window it was lost: a floor under a 1 cm slab lit
-by a panel of Emission Sampling None read 0.027 for Cycles' 1.468, and 0 behind a card
-of alpha 0.5 (issue 14, docs/compatibility.md "passages48"). GatherPassages tells the
-continued rays that crossed only such surfaces, whose emission of those sides then
-counts as at the first hit: Cycles' path meets that emitter past the glass's
-refractions (no MIS for that side) with the glass's weight, which the continuation's
-throughput carries.
+rays that meet them (integrator.unsampled_emission), and a regather level's surfaces
+take every emissive mesh that way (their direct light skips the meshes). A gather ray
+counted that emission at its own first hit only, so behind a window it was lost: a
+floor under a 1 cm slab lit by a panel of Emission Sampling None read 0.027 for Cycles'
+1.468, 0 behind a card of alpha 0.5, and a room under such a card 0.47 of the open room
+where 0.5 is exact (its corners' regathers lost the panel; issue 14,
+docs/compatibility.md "passages48"). GatherPassages tells the continued rays that
+crossed only such surfaces, whose emission then counts as at the first hit: Cycles'
+path meets that emitter past the glass's refractions (no MIS for an unsampled side)
+with the glass's weight, which the continuation's throughput carries.
 
 The state is the camera paths' (shadowtransmittance.camera_passage, CameraPassages'
 tables): a refraction into window glass remembers the ray's state before it, the

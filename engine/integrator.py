@@ -934,10 +934,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
     unsampled = _unsampled_meshes(ctx) if level == 0 and not glow_only else []
-    # The rays that crossed only window glass and transparent passes, which count those
-    # sides where they meet them as at their first hit (engine/gatherpassages.py; None:
-    # no surface shadow rays cross, or no such side).
-    passed = GatherPassages.for_context(ctx, n) if n and unsampled else None
+    # The rays that crossed only window glass and transparent passes, which count what a
+    # first hit counts where they meet it (level 0: those sides; a regather level: every
+    # emissive mesh; engine/gatherpassages.py; None: no surface shadow rays cross, or
+    # nothing to count).
+    passed = (GatherPassages.for_context(ctx, n) if n and not glow_only and (
+        unsampled or (level > 0 and any(light.kind == MESH for light in ctx.lights)))
+        else None)
     # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
     # per gathering hit, whether its rays may meet one where they leave (near) and
     # whether it is glass (its rays may be inside the glass), once for all G rays.
@@ -1285,15 +1288,16 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
 
 
 def _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx, from_prim, E, G):
-    """E[idx] += the emission of the mesh sides no shadow ray samples (unsampled:
-    _unsampled_meshes) that level 0's gather rays (hits y, triangles prim (m,),
-    directions d, throughputs tp (m,3), gathering hit rows idx (m,)) meet past their
-    first hit across window glass and transparent passes alone (passed: GatherPassages),
-    as a first hit counts them: D's shadow rays carry the sampled sides through those
-    surfaces, and the photons through them are direct-kind, in no map D reads
-    (docs/compatibility.md "passages48"). With Filter Glossy's split (chains) the rays
-    from a blurred vertex are left to the chains' emission (glossysplit.GatherChains.
-    emission), which counts those sides already."""
+    """E[idx] += the emission the gather rays (hits y, triangles prim (m,), directions d,
+    throughputs tp (m,3), gathering hit rows idx (m,)) meet past their first hit across
+    window glass and transparent passes alone (passed: GatherPassages), as a first hit
+    counts it: at level 0 the mesh sides no shadow ray samples (unsampled:
+    _unsampled_meshes; D's shadow rays carry the sampled sides through those surfaces),
+    at a regather level (unsampled empty) every emissive mesh (its direct light skips
+    them); the photons through those surfaces are direct-kind, in no map the gathering
+    hit reads (docs/compatibility.md "passages48"). With Filter Glossy's split (chains)
+    the rays from a blurred vertex are left to the chains' emission
+    (glossysplit.GatherChains.emission), which counts those sides already."""
     if y.emission is None:
         return
     rows = passed.clear_rows(idx)
@@ -1306,7 +1310,8 @@ def _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx, from_p
         return
     at = np.take(idx, rows)
     Le = _linked_emission(ctx, Le, prim[rows], from_prim, at)
-    Le = unsampled_emission(ctx, unsampled, prim[rows], np.take(d, rows, axis=0), Le)
+    if unsampled:
+        Le = unsampled_emission(ctx, unsampled, prim[rows], np.take(d, rows, axis=0), Le)
     E[at] += np.take(tp, rows, axis=0) * math.pi * Le / G
 
 
