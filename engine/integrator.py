@@ -57,6 +57,7 @@ from .panelight import pane_irradiance, panes_for
 from .shadelight import shade_bsdf_weights, shade_light, shades_for
 from .mediumstart import point_medium
 from .shadowtransmittance import CameraPassages
+from .gatherpassages import GatherPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
 
@@ -933,6 +934,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
     unsampled = _unsampled_meshes(ctx) if level == 0 and not glow_only else []
+    # The rays that crossed only window glass and transparent passes, which count what a
+    # first hit counts where they meet it (level 0: those sides; a regather level: every
+    # emissive mesh; engine/gatherpassages.py; None: no surface shadow rays cross, or
+    # nothing to count).
+    passed = (GatherPassages.for_context(ctx, n) if n and not glow_only and (
+        unsampled or (level > 0 and any(light.kind == MESH for light in ctx.lights)))
+        else None)
     # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
     # per gathering hit, whether its rays may meet one where they leave (near) and
     # whether it is glass (its rays may be inside the glass), once for all G rays.
@@ -1015,6 +1023,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             buf.tp_ones = k
         if chains is not None:
             chains.start(idx, d, ns)
+        if passed is not None:
+            passed.start(idx)
         if guide is not None:
             tp *= np.take(g_w, idx)[:, None]
             buf.tp_ones = 0
@@ -1161,6 +1171,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if np.any(Le > 0):
                     Le = unsampled_emission(ctx, unsampled, prim, d, Le)
                     E[idx] += tp * math.pi * Le / G
+            elif depth > 0 and passed is not None:
+                _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx,
+                                 hit.prim, E, G)
             if lean is None:
                 wd = c(lobe_weights(ctx.table, y)["diffuse"], np.float64)
                 yf = y
@@ -1247,6 +1260,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     go_u=go_u[full], choice=choice, want_pdf=chains is not None)
                 keep_f = keep
                 keep = full[keep]
+            if passed is not None:
+                passed.step(prim, d_in, y.p, idx, keep, d)
             if chains is not None:
                 chains.continued(idx[keep], pdf[0], keep_f, d)
                 chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G,
@@ -1270,6 +1285,34 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+def _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx, from_prim, E, G):
+    """E[idx] += the emission the gather rays (hits y, triangles prim (m,), directions d,
+    throughputs tp (m,3), gathering hit rows idx (m,)) meet past their first hit across
+    window glass and transparent passes alone (passed: GatherPassages), as a first hit
+    counts it: at level 0 the mesh sides no shadow ray samples (unsampled:
+    _unsampled_meshes; D's shadow rays carry the sampled sides through those surfaces),
+    at a regather level (unsampled empty) every emissive mesh (its direct light skips
+    them); the photons through those surfaces are direct-kind, in no map the gathering
+    hit reads (docs/compatibility.md "passages48"). With Filter Glossy's split (chains)
+    the rays from a blurred vertex are left to the chains' emission
+    (glossysplit.GatherChains.emission), which counts those sides already."""
+    if y.emission is None:
+        return
+    rows = passed.clear_rows(idx)
+    if chains is not None and len(rows):
+        rows = rows[~np.take(chains.from_blurred, np.take(idx, rows))]
+    if not len(rows):
+        return
+    Le = np.asarray(y.emission, np.float64)[rows]
+    if not np.any(Le > 0):
+        return
+    at = np.take(idx, rows)
+    Le = _linked_emission(ctx, Le, prim[rows], from_prim, at)
+    if unsampled:
+        Le = unsampled_emission(ctx, unsampled, prim[rows], np.take(d, rows, axis=0), Le)
+    E[at] += np.take(tp, rows, axis=0) * math.pi * Le / G
 
 
 def _gather_escaping(ctx, scatter, glow, world_row, prim, o, d, tp, idx, medium_h, E, G,

@@ -43,6 +43,7 @@ from .normalmap import bump_shadowing
 from .shadelight import next_event_tri
 from .mediumstart import point_medium
 from .scene import AREA, POINT, SPOT
+from .geometry import SHADOW
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
 
 LOBES = LOBE_NAMES
@@ -327,13 +328,16 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # (engine/panelight.py), and a lamp's through its Translucent BSDF or rough glass
     # shade (engine/shadelight.py).
     pane_tri = next_event_tri(ctx, light)
+    # A light no shadow ray samples (its diffuse visibility off) crosses window glass as
+    # a caustic: its photons keep the path they take there (passages_carried).
+    flat = pk.flat_tables(geo, table) if passages_carried(light) else _NO_PASSAGES
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
                  coincident, make_next, pane_tri, soft_falloff_sources(light, n),
                  start_medium=_light_medium(ctx, light), link_row=link_row,
-                 mesh_links=mesh_links, past=past)
+                 mesh_links=mesh_links, past=past, flat=flat)
     except BaseException:
         stored.release()
         raise
@@ -343,6 +347,24 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 pool.give(arrays, make_next)
         pool.give(factors, _factors)
     return stored
+
+
+_NO_PASSAGES = (pk._NO_FLAT_MAT, pk._NO_FLAT_LIMIT)  # (flat_tables' "none")
+
+
+def passages_carried(light) -> bool:
+    """Whether the photons of light (a Light or a lights.group.LightGroup, whose members
+    share their ray visibility) leave a flat passage as the path they entered it
+    (photonkernels.scatter; docs/design.md, Transparent shadows): only where the camera's
+    shadow rays carry that light through the window, i.e. they sample it (its diffuse
+    visibility on). A light whose shadow rays are off (integrator.MODE_CONTINUATION)
+    reaches a floor under window glass as Cycles finds it, by the path's refraction:
+    its photons through the glass stay caustic, read at the floor from the caustic map
+    (issue 14, docs/compatibility.md "passages48": a diffuse-invisible area light over a
+    1 cm slab read 0.025 for Cycles' 1.168). An emissive mesh keeps its passages: the
+    sides no shadow ray samples reach the floor by the gather rays that cross the glass
+    (engine/gatherpassages.py)."""
+    return bool(int(light.ray_kinds) & SHADOW)
 
 
 def _light_medium(ctx, light) -> int:
@@ -362,7 +384,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
              make_next, pane_tri=None, soft=None, start_medium=-1, link_row=None,
-             mesh_links=None, past=None):
+             mesh_links=None, past=None, flat=None):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
@@ -370,9 +392,11 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     next-event panes' triangle table for this light's photons (panelight.Panes.photon_tri)
     or None; soft: soft_falloff_sources' (centre, r^2) per emission slot, or None;
     start_medium: the medium the light is in (_light_medium; -1: none known); link_row,
-    mesh_links, past: _trace_chunk's."""
+    mesh_links, past: _trace_chunk's; flat: the flat-passage tables its photons cross
+    (photonkernels.flat_tables; None: the scene's)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
-    flat = pk.flat_tables(geo, table)
+    if flat is None:
+        flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
     # Absorbing media inside objects (engine/media.py): each photon's medium by its slot
     # (None: no absorbing material, nothing done).
