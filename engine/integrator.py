@@ -1084,7 +1084,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # hits as Accel.intersect answers them (the same values as below), the
                 # probe's hits put in, then compacted.
                 t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
-                coincident.meet(o, d, org_p, org_prim, t, prim, u, v)
+                coincident.meet(o, d, org_p, org_prim, t, prim, u, v, inward=True)
                 m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
             elif bvh is not None and not fog_escapes:
                 # Embree from a kernel into this thread's buffers (Accel.intersect_hits),
@@ -3011,10 +3011,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         if bounce > 0 and coincident is not None:
             # Rays leaving a glass face that another surface touches (a bottle standing
-            # on the floor), or that surface into the glass, meet the other one there,
-            # as in Cycles; rays inside the glass reaching the floor under it leave the
-            # glass first (engine/coincident.py).
-            coincident.meet(o, d, left_p, org_prim, t, prim, u, v)
+            # on the floor) outwards or into the glass, or that surface into the glass,
+            # meet the other one there, as in Cycles; rays inside the glass reaching the
+            # floor under it leave the glass first (engine/coincident.py).
+            coincident.meet(o, d, left_p, org_prim, t, prim, u, v, inward=True)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
         for li, light in enumerate(ctx.lights):
