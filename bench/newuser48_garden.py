@@ -7,7 +7,7 @@ node materials, images painted into packed Image Textures), rendered with Photon
     PYTHONPATH=. .venv/bin/python bench/newuser48_garden.py MODE OUT.exr [--res W H]
         [--masks MASKS.npy] [--save FILE.blend] [--set NAME=VALUE] [--no-clamp]
         [--filter-glossy F] [--cycles-seed S] [--sky-type T] [--no-sun-disc]
-        [--drop NAME ...] [--leaves principled|mix] [--transparent-bounces N]
+        [--drop NAME ...] [--leaves principled|mix] [--transparent-bounces N] [--passes]
 
 The world: a Sky Texture at Blender 5.0's node defaults (Multiple Scattering, sun disc
 on, sun size 0.545 degrees) but the sun raised to 40 degrees and turned to light the
@@ -336,6 +336,10 @@ def main():
     ap.add_argument("--sky-type", help="the Sky Texture's sky_type (default: the node's)")
     ap.add_argument("--no-sun-disc", action="store_true")
     ap.add_argument("--drop", nargs="*", default=[])
+    ap.add_argument("--passes", action="store_true",
+                    help="a multilayer EXR with the light passes (Diffuse / Glossy / "
+                         "Transmission Direct, Indirect, Color; Emission; Environment): "
+                         "bench/newuser46_passes.py compares them per object")
     ap.add_argument("--transparent-bounces", type=int,
                     help="Light Paths > Max Bounces > Transparent (Cycles' default 8)")
     a = ap.parse_args()
@@ -353,6 +357,12 @@ def main():
         np.save(a.masks[:-4] + "_passed.npy", passed)
         Path(a.masks + ".json").write_text(json.dumps(names))
         return print("masks:", names, [int((ids == k).sum()) for k in range(len(names))])
+    if a.passes:
+        vl = scene.view_layers[0]
+        for k in ("diffuse", "glossy", "transmission"):
+            for t in ("direct", "indirect", "color"):
+                setattr(vl, f"use_pass_{k}_{t}", True)
+        vl.use_pass_emit = vl.use_pass_environment = True
     render(scene, a)
 
 
