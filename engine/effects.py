@@ -101,8 +101,14 @@ def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel,
     is read (not glossysplit.shots_unread: at Filter Glossy above 1/pi on matte surfaces
     the final gather's blurred chains carry that light and no caustic shot is traced),
     some diffuse surface (diff_tri) can receive the light and a light in `emitting`
-    reaches the object first (_light_reaches, PROBE_RAYS photons). A rough glass lamp
-    shade (shadelight.Shades.glass_names) counts only lights it does not serve: a served
+    reaches the object first (_light_reaches, PROBE_RAYS photons), and the caustic shot
+    sends more photons at it than the global shot does (indirect: settings.photons x the
+    share of the lights' power their natural emission sends into its bounding sphere,
+    _natural_share): aiming replaces the global shot's caustic-kind photons of those paths
+    (render.py's partition by first hit), so a lamp inside a rough glass globe, whose
+    every photon meets it, keeps the global shot's (400,000 at the defaults, not
+    200,000) until Caustic Photons is the larger count. A rough glass lamp shade
+    (shadelight.Shades.glass_names) counts only lights it does not serve: a served
     lamp's light through it is direct (its shadow rays), its photons there direct-kind,
     which the caustic shot does not keep."""
     none = np.zeros(0, np.int64)
@@ -117,13 +123,26 @@ def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel,
     shade_names = set(shades.glass_names) if shades is not None else set()
     rng = np.random.default_rng([settings.seed, 99, 48])
     oids, centers, radii, names = _object_spheres(geo, tri)
+    power = sum(float(luminance(np.asarray(li.photon_flux))) for li in emitting)
     out = []
     for oid, c, r, name in zip(oids, centers, radii, names):
         lights = [li for li in emitting
                   if name not in shade_names or not any(li is x for x in served)]
-        if any(_light_reaches(li, accel, geo, int(oid), c, r, rng) for li in lights):
+        if not any(_light_reaches(li, accel, geo, int(oid), c, r, rng) for li in lights):
+            continue
+        through = (settings.photons * sum(_natural_share(li, c, r, rng) for li in lights)
+                   / max(power, 1e-300) if indirect else 0.0)
+        if settings.caustic_photons > through:
             out.append(int(oid))
     return np.array(out, np.int64)
+
+
+def _natural_share(light: PreparedLight, center, radius, rng) -> float:
+    """The luminance of the power (W) that light's natural emission sends into the cone
+    of the sphere (center, radius) (from infinity: across its shadow disk): the aimed
+    photons' power weights (natural pdf / aimed pdf) over PROBE_RAYS of them."""
+    _, _, power = light.emit_towards(PROBE_RAYS, rng, center[None, :], np.array([radius]))
+    return float(luminance(power.sum(axis=0))) if len(power) else 0.0
 
 
 def _focusing(table: MaterialTable) -> np.ndarray:
@@ -389,7 +408,7 @@ def _aimed_words(geo: Geometry, table: MaterialTable, names, refractors) -> str:
         lo, hi = min(lo, f0), max(hi, fss)
     if weak:
         many = len(weak) > 1
-        out += ("; " + _quoted(weak, most=REPORT_NAMES_MAX) + " reflect" + ("" if many else "s")
+        out += ("; " + _quoted(weak, most=4) + " reflect" + ("" if many else "s")
                 + f" only about {100 * lo:.0f}-{100 * hi:.0f} % of the light by "
                 + ("their" if many else "its") + " glossy specular layer (a dielectric's "
                 "Fresnel reflection, at normal to diffuse incidence): only those photons "

@@ -405,6 +405,25 @@ def test_rough_glass_is_aimed_at_where_its_photons_are_read():
     assert plan.casters == [] and "Shade" in plan.rough_specular, _line(plan, "caustics:")
 
 
+def test_rough_glass_round_a_lamp_is_aimed_at_only_with_more_caustic_photons():
+    """An area light inside a frosted glass globe: every photon it sends meets the globe,
+    so aiming gains nothing, and the global shot's caustic-kind photons (400,000 at the
+    defaults) outnumber an aimed shot of 200,000; the globe is aimed at only where
+    Caustic Photons is the larger count (effects.rough_refractors)."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    s.add_material(Material("frosted", (0.9, 0.9, 0.9), transmission=1.0, ior=1.5,
+                            roughness=0.5))
+    s.add_sphere((0.0, 0.3, 1.0), 0.4, "frosted", name="Globe", segments=24)
+    s.lights = [li for li in s.lights if li.name != "Area"]
+    s.add_rect_area_light((0.0, 0.3, 1.0), (0.1, 0.1), power=100, name="Bulb")
+    from engine.render import prepare_context
+    for caustic, want in ((200_000, []), (800_000, ["Globe"])):
+        ctx = prepare_context(s, RenderSettings(photons=400_000, caustic_photons=caustic,
+                                                workers=1))
+        ctx.accel.close()
+        assert ctx.plan.casters == want, caustic
+
+
 def test_glossy_tiles_say_how_little_of_their_light_makes_a_caustic():
     """Glossy Principled tiles (roughness 0.15, a dielectric layer over a diffuse base)
     are caustic casters, but most photons aimed at them end in the base: newuser47's
