@@ -93,7 +93,7 @@ def rough_refractive(table: MaterialTable) -> np.ndarray:
 
 def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel, settings,
                      indirect: bool, rough_tri: np.ndarray, diff_tri: np.ndarray,
-                     shades=None) -> np.ndarray:
+                     shades=None, sharp_tri=None) -> np.ndarray:
     """(K,) int64: the object ids of rough refractors (rough_refractive triangles among
     rough_tri (T,) bool, the plan's rough specular triangles: window and single-plane
     glass are not among them) that the caustic shot aims at, as at sharp casters: where
@@ -102,12 +102,17 @@ def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel,
     the final gather's blurred chains carry that light and no caustic shot is traced),
     some diffuse surface (diff_tri) can receive the light and a light in `emitting`
     reaches the object first (_light_reaches, PROBE_RAYS photons), and the caustic shot
-    sends more photons at it than the global shot does (indirect: settings.photons x the
-    share of the lights' power their natural emission sends into its bounding sphere,
-    _natural_share): aiming replaces the global shot's caustic-kind photons of those paths
-    (render.py's partition by first hit), so a lamp inside a rough glass globe, whose
-    every photon meets it, keeps the global shot's (400,000 at the defaults, not
-    200,000) until Caustic Photons is the larger count. A rough glass lamp shade
+    would send more photons at it than the global shot does: aiming replaces the global
+    shot's caustic-kind photons of those paths (render.py's partition by first hit). The
+    aimed: settings.caustic_photons x its share of the aimed shot beside the sharp
+    casters (sharp_tri (T,) bool: their triangles; each light's Light.aim probability of
+    its bounding sphere among theirs, the lights weighted by the power they send into
+    all of them, as render._allocate_aimed); the global: settings.photons x the share of
+    the lights' power their natural emission sends into its sphere (_natural_share; 0
+    without indirect light: then no global shot). So a lamp inside a rough glass globe,
+    whose every photon meets it, keeps the global shot's (400,000 at the defaults, not
+    200,000) until Caustic Photons is the larger count, and a shower screen beside a
+    room of glossy tiles, which take most of the aimed shot, keeps its glow shot. A rough glass lamp shade
     (shadelight.Shades.glass_names) counts only lights it does not serve: a served
     lamp's light through it is direct (its shadow rays), its photons there direct-kind,
     which the caustic shot does not keep."""
@@ -124,6 +129,9 @@ def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel,
     rng = np.random.default_rng([settings.seed, 99, 48])
     oids, centers, radii, names = _object_spheres(geo, tri)
     power = sum(float(luminance(np.asarray(li.photon_flux))) for li in emitting)
+    sharp_c, sharp_r = np.zeros((0, 3)), np.zeros(0)
+    if sharp_tri is not None and sharp_tri.any():
+        _, sharp_c, sharp_r, _ = _object_spheres(geo, sharp_tri)
     out = []
     for oid, c, r, name in zip(oids, centers, radii, names):
         lights = [li for li in emitting
@@ -132,16 +140,28 @@ def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel,
             continue
         through = (settings.photons * sum(_natural_share(li, c, r, rng) for li in lights)
                    / max(power, 1e-300) if indirect else 0.0)
-        if settings.caustic_photons > through:
+        # Its share of the aimed shot: each light's choice of its sphere among the sharp
+        # casters' and its own, the lights by the power they send into all of them.
+        cen, rad = np.vstack([sharp_c, c[None, :]]), np.append(sharp_r, r)
+        share = weight = 0.0
+        for li in emitting:
+            w = _natural_share(li, cen, rad, rng)
+            weight += w
+            if w > 0.0 and any(li is x for x in lights):
+                share += w * float(np.asarray(li.aim(cen, rad).probs)[-1])
+        aimed = settings.caustic_photons * share / weight if weight > 0.0 else 0.0
+        if aimed > through:
             out.append(int(oid))
     return np.array(out, np.int64)
 
 
 def _natural_share(light: PreparedLight, center, radius, rng) -> float:
-    """The luminance of the power (W) that light's natural emission sends into the cone
-    of the sphere (center, radius) (from infinity: across its shadow disk): the aimed
-    photons' power weights (natural pdf / aimed pdf) over PROBE_RAYS of them."""
-    _, _, power = light.emit_towards(PROBE_RAYS, rng, center[None, :], np.array([radius]))
+    """The luminance of the power (W) that light's natural emission sends into the cones
+    of the spheres (center (3,) or (K,3), radius () or (K,)) (from infinity: across
+    their shadow disks): the aimed photons' power weights (natural pdf / aimed pdf) over
+    PROBE_RAYS of them."""
+    _, _, power = light.emit_towards(PROBE_RAYS, rng, np.reshape(center, (-1, 3)),
+                                     np.reshape(np.asarray(radius, np.float64), -1))
     return float(luminance(power.sum(axis=0))) if len(power) else 0.0
 
 
@@ -708,7 +728,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # as the sharp casters are (rough_refractors: only where a caustic photon is
         # read, roughcaustic48); the rest of the rough lobes stay unaimed glow.
         refractors = rough_refractors(geo, table, emitting, accel, s, plan.indirect,
-                                      rough_tri, diff_tri, shades)
+                                      rough_tri, diff_tri, shades, sharp_tri)
         if len(refractors):
             ids = np.union1d(np.asarray(ids, np.int64), refractors)
         # The aimed shot must cover every specular triangle of a caster object, its
