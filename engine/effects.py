@@ -74,6 +74,97 @@ def sharp_specular(table: MaterialTable) -> np.ndarray:
     return table.has_specular & ((main & is_sharp(table.roughness)) | coat)
 
 
+# Rough refractors (transmission too rough to focus light: not sharp_specular) are aimed
+# at by the caustic shot where its photons are read (rough_refractors; roughcaustic48).
+# Their light through them onto diffuse surfaces comes from the caustic map alone at Filter
+# Glossy 0 (no shadow ray crosses rough glass; the final gather reads the maps past it),
+# which unaimed, it read from the global shot's few caustic-kind photons: Caustic Photons
+# did not reach it (docs/accuracy.md "roughphoton47", "roughcaustic48"). False: they are
+# unaimed glow, as before (the benchmark's "before").
+AIM_ROUGH_REFRACTORS = True
+
+
+def rough_refractive(table: MaterialTable) -> np.ndarray:
+    """(M,) bool: materials with a refraction lobe (Glass BSDF, Principled Transmission)
+    too rough to focus light: has_specular, transmission > 0, not sharp_specular."""
+    return (np.asarray(table.has_specular, bool) & (np.asarray(table.transmission) > 0)
+            & ~sharp_specular(table))
+
+
+def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel, settings,
+                     indirect: bool, rough_tri: np.ndarray, diff_tri: np.ndarray,
+                     shades=None, sharp_tri=None) -> np.ndarray:
+    """(K,) int64: the object ids of rough refractors (rough_refractive triangles among
+    rough_tri (T,) bool, the plan's rough specular triangles: window and single-plane
+    glass are not among them) that the caustic shot aims at, as at sharp casters: where
+    AIM_ROUGH_REFRACTORS, caustic photons are traced (settings.caustic_photons > 0), some
+    is read (not glossysplit.shots_unread: at Filter Glossy above 1/pi on matte surfaces
+    the final gather's blurred chains carry that light and no caustic shot is traced),
+    some diffuse surface (diff_tri) can receive the light and a light in `emitting`
+    reaches the object first (_light_reaches, PROBE_RAYS photons), and the caustic shot
+    would send more photons at it than the global shot does: aiming replaces the global
+    shot's caustic-kind photons of those paths (render.py's partition by first hit). The
+    aimed: settings.caustic_photons x its share of the aimed shot beside the sharp
+    casters (sharp_tri (T,) bool: their triangles; each light's Light.aim probability of
+    its bounding sphere among theirs, the lights weighted by the power they send into
+    all of them, as render._allocate_aimed); the global: settings.photons x the share of
+    the lights' power their natural emission sends into its sphere (_natural_share; 0
+    without indirect light: then no global shot). So a lamp inside a rough glass globe,
+    whose every photon meets it, keeps the global shot's (400,000 at the defaults, not
+    200,000) until Caustic Photons is the larger count, and a shower screen beside a
+    room of glossy tiles, which take most of the aimed shot, keeps its glow shot. A rough glass lamp shade
+    (shadelight.Shades.glass_names) counts only lights it does not serve: a served
+    lamp's light through it is direct (its shadow rays), its photons there direct-kind,
+    which the caustic shot does not keep."""
+    none = np.zeros(0, np.int64)
+    if (not AIM_ROUGH_REFRACTORS or not emitting or not len(rough_tri)
+            or not diff_tri.any() or settings.caustic_photons <= 0
+            or shots_unread(settings, geo, table, indirect)):
+        return none
+    tri = rough_tri & rough_refractive(table)[geo.material]
+    if not tri.any():
+        return none
+    served = list(shades.lights) if shades is not None else []
+    shade_names = set(shades.glass_names) if shades is not None else set()
+    rng = np.random.default_rng([settings.seed, 99, 48])
+    oids, centers, radii, names = _object_spheres(geo, tri)
+    power = sum(float(luminance(np.asarray(li.photon_flux))) for li in emitting)
+    sharp_c, sharp_r = np.zeros((0, 3)), np.zeros(0)
+    if sharp_tri is not None and sharp_tri.any():
+        _, sharp_c, sharp_r, _ = _object_spheres(geo, sharp_tri)
+    out = []
+    for oid, c, r, name in zip(oids, centers, radii, names):
+        lights = [li for li in emitting
+                  if name not in shade_names or not any(li is x for x in served)]
+        if not any(_light_reaches(li, accel, geo, int(oid), c, r, rng) for li in lights):
+            continue
+        through = (settings.photons * sum(_natural_share(li, c, r, rng) for li in lights)
+                   / max(power, 1e-300) if indirect else 0.0)
+        # Its share of the aimed shot: each light's choice of its sphere among the sharp
+        # casters' and its own, the lights by the power they send into all of them.
+        cen, rad = np.vstack([sharp_c, c[None, :]]), np.append(sharp_r, r)
+        share = weight = 0.0
+        for li in emitting:
+            w = _natural_share(li, cen, rad, rng)
+            weight += w
+            if w > 0.0 and any(li is x for x in lights):
+                share += w * float(np.asarray(li.aim(cen, rad).probs)[-1])
+        aimed = settings.caustic_photons * share / weight if weight > 0.0 else 0.0
+        if aimed > through:
+            out.append(int(oid))
+    return np.array(out, np.int64)
+
+
+def _natural_share(light: PreparedLight, center, radius, rng) -> float:
+    """The luminance of the power (W) that light's natural emission sends into the cones
+    of the spheres (center (3,) or (K,3), radius () or (K,)) (from infinity: across
+    their shadow disks): the aimed photons' power weights (natural pdf / aimed pdf) over
+    PROBE_RAYS of them."""
+    _, _, power = light.emit_towards(PROBE_RAYS, rng, np.reshape(center, (-1, 3)),
+                                     np.reshape(np.asarray(radius, np.float64), -1))
+    return float(luminance(power.sum(axis=0))) if len(power) else 0.0
+
+
 def _focusing(table: MaterialTable) -> np.ndarray:
     """(M,) bool: materials with a mirror, glass, coat or translucent lobe (has_specular
     without the transparent pass, which camera rays continue through but which focuses
@@ -277,6 +368,89 @@ def _cycles_caustics_note(plan: EffectPlan, s, geo: Geometry, table: MaterialTab
              + ("them" if len(off) > 1 else "it") + " on to compare (a sun seen through "
              "smooth glass then comes to Cycles' paths in rare bright samples: it needs "
              "many samples, and no clamp, to show the patch ours shows)")
+
+
+def layer_reflectance(table: MaterialTable, mats) -> tuple:
+    """(at normal incidence, averaged over a diffuse incidence) reflectance of the
+    strongest dielectric specular layer (a Principled base's specular layer or its coat)
+    among materials mats: F0 = ((n - 1) / (n + 1))^2 of the layer's IOR (the base's
+    scaled by 2 x Specular IOR Level, as principled.setup) and Kulla and Conty's average
+    Fresnel Fss = (eta - 1) / (4.08567 + 1.00071 eta) (fresnel.fresnel_dielectric_Fss),
+    each times the coat's weight for a coat. (0, 0) without such a layer."""
+    from .closures import principled as pr
+    q = np.asarray(table.closure_params, np.float64)[np.asarray(mats, np.int64)]
+    f0s, fss = [0.0], [0.0]
+
+    def add(ior, scale, weight):
+        ior = np.maximum(ior, 1e-5)
+        f0 = np.clip(((ior - 1.0) / (ior + 1.0)) ** 2 * scale, 0.0, 0.9999999)
+        eta = (1.0 + np.sqrt(f0)) / (1.0 - np.sqrt(f0))
+        ok = weight > 0.0
+        f0s.extend((weight * f0)[ok].tolist())
+        fss.extend((weight * (eta - 1.0) / (4.08567 + 1.00071 * eta))[ok].tolist())
+    add(q[:, pr.M_IOR], 2.0 * np.maximum(q[:, pr.M_LEVEL], 0.0),
+        np.where(q[:, pr.M_SPEC] > 0.0, 1.0, 0.0) * (1.0 - q[:, pr.M_METALLIC])
+        * (1.0 - q[:, pr.M_TRANS]))
+    add(np.maximum(q[:, pr.M_COAT_IOR], 1.0), 1.0, np.maximum(q[:, pr.M_COAT_W], 0.0))
+    return max(f0s), max(fss)
+
+
+def _aimed_words(geo: Geometry, table: MaterialTable, names, refractors) -> str:
+    """The caustics line's words after the aimed casters `names` where some are not plain
+    mirrors, glass or metal (roughcaustic48): rough refractors (`refractors`, aimed at by
+    rough_refractors) focus no light, but the caustic map alone carries the light through
+    them, so they are aimed at for it; a dielectric specular layer alone (a Principled
+    plastic or glazed tile, no metal, Glossy BSDF or transmission) reflects a few per
+    cent (layer_reflectance), so most photons aimed at it end in its diffuse base and are
+    not stored (newuser47's tiles, roughness 0.15: 3,059 of 200,000 stored). "" where
+    every caster is plain."""
+    out = ""
+    if len(refractors):
+        many = len(refractors) > 1
+        out += ("; rough " + _labelled(geo, table, refractors, most=REPORT_NAMES_MAX)
+                + (" focus" if many else " focuses") + " no light, but the light "
+                + ("they let" if many else "it lets") + " through onto diffuse surfaces "
+                "comes from these photons alone (the Caustic pass), so Caustic Photons "
+                "sets how smooth it is")
+    ids = {n: i for i, n in enumerate(geo.object_names)}
+    weak, lo, hi = [], 1.0, 0.0
+    for n in names:
+        if n not in ids or n in refractors:
+            continue
+        mats = np.unique(geo.material[geo.object_id == ids[n]])
+        if (specular_kind(geo, table, ids[n]) != "glossy" or np.any(_is_glossy_node(table, mats))
+                or np.any(table.metallic[mats] > 0) or np.any(table.transmission[mats] > 0)):
+            continue
+        f0, fss = layer_reflectance(table, mats)
+        if not fss > 0.0:
+            continue
+        weak.append(n)
+        lo, hi = min(lo, f0), max(hi, fss)
+    if weak:
+        many = len(weak) > 1
+        out += ("; " + _quoted(weak, most=4) + " reflect" + ("" if many else "s")
+                + f" only about {100 * lo:.0f}-{100 * hi:.0f} % of the light by "
+                + ("their" if many else "its") + " glossy specular layer (a dielectric's "
+                "Fresnel reflection, at normal to diffuse incidence): only those photons "
+                "can make a caustic; the rest end in " + ("their" if many else "its")
+                + " diffuse base, not stored")
+    return out
+
+
+def shot_words(lines: list, stats: dict) -> list:
+    """The report `lines` (EffectPlan.report) with the caustics line ("caustics: on - N
+    photons aimed at ...") followed by how many of the caustic shot's photons were stored
+    (stats caustic_shot_stored, caustic_photons_emitted: render._photon_pass, where the
+    shot was traced): a new user read "200,000 photons aimed at" glossy tiles beside the
+    maps line's 3,059 caustic photons (newuser47). A new list; the plan is not changed (a
+    session reuses it)."""
+    stored, emitted = stats.get("caustic_shot_stored"), stats.get("caustic_photons_emitted")
+    if stored is None or not emitted:
+        return list(lines)
+    aimed = "aimed " if stats.get("caustic_shot_aimed") else ""
+    words = (f"; {stored:,} of the {emitted:,} {aimed}photons stored "
+             f"({100.0 * stored / emitted:.1f} %)")
+    return [ln + words if ln.startswith("caustics: on - ") else ln for ln in lines]
 
 
 def _volume_only(geo: Geometry, table: MaterialTable, name: str) -> bool:
@@ -550,6 +724,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                      & focus_tri & ~window_tri)
         rough_tri = focus_tri & ~sharp_tri & ~window_tri
         ids = np.unique(geo.object_id[sharp_tri]) if sharp_tri.any() else []
+        # Rough refractors whose light through them the caustic map carries are aimed at
+        # as the sharp casters are (rough_refractors: only where a caustic photon is
+        # read, roughcaustic48); the rest of the rough lobes stay unaimed glow.
+        refractors = rough_refractors(geo, table, emitting, accel, s, plan.indirect,
+                                      rough_tri, diff_tri, shades, sharp_tri)
+        if len(refractors):
+            ids = np.union1d(np.asarray(ids, np.int64), refractors)
         # The aimed shot must cover every specular triangle of a caster object, its
         # rough parts too: the other shots drop L S+ D paths whose first hit is on a
         # caster object, by object (render.py), so a rough plate inside a metal ring
@@ -630,9 +811,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                 names_r += (f" (at {len(aimed_spheres[1])} spheres round "
                             + ("the parts of those that fill" if len(reached) > 1
                                else "its parts: it fills") + " one bounding sphere poorly)")
-            auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
+            # Why each kind is aimed at where it is not plain: rough refractors, and
+            # casters whose photons mostly end in a diffuse base (newuser47's tiles).
+            aimed_note = _aimed_words(geo, table, [n for _, _, _, n in reached],
+                                      [n for oid, _, _, n in reached if oid in refractors])
+            auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}"
+                               f"{aimed_note}{rough_note}"
                                if s.aim_caustics
-                               else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
+                               else f"{s.caustic_photons:,} photons, from {names_r}"
+                               f"{aimed_note}{rough_note}")
             from .render import SKIP_UNREAD_SHOTS
             if SKIP_UNREAD_SHOTS and shots_unread(s, geo, table, plan.indirect):
                 # Filter Glossy's split reads no caustic photon on these matte surfaces

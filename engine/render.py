@@ -651,7 +651,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     finally:
         close_context(ctx)
     film.stats["time_compile"] += t_compile
-    film.stats.update(effects=ctx.plan.report() + photon_map_report(
+    from .effects import shot_words
+    film.stats.update(effects=shot_words(ctx.plan.report(), film.stats) + photon_map_report(
         settings, film.stats, glow_only=ctx.plan.caustics_glow_only,
         glow_words=ctx.plan.glow_words),
                       triangles=ctx.geo.count, lights=len(ctx.lights),
@@ -870,6 +871,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
                                 progress=_shot_progress(progress, sizes, 2),
                                 should_cancel=should_cancel, targets=targets,
                                 first_hit=None if split is None else (split, True))
+        # (the caustics line says how many of them were stored: effects.shot_words)
+        stats["caustic_shot_stored"] = len(caustic)
+        stats["caustic_shot_aimed"] = targets is not None
         if split is not None and len(shot):
             # The caustic paths the aimed shot leaves out, from the global shot (or from
             # the glow shot where that one is aimed by visual importance).

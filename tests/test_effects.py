@@ -364,18 +364,91 @@ def test_rough_glass_alone_is_named_in_the_caustics_line():
     """A rough glass lamp shade (Principled Transmission 1, roughness 0.5) is the only
     glass: the caustics line said "nothing focuses light (no mirror, no glass, ...)"
     while the specular line beside it said "through glass 'Shade' (roughness 0.5)"
-    (new-user trial, newuser29). It now names the rough glass."""
+    (new-user trial, newuser29). It now names the rough glass. At Filter Glossy 1 on
+    these matte surfaces no caustic photon is read (the final gather's blurred chains
+    carry that light), so nothing is aimed at it; at 0 it is aimed at
+    (test_rough_glass_is_aimed_at_where_its_photons_are_read)."""
     s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
     s.add_material(Material("frosted", (0.9, 0.7, 0.4), transmission=1.0, ior=1.5,
                             roughness=0.5))
     s.add_sphere((0.8, 0.3, 0.5), 0.5, "frosted", name="Shade", segments=24)
-    plan = _plan(s)
+    plan = _plan(s, cycles_filter_glossy=1.0)
     line = _line(plan, "caustics:")
     assert line.startswith("caustics: off - nothing focuses light (no mirror, only rough "
                            "glass 'Shade', no surface smoother than roughness 0.3)"), line
     assert "no glass" not in line, line
     assert "through glass 'Shade' (roughness 0.5)" in _line(plan, "specular reflection"), \
         _line(plan, "specular reflection")
+
+
+def test_rough_glass_is_aimed_at_where_its_photons_are_read():
+    """The same rough glass at Filter Glossy 0: the light through it onto the room comes
+    from the caustic map alone, so the caustic shot is aimed at it and the line says why
+    (roughcaustic48: Caustic Photons did not reach that light). A lamp that a single
+    surface rough glass shade serves (engine/shadelight.py: its light through the shade is
+    its shadow rays', its photons there direct-kind) does not make the shade a caster."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    s.add_material(Material("frosted", (0.9, 0.7, 0.4), transmission=1.0, ior=1.5,
+                            roughness=0.5))
+    s.add_sphere((0.8, 0.3, 0.5), 0.5, "frosted", name="Shade", segments=24)
+    plan = _plan(s)
+    assert plan.casters == ["Shade"] and plan.rough_specular == ["Floor"]
+    line = _line(plan, "caustics:")
+    assert line.startswith(
+        "caustics: on - 200,000 photons aimed at 'Shade'; rough glass 'Shade' (roughness "
+        "0.5) focuses no light, but the light it lets through onto diffuse surfaces comes "
+        "from these photons alone (the Caustic pass), so Caustic Photons sets how smooth "
+        "it is; not aimed at 'Floor'"), line
+    s.lights = [li for li in s.lights if li.name != "Area"]
+    s.add_point_light((0.8, 0.3, 0.5), power=100, name="Bulb")
+    plan = _plan(s)
+    assert plan.casters == [] and "Shade" in plan.rough_specular, _line(plan, "caustics:")
+
+
+def test_rough_glass_round_a_lamp_is_aimed_at_only_with_more_caustic_photons():
+    """An area light inside a frosted glass globe: every photon it sends meets the globe,
+    so aiming gains nothing, and the global shot's caustic-kind photons (400,000 at the
+    defaults) outnumber an aimed shot of 200,000; the globe is aimed at only where
+    Caustic Photons is the larger count (effects.rough_refractors)."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    s.add_material(Material("frosted", (0.9, 0.9, 0.9), transmission=1.0, ior=1.5,
+                            roughness=0.5))
+    s.add_sphere((0.0, 0.3, 1.0), 0.4, "frosted", name="Globe", segments=24)
+    s.lights = [li for li in s.lights if li.name != "Area"]
+    s.add_rect_area_light((0.0, 0.3, 1.0), (0.1, 0.1), power=100, name="Bulb")
+    from engine.render import prepare_context
+    for caustic, want in ((200_000, []), (800_000, ["Globe"])):
+        ctx = prepare_context(s, RenderSettings(photons=400_000, caustic_photons=caustic,
+                                                workers=1))
+        ctx.accel.close()
+        assert ctx.plan.casters == want, caustic
+
+
+def test_glossy_tiles_say_how_little_of_their_light_makes_a_caustic():
+    """Glossy Principled tiles (roughness 0.15, a dielectric layer over a diffuse base)
+    are caustic casters, but most photons aimed at them end in the base: newuser47's
+    bathroom read "200,000 photons aimed at 'BackWall', ..." beside 3,059 caustic photons
+    stored. The line says what share their layer reflects and, after the shot, how many
+    were stored (engine/effects.py _aimed_words, shot_words)."""
+    from engine.effects import shot_words
+    s = _room(Material("matte", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0),
+              wall=Material("tiles", (0.8, 0.8, 0.8), roughness=0.15, specular=1.0))
+    plan = _plan(s)
+    assert plan.casters == ["BackWall"]
+    line = _line(plan, "caustics:")
+    assert ("200,000 photons aimed at 'BackWall'; 'BackWall' reflects only about 4-9 % of "
+            "the light by its glossy specular layer (a dielectric's Fresnel reflection, at "
+            "normal to diffuse incidence): only those photons can make a caustic; the rest "
+            "end in its diffuse base, not stored") in line, line
+    film = s.render(RenderSettings(photons=5000, caustic_photons=20_000, spp=1, workers=1))
+    line = next(ln for ln in film.stats["effects"] if ln.startswith("caustics:"))
+    stored = film.stats["caustic_shot_stored"]
+    assert 0 < stored < 0.15 * 20_000, stored
+    emitted = film.stats["caustic_photons_emitted"]
+    assert line.endswith(f"; {stored:,} of the {emitted:,} aimed photons stored "
+                         f"({100 * stored / emitted:.1f} %)"), line
+    assert shot_words(["caustics: on - x", "photon maps: on - y"], {}) == [
+        "caustics: on - x", "photon maps: on - y"]
 
 
 def test_a_mirror_and_a_glass_ball_are_caustic_casters_by_name():

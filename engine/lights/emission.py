@@ -325,8 +325,15 @@ def aim_direction(centers, radii, probs, cdf, o0, o1, o2, us, u1, u2):
     cos_max, dist, t0, t1, t2 = _cone_cos(centers[j, 0], centers[j, 1], centers[j, 2],
                                           radii[j], o0, o1, o2)
     ds = max(dist, 1e-300)
+    n0, n1, n2 = t0 / ds, t1 / ds, t2 / ds
+    if not dist > 0.0:
+        # o at the sphere's centre (a lamp centred in its globe or tube): t is 0, which
+        # made no frame (directions of length < 1 and no z: a smooth glass tube round a
+        # point lamp stored no caustic photon, roughcaustic48). From inside the cone is
+        # every direction (cos_max -1): any axis.
+        n0, n1, n2 = 0.0, 0.0, 1.0
     l0, l1, l2 = uniform_cone(u1, u2, cos_max)
-    d0, d1, d2 = to_world(l0, l1, l2, t0 / ds, t1 / ds, t2 / ds)
+    d0, d1, d2 = to_world(l0, l1, l2, n0, n1, n2)
     aimed = 0.0
     for k in range(centers.shape[0]):
         if _misses(centers, radii, k, o0, o1, o2, d0, d1, d2):
