@@ -239,6 +239,12 @@ def irradiance(pmap, limits, counts, p, n, *args, **kwargs) -> np.ndarray:
     return out
 
 
+# GatherCounts keeps its photons' power as a palette when a sample of PALETTE_SAMPLE of
+# them holds at most PALETTE distinct values that give every photon's back.
+PALETTE = 256
+PALETTE_SAMPLE = 4096
+
+
 class GatherCounts:
     """The gather map's photons' counts and power (the shot's non-caustic photons:
     bounces (N,4) uint8, power (N,) float64 summed over RGB), to decide which gather
@@ -256,19 +262,17 @@ class GatherCounts:
     EXACT_MARGIN = 1e-9
 
     def __init__(self, bounces, power, limits, share):
-        power = np.asarray(power, np.float64)
-        # The power as its distinct values and each photon's index where that is smaller
-        # and gives every value back bit for bit (a one-light room: 12 values, 1 B a
-        # photon instead of 8; docs/performance.md "mem48"), else as it is.
-        values, index = np.unique(power, return_inverse=True)
-        itype = np.min_scalar_type(max(len(values) - 1, 0))
-        if (itype.itemsize * len(power) + values.nbytes < power.nbytes
-                and np.array_equal(np.take(values, index).view(np.int64),
-                                   power.view(np.int64))):
-            self._power = (values, index.reshape(-1).astype(itype))
-        else:
-            self._power = power
-        del values, index
+        self._power = power = np.asarray(power, np.float64)
+        # The power as a palette of values and each photon's uint8 index where a strided
+        # sample's distinct values (at most PALETTE) give every photon's value back bit for
+        # bit (a one-light room: 12 values, 1 B a photon instead of 8; docs/performance.md
+        # "mem48"); else as it is. (A search per photon, no sort of the whole array.)
+        values = np.unique(power[::max(1, len(power) // PALETTE_SAMPLE)])
+        if 0 < len(values) <= PALETTE and len(power) > 8 * PALETTE:
+            index = np.minimum(np.searchsorted(values, power), len(values) - 1)
+            if np.array_equal(np.take(values, index).view(np.int64), power.view(np.int64)):
+                self._power = (values, index.astype(np.uint8))
+            del index
         self.limits = np.asarray(limits, np.int64)
         self.share = share
         self._cache = {}
