@@ -1287,10 +1287,12 @@ class GatherMap:
                     if not (row & est_power).any():
                         continue  # a level of zeros
                     live.append(i)
-                rows_of.append(row)
-            del est_power
-            # As bits (pack_masks): 1/8 B a photon and mask, which a lazy map keeps.
-            chosen = pack_masks(np.array(rows_of)) if rows_of else None
+                # As bits (pack_masks), row by row: 1/8 B a photon and mask, which a lazy
+                # map keeps (the (S, N) bool masks were made whole before: S B a photon
+                # at the map build's peak).
+                rows_of.append(pack_masks(row[None]))
+            del est_power, row
+            chosen = np.concatenate(rows_of) if rows_of else None
             del rows_of
 
         def estimate(stop):
