@@ -263,16 +263,32 @@ class GatherCounts:
 
     def __init__(self, bounces, power, limits, share):
         self._power = power = np.asarray(power, np.float64)
-        # The power as a palette of values and each photon's uint8 index where a strided
-        # sample's distinct values (at most PALETTE) give every photon's value back bit for
-        # bit (a one-light room: 12 values, 1 B a photon instead of 8; docs/performance.md
-        # "mem48"); else as it is. (A search per photon, no sort of the whole array.)
+        # The power as a palette of values and each photon's uint8 index where at most
+        # PALETTE values give every photon's back bit for bit (a one-light room: 12 values,
+        # 1 B a photon instead of 8; docs/performance.md "mem48"); else as it is. The
+        # palette: a strided sample's distinct values, plus those of the few photons they
+        # miss (rare values); a search per photon, no sort of the whole array.
         values = np.unique(power[::max(1, len(power) // PALETTE_SAMPLE)])
         if 0 < len(values) <= PALETTE and len(power) > 8 * PALETTE:
             index = np.minimum(np.searchsorted(values, power), len(values) - 1)
-            if np.array_equal(np.take(values, index).view(np.int64), power.view(np.int64)):
-                self._power = (values, index.astype(np.uint8))
-            del index
+            index = index.astype(np.uint8)
+            miss = np.flatnonzero(np.take(values, index).view(np.int64)
+                                  != power.view(np.int64))
+            if 0 < len(miss) <= len(power) // 16:
+                # The missed photons' values added: the others' indices moved to the new
+                # palette's places, the missed ones searched in it (then checked).
+                more = np.union1d(values, np.take(power, miss))
+                if len(more) <= PALETTE:
+                    index = np.take(np.searchsorted(more, values).astype(np.uint8), index)
+                    got = np.minimum(np.searchsorted(more, np.take(power, miss)),
+                                     len(more) - 1)
+                    index[miss] = got
+                    values = more
+                    miss = miss[np.take(more, got).view(np.int64)
+                                != np.take(power, miss).view(np.int64)]
+            if not len(miss):
+                self._power = (values, index)
+            del index, miss
         self.limits = np.asarray(limits, np.int64)
         self.share = share
         self._cache = {}

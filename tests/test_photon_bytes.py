@@ -263,10 +263,12 @@ def test_gather_counts_keep_few_powers_as_a_palette():
     levels = rng.random(12) * 3.0
     power = levels[rng.integers(0, 12, n)]
     power[::50] = 0.0
+    power[[7, 4711]] = (5.5, 6.5)  # (rare values, which a sample of the photons misses)
     lim = np.array([6, 4, 4, 4])
     g = GatherCounts(bounces, power, lim, 0.005)
     plain = GatherCounts(bounces, rng.random(n), lim, 0.005)
     assert np.array_equal(g.power.view(np.int64), power.view(np.int64))
+    assert isinstance(g._power, tuple) and len(g._power[0]) == 15
     assert held_bytes(g) <= held_bytes(plain) - 7 * n + levels.nbytes + 64
     # (a decision reads the same sums: against a counts object holding the plain array)
     ref = GatherCounts.__new__(GatherCounts)
