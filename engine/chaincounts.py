@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from . import photonkernels as pk
+from .photonmap import pack_masks, unpack_masks
 
 
 def camera_counts(extra, base=(0, 0, 0, 0)) -> np.ndarray:
@@ -161,13 +162,23 @@ def flat_passages(counts, limits, lobe=DIFFUSE) -> np.ndarray:
     return np.maximum(k, 0)
 
 
+def _usable_bits(photons, limits, key, cache) -> tuple:
+    """(bits (1, ceil(N / 8)) uint8, all, any): photons.usable(limits, key) as the bits
+    PhotonMap.irradiance reads (photonmap.pack_masks) and whether it holds every photon /
+    any, cached per key (a dict shared by the map's views; two threads may compute one
+    mask twice, the same values). As bits: 1/8 B a photon and key where the (N,) bool
+    masks held 1 (Figure 6's caustic map: 6 keys, 1.3 B a stored photon; docs/
+    performance.md "mem48")."""
+    got = cache.get(key)
+    if got is None:
+        mask = photons.usable(limits, key)
+        got = cache[key] = (pack_masks(mask[None]), bool(mask.all()), bool(mask.any()))
+    return got
+
+
 def _usable(photons, limits, key, cache) -> np.ndarray:
-    """photons.usable(limits, key), cached per key (a dict shared by the map's views;
-    two threads may compute one mask twice, the same values)."""
-    mask = cache.get(key)
-    if mask is None:
-        mask = cache[key] = photons.usable(limits, key)
-    return mask
+    """(N,) bool photons.usable(limits, key), from the per-key cache (_usable_bits)."""
+    return unpack_masks(_usable_bits(photons, limits, key, cache)[0], len(photons))[0]
 
 
 def map_cache(pmap) -> dict:
@@ -186,8 +197,8 @@ def keeps_every_photon(pmap, limits, counts) -> np.ndarray:
         return np.ones(len(counts), bool)
     keys, which = unique_counts(counts)
     cache = map_cache(pmap)
-    whole = np.array([_usable(pmap.photons, limits, tuple(int(x) for x in key), cache).all()
-                      for key in keys], bool)
+    whole = np.array([_usable_bits(pmap.photons, limits, tuple(int(x) for x in key),
+                                   cache)[1] for key in keys], bool)
     return whole[which]
 
 
@@ -206,25 +217,32 @@ def irradiance(pmap, limits, counts, p, n, *args, **kwargs) -> np.ndarray:
     cache = map_cache(pmap)
     masks, slot = [], np.full(len(keys), -1, np.int64)  # -1: every photon; -2: none
     for j, key in enumerate(keys):
-        mask = _usable(pmap.photons, limits, tuple(int(x) for x in key), cache)
-        if mask.all():
+        bits, every, some = _usable_bits(pmap.photons, limits, tuple(int(x) for x in key),
+                                         cache)
+        if every:
             continue
-        if not mask.any():
+        if not some:
             slot[j] = -2
             continue
         slot[j] = len(masks)
-        masks.append(mask)
+        masks.append(bits)
     if not masks:
         out = pmap.irradiance(p, n, *args, **kwargs)
         if (slot == -2).any():
             out = np.where((slot[which] == -2)[:, None], 0.0, out)
         return out
-    out, masked = pmap.irradiance(p, n, *args, masks=np.stack(masks), **kwargs)
+    out, masked = pmap.irradiance(p, n, *args, masks=np.concatenate(masks), **kwargs)
     s = slot[which]
     rows = np.nonzero(s >= 0)[0]
     out[rows] = masked[s[rows], rows]
     out[s == -2] = 0.0
     return out
+
+
+# GatherCounts keeps its photons' power as a palette when a sample of PALETTE_SAMPLE of
+# them holds at most PALETTE distinct values that give every photon's back.
+PALETTE = 256
+PALETTE_SAMPLE = 4096
 
 
 class GatherCounts:
@@ -244,7 +262,33 @@ class GatherCounts:
     EXACT_MARGIN = 1e-9
 
     def __init__(self, bounces, power, limits, share):
-        self.power = np.asarray(power, np.float64)
+        self._power = power = np.asarray(power, np.float64)
+        # The power as a palette of values and each photon's uint8 index where at most
+        # PALETTE values give every photon's back bit for bit (a one-light room: 12 values,
+        # 1 B a photon instead of 8; docs/performance.md "mem48"); else as it is. The
+        # palette: a strided sample's distinct values, plus those of the few photons they
+        # miss (rare values); a search per photon, no sort of the whole array.
+        values = np.unique(power[::max(1, len(power) // PALETTE_SAMPLE)])
+        if 0 < len(values) <= PALETTE and len(power) > 8 * PALETTE:
+            index = np.minimum(np.searchsorted(values, power), len(values) - 1)
+            index = index.astype(np.uint8)
+            miss = np.flatnonzero(np.take(values, index).view(np.int64)
+                                  != power.view(np.int64))
+            if 0 < len(miss) <= len(power) // 16:
+                # The missed photons' values added: the others' indices moved to the new
+                # palette's places, the missed ones searched in it (then checked).
+                more = np.union1d(values, np.take(power, miss))
+                if len(more) <= PALETTE:
+                    index = np.take(np.searchsorted(more, values).astype(np.uint8), index)
+                    got = np.minimum(np.searchsorted(more, np.take(power, miss)),
+                                     len(more) - 1)
+                    index[miss] = got
+                    values = more
+                    miss = miss[np.take(more, got).view(np.int64)
+                                != np.take(power, miss).view(np.int64)]
+            if not len(miss):
+                self._power = (values, index)
+            del index, miss
         self.limits = np.asarray(limits, np.int64)
         self.share = share
         self._cache = {}
@@ -254,6 +298,13 @@ class GatherCounts:
         rows, which = unique_counts(bounces)
         self.rows = rows
         self.which = which.astype(np.min_scalar_type(max(len(rows) - 1, 0)))
+
+    @property
+    def power(self) -> np.ndarray:
+        """(N,) float64 the photons' power summed over RGB (the constructor's values)."""
+        if isinstance(self._power, tuple):
+            return np.take(*self._power)
+        return self._power
 
     def _mask(self, key):
         mask = self._cache.get(("mask",) + key)
@@ -268,9 +319,10 @@ class GatherCounts:
         threads may make it twice: the same values)."""
         got = self._cache.get("classes")
         if got is None:
+            power = self.power
             got = self._cache["classes"] = (
-                self.rows, np.bincount(self.which, self.power, minlength=len(self.rows)),
-                float(np.abs(self.power).sum()))
+                self.rows, np.bincount(self.which, power, minlength=len(self.rows)),
+                float(np.abs(power).sum()))
         return got
 
     def drops(self, level, key) -> bool:
@@ -287,8 +339,9 @@ class GatherCounts:
             if abs(dropped - self.share * kept) <= self.EXACT_MARGIN * scale:
                 nominal = self._mask((level + 1, level + 1, 0, 0))
                 ok = self._mask(key)
-                kept = float(self.power[nominal].sum())
-                dropped = float(self.power[nominal & ~ok].sum())
+                power = self.power
+                kept = float(power[nominal].sum())
+                dropped = float(power[nominal & ~ok].sum())
             got = dropped > self.share * kept
             self._cache[(level,) + key] = got
         return got

@@ -234,7 +234,8 @@ class PhotonMap:
         There the estimate is biased dark.
         r_floor: per point, the smallest k-NN radius (a camera sample's pixel footprint):
         a focus is spread over at least that disc instead of a point.
-        masks: (S, N) bool over self.photons: also return, last, (S, M, 3) float64 the
+        masks: (S, N) bool over self.photons, or the same as bits ((S, ceil(N / 8)) uint8,
+        pack_masks): also return, last, (S, M, 3) float64 the
         irradiance of each mask's photons alone from the same search (the others' power
         counted as 0): the bits of S more calls on maps whose power arrays zero the
         other photons, for about the cost of one (GatherMap's subsets).
@@ -274,10 +275,17 @@ class PhotonMap:
         if masks is None:
             masks, masked = _NO_MASKS, _NO_MASKED
         else:
-            masks = np.ascontiguousarray(masks, dtype=np.bool_)
-            if masks.ndim != 2 or masks.shape[1] != len(self.photons):
-                raise ValueError(f"irradiance: masks must have shape (S, {len(self.photons)}),"
-                                 f" got {masks.shape}")
+            masks = np.asarray(masks)
+            bits = (len(self.photons) + 7) // 8
+            if masks.dtype != np.uint8:
+                if masks.ndim != 2 or masks.shape[1] != len(self.photons):
+                    raise ValueError(f"irradiance: masks must have shape "
+                                     f"(S, {len(self.photons)}), got {masks.shape}")
+                masks = pack_masks(masks)
+            elif masks.ndim != 2 or masks.shape[1] != bits:
+                raise ValueError(f"irradiance: packed masks (uint8, pack_masks) must have "
+                                 f"shape (S, {bits}), got {masks.shape}")
+            masks = np.ascontiguousarray(masks)
             masked = np.zeros((len(masks), m, 3))
             result = (*result, masked) if return_boundary else (out, masked)
         if hidden is None or not len(masks):
@@ -347,8 +355,24 @@ class PhotonMap:
         return result
 
 
+def pack_masks(masks: np.ndarray) -> np.ndarray:
+    """(S, ceil(N / 8)) uint8: the masks (S, N) bool as bits, photon j of mask s bit j & 7
+    of byte j >> 3 (np.packbits, bitorder "little"): the layout _irradiance_rows reads
+    (1/8 B a photon and mask; a lazy GatherMap keeps its masks so, docs/performance.md
+    "mem48"). unpack_masks(bits, N) gives the masks back."""
+    masks = np.asarray(masks, dtype=np.bool_)
+    if masks.ndim != 2:
+        raise ValueError(f"pack_masks: masks must be (S, N), got shape {masks.shape}")
+    return np.packbits(masks, axis=1, bitorder="little")
+
+
+def unpack_masks(bits: np.ndarray, n: int) -> np.ndarray:
+    """(S, n) bool: the masks pack_masks made bits (S, ceil(n / 8)) uint8 of."""
+    return np.unpackbits(bits, axis=1, count=n, bitorder="little").view(np.bool_)
+
+
 _NO_NODES = (np.zeros(0, np.uint8), np.zeros(0, np.float32), np.zeros(1, np.int64))
-_NO_MASKS = np.zeros((0, 0), np.bool_)
+_NO_MASKS = np.zeros((0, 0), np.uint8)
 _NO_MASKED = np.zeros((0, 0, 3))
 _NO_HIDDEN = (np.zeros(0, np.int64), np.zeros(0, np.int64))
 _NO_READ = (np.zeros(0, np.int64), np.zeros((0, 0), np.int64))
@@ -591,7 +615,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
     MAX_WIDEN_K (or k) neighbours, reused by every row. stop: (1,) uint8, polled every
     STOP_ROWS rows; once nonzero the kernel returns with rows left unwritten.
-    masks: (S, P) bool over the photons, masked: (S, M, 3) float64: row i's estimate
+    masks: (S, ceil(P / 8)) uint8, S masks over the photons as bits (photon j of mask s:
+    bit j & 7 of masks[s, j >> 3], np.packbits' bitorder="little": 1/8 B a photon and
+    mask; pack_masks), masked: (S, M, 3) float64: row i's estimate
     from mask s's photons alone into masked[s, i] (the other photons' power counted as
     0; the same neighbours, disc and terms in the same order as an estimate whose power
     array zeroes them: the same bits). S = 0: none. hid_start (M+1,) / hid_photon (H,)
@@ -986,8 +1012,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
             e0 += w * np.float64(power[pj, 0])
             e1 += w * np.float64(power[pj, 1])
             e2 += w * np.float64(power[pj, 2])
+            byte, bit = pj >> 3, pj & 7
             for s in range(S):
-                if masks[s, pj] and seen:
+                if (masks[s, byte] >> bit) & 1 and seen:
                     ms[s, 0] += w * np.float64(power[pj, 0])
                     ms[s, 1] += w * np.float64(power[pj, 1])
                     ms[s, 2] += w * np.float64(power[pj, 2])
@@ -1003,7 +1030,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
             a1 += np.float64(power[pj, 1])
             a2 += np.float64(power[pj, 2])
             for s in range(S):
-                if masks[s, pj] and seen:
+                if (masks[s, byte] >> bit) & 1 and seen:
                     ms[s, 3] += np.float64(power[pj, 0])
                     ms[s, 4] += np.float64(power[pj, 1])
                     ms[s, 5] += np.float64(power[pj, 2])
@@ -1085,7 +1112,8 @@ _NO_POINTS = np.zeros(0, np.int64)
 
 class _LazyPoints:
     """A lazy GatherMap's estimates still to make (GatherMap._fill), shared by its views:
-    the estimating PhotonMap, the masks over its photons ((S, N) bool or None), the
+    the estimating PhotonMap, the masks over its photons (bits, (S, ceil(N / 8)) uint8:
+    pack_masks; or None), the
     estimate's (k, min_photons, estimator), the points' surfaces (or None), the arrays to
     fill ((P,3) E of every photon, None where the map keeps a keep mask's instead, (P,)
     boundary, (S',P,3) the masks' but the drop bounds' or None), the drop
@@ -1206,10 +1234,13 @@ class GatherMap:
         del position, share, is_point, others, scale
         tree, estimating = run_tasks(trees, workers, should_cancel)
         del trees
-        # Kept in the tree's order: a search result indexes these arrays directly.
-        self.position = tree.position.astype(np.float64)
+        # Kept in the tree's order: a search result indexes these arrays directly. The
+        # points' position is the tree's float32 array and their normal the photons'
+        # (float32): the kernels and estimates read both as float64, the same values
+        # their float64 copies held (36 B a point less, docs/performance.md "mem48").
+        self.position = tree.position
         chosen_rows = np.take(rows, np.take(points, tree.order))
-        self.normal = np.take(photons.normal, chosen_rows, axis=0).astype(np.float64)
+        self.normal = np.take(photons.normal, chosen_rows, axis=0)
         # Each point's surface (its photon's, Photons.surface): its own estimate reads its
         # surface's photons, and a lookup takes only a point on its own surface
         # (engine/samesurface.py). NO_SURFACE: unknown, the normal tests alone.
@@ -1239,11 +1270,30 @@ class GatherMap:
                 bound_masks.append(mask)
         masks += bound_masks
 
-        chosen = None
+        P = len(self.position)
+        kept = len(masks) - len(bound_masks)  # the masks whose (P,3) levels the map keeps
+        # A kept mask with no estimating photon of nonzero power has a level of zeros
+        # (every term it sums is 0): not searched, its level one shared zero array
+        # (a read-only broadcast for the secondary shares, read by np.take alone; a
+        # (P,3) array where the lookup kernels read it as E). live: the others.
+        chosen, live = None, list(range(kept))
         if masks:
-            chosen = np.empty((len(masks), len(estimating)), np.bool_)
-            for row, mask in zip(chosen, masks):
-                np.take(mask, estimating.source, out=row)
+            est_power = np.any(estimating.photons.power != 0.0, axis=1)
+            rows_of = []
+            live = []
+            for i, mask in enumerate(masks):
+                row = np.take(mask, estimating.source)
+                if i < kept:
+                    if not (row & est_power).any():
+                        continue  # a level of zeros
+                    live.append(i)
+                # As bits (pack_masks), row by row: 1/8 B a photon and mask, which a lazy
+                # map keeps (the (S, N) bool masks were made whole before: S B a photon
+                # at the map build's peak).
+                rows_of.append(pack_masks(row[None]))
+            del est_power, row
+            chosen = np.concatenate(rows_of) if rows_of else None
+            del rows_of
 
         def estimate(stop):
             return estimating.irradiance(self.position, self.normal, radius, k, min_photons,
@@ -1254,25 +1304,38 @@ class GatherMap:
         def neighbours(stop):
             return tree.neighbour_lists(workers=workers, should_cancel=stop)
 
-        P = len(self.position)
-        kept = len(masks) - len(bound_masks)  # the masks whose (P,3) levels the map keeps
+        n_live = len(live)
         if lazy:
             # The arrays the estimates fill (in place: the views below read them); the
             # drop bounds' masks fill their (P,) flags alone (_fill), and with keep no
             # view reads the estimate of every photon (E is keep's level): not kept.
             done = (np.zeros((P, 3)) if keep is None else None, np.ones(P, np.bool_)) + (
-                () if chosen is None else (np.zeros((kept, P, 3)),))
+                () if chosen is None else (np.zeros((n_live, P, 3)),))
             self.neighbours = run_tasks([neighbours], 1, should_cancel)[0]
             hit = [np.zeros(P, np.bool_) for _ in bound_masks]
         else:
             done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
             if bound_masks:
-                hit = [np.any(b != 0.0, axis=1) for b in done[2][kept:]]
+                hit = [np.any(b != 0.0, axis=1) for b in done[2][n_live:]]
                 # Only the kept levels: the drop bounds' (P,3) estimates, views of one
                 # array with them, would keep it all alive (24 B a point and mask).
-                done = done[:2] + (done[2][:kept].copy(),)
+                done = done[:2] + (done[2][:n_live].copy(),)
         E, self.boundary = done[0], done[1]
-        levels = list(done[2]) if masks else []
+        levels = []
+        if kept:
+            zero_E = zero_share = None
+            first_secondary = kept - len(secondary)
+            for i in range(kept):
+                if i in live:
+                    levels.append(done[2][live.index(i)])
+                elif i < first_secondary:
+                    if zero_E is None:
+                        zero_E = np.zeros((P, 3))
+                    levels.append(zero_E)
+                else:
+                    if zero_share is None:
+                        zero_share = np.broadcast_to(np.zeros(3), (P, 3))
+                    levels.append(zero_share)
         for key, j in zip(bound_keys, bound_of):
             self.drop_bounds[key] = hit[j] if j >= 0 else np.zeros(len(self.position), bool)
         if lazy:
@@ -1280,7 +1343,7 @@ class GatherMap:
                 estimating, chosen, (k, min_photons, estimator),
                 self.surface if len(self.surface) else None, done[0], done[1],
                 done[2] if chosen is not None else None,
-                [(h, kept + j) for j, h in enumerate(hit)] if bound_masks else [])
+                [(h, n_live + j) for j, h in enumerate(hit)] if bound_masks else [])
         self.E = E if keep is None else levels.pop(0)
         if len(secondary):
             self.secondary_levels = levels[len(levels) - len(secondary):]
@@ -1357,10 +1420,11 @@ class GatherMap:
         got = self.counts_cache.get(key)
         if got is None:
             rows, which = self.estimating_classes
-            # The count's mask once, kept as bits (1/8 B a photon): the take over every
-            # estimating photon per call was 2/3 of these calls' CPU on Figure 6.
-            bits = np.packbits(np.take(pk.bounce_usable(rows, np.asarray(limits, np.int64),
-                                                        key), which))
+            # The count's mask once, kept as bits (1/8 B a photon, pack_masks: what the
+            # estimate reads): the take over every estimating photon per call was 2/3 of
+            # these calls' CPU on Figure 6.
+            bits = pack_masks(np.take(pk.bounce_usable(rows, np.asarray(limits, np.int64),
+                                                       key), which)[None])
             got = self.counts_cache.setdefault(key, (bits, _NO_POINTS, np.zeros((0, 3))))
         # A sparse store per count: the points asked so far (ascending) and their E. A
         # dense (P,3) + (P,) per count held 52 MB on Figure 6 (34 counts, 60 k points)
@@ -1371,11 +1435,10 @@ class GatherMap:
         new = np.unique(points[~found])
         if len(new):
             k, min_photons, estimator = self.estimate_args
-            mask = np.unpackbits(bits, count=len(self.estimating)).view(np.bool_)
             surf = self.surface if len(self.surface) else None
             _, masked = self.estimating.irradiance(
                 np.take(self.position, new, axis=0), np.take(self.normal, new, axis=0),
-                self.radius, k, min_photons, estimator, masks=mask[None],
+                self.radius, k, min_photons, estimator, masks=bits,
                 surface=None if surf is None else np.take(surf, new))
             merged = np.concatenate([known, new])
             order = np.argsort(merged, kind="stable")
@@ -1746,9 +1809,11 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, surface, E
             continue
         # The ray's ends from scalars (_ray_ends): a kernel called with arrays pays ~14 ns
         # per array (reference counts) when it is not inlined, ~0.1 us a ray here.
+        # (the points' float32 position and normal, as float64: _ray_ends' arithmetic)
         ox, oy, oz, dx, dy, dz, t = _ray_ends(
-            qx, qy, qz, nx, ny, nz, q[r, 6], position[c, 0], position[c, 1],
-            position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
+            qx, qy, qz, nx, ny, nz, q[r, 6], np.float64(position[c, 0]),
+            np.float64(position[c, 1]), np.float64(position[c, 2]),
+            np.float64(normal[c, 0]), np.float64(normal[c, 1]), np.float64(normal[c, 2]))
         o32[nrays, 0], o32[nrays, 1], o32[nrays, 2] = ox, oy, oz
         d32[nrays, 0], d32[nrays, 1], d32[nrays, 2] = dx, dy, dz
         t32[nrays] = t
@@ -1842,8 +1907,9 @@ def _list_rays(position, normal, p, n, lift, rows, lists, counts, pending, nxt, 
         for e in range(nxt[r], min(nxt[r] + batch, counts[r])):
             c = lists[r, e]
             ox, oy, oz, dx, dy, dz, t = _ray_ends(
-                qx, qy, qz, n[i, 0], n[i, 1], n[i, 2], la, position[c, 0], position[c, 1],
-                position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
+                qx, qy, qz, n[i, 0], n[i, 1], n[i, 2], la, np.float64(position[c, 0]),
+                np.float64(position[c, 1]), np.float64(position[c, 2]),
+                np.float64(normal[c, 0]), np.float64(normal[c, 1]), np.float64(normal[c, 2]))
             o32[k, 0], o32[k, 1], o32[k, 2] = ox, oy, oz
             d32[k, 0], d32[k, 1], d32[k, 2] = dx, dy, dz
             t32[k] = t

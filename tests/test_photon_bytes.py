@@ -8,19 +8,30 @@ stats["photon_bytes"]; issue 13's "<= 64 bytes per stored photon", docs/performa
 - a gather map keeps no (P,3) estimate of its drop bounds' masks (only their (P,) flags),
   eager or lazy;
 - GatherCounts keeps its photons' count classes (1 B a photon), not their (N,4) counts,
-  with the same masks.
+  with the same masks;
+and the lossless cuts of docs/performance.md "mem48":
+- masks as bits (pack_masks: 1/8 B a photon and mask) give the estimates of the bool
+  masks, bit for bit; a lazy gather map keeps its masks so, and counts_irradiance's
+  bits are bounce_usable's rows;
+- the gather points' position (the tree's) and normal are float32, and the rays to them
+  the float64 copies' bits;
+- a kept mask without an estimating photon of nonzero power keeps no level of its own
+  (one shared zero array: the zeros the estimate gives);
+- GatherCounts keeps a few distinct powers as a palette, the same values;
+- a map's per-key usable masks (chaincounts) are kept as bits.
 """
 import importlib
 import os
 import sys
 
 import numpy as np
+import pytest
 
 from engine import RenderSettings
 from engine import photonkernels as pk
 from engine.api import cornell_box
 from engine.chaincounts import GatherCounts
-from engine.photonmap import GatherMap, PhotonMap
+from engine.photonmap import GatherMap, PhotonMap, _list_rays, pack_masks, unpack_masks
 from engine.render import prepare_context, shoot_photons
 from engine.resources import held_bytes
 
@@ -79,7 +90,9 @@ def test_gather_maps_keep_no_estimate_of_their_drop_bounds():
             assert g._lazy.levels.shape == (3, P, 3)
             assert g._lazy.E is None  # (every photon's estimate: no view reads it, keep's)
             assert getattr(g._lazy.estimating, "source", None) is None  # (its rows: used)
-            assert g._lazy.chosen.shape[0] == 5  # the masks' estimates still come whole
+            # the masks' estimates still come whole, kept as bits
+            assert g._lazy.chosen.shape == (5, (len(g._lazy.estimating) + 7) // 8)
+            assert g._lazy.chosen.dtype == np.uint8
             g.complete()
         for level in (g.E, g.subset_maps[0].E, g.secondary_levels[0]):
             assert _base(level).shape[0] * _base(level).shape[1] <= 3 * P
@@ -150,3 +163,145 @@ def test_the_photon_hit_view_keeps_only_its_dots():
         assert view[1:] == whole[1:] and view[1] > 0
     finally:
         ctx.accel.close()
+
+
+def test_masks_as_bits_give_the_estimates_of_bool_masks():
+    rng = np.random.default_rng(6)
+    ph = _plane(3001, rng)  # (not a multiple of 8 photons)
+    n = len(ph)
+    pm = PhotonMap(ph)
+    masks = np.stack([rng.random(n) < 0.5, np.zeros(n, bool), np.ones(n, bool),
+                      rng.random(n) < 0.01])
+    bits = pack_masks(masks)
+    assert bits.dtype == np.uint8 and bits.shape == (4, (n + 7) // 8)
+    np.testing.assert_array_equal(unpack_masks(bits, n), masks)
+    q = np.c_[rng.random((500, 2)), np.zeros(500)]
+    nq = np.tile([0.0, 0.0, 1.0], (500, 1))
+    a = pm.irradiance(q, nq, 0.05, 16, 1, "knn_simpson", return_boundary=True, masks=masks)
+    b = pm.irradiance(q, nq, 0.05, 16, 1, "knn_simpson", return_boundary=True, masks=bits)
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+    assert a[2][0].any() and not a[2][1].any()
+    np.testing.assert_array_equal(a[2][2], a[0])  # (every photon: the estimate itself)
+    with pytest.raises(ValueError, match="masks"):
+        pm.irradiance(q, nq, 0.05, 16, 1, "knn_simpson", masks=bits[:, :-1])
+
+
+def test_counts_irradiance_bits_are_bounce_usable_rows():
+    rng = np.random.default_rng(8)
+    ph = _plane(12000, rng)
+    n = len(ph)
+    bounces = rng.integers(0, 4, (n, 4)).astype(np.uint8)
+    lim = np.array([3, 2, 2, 2])
+    g = GatherMap(ph, 0.05, 16, 1, "knn_simpson", max_points=2000, bounces=bounces)
+    key = (2, 1, 1, 0)
+    g.counts_irradiance(np.arange(5), lim, key)
+    bits = g.counts_cache[key][0]
+    rows, which = g.estimating_classes
+    assert bits.shape == (1, (len(g.estimating) + 7) // 8)
+    np.testing.assert_array_equal(unpack_masks(bits, len(g.estimating))[0],
+                                  pk.bounce_usable(rows, lim, key)[which])
+
+
+def test_gather_points_are_float32_and_their_rays_the_float64_bits():
+    rng = np.random.default_rng(9)
+    g = GatherMap(_plane(8000, rng), 0.05, 16, 1, "knn_simpson", max_points=2000)
+    assert g.position is g.tree.position and g.position.dtype == np.float32
+    assert g.normal.dtype == np.float32
+    P = len(g.position)
+    rows = np.arange(40)
+    q = np.c_[rng.random((40, 2)), np.full(40, 1e-4)]
+    nq = np.tile([0.0, 0.0, 1.0], (40, 1))
+    lists = rng.integers(0, P, (40, 4)).astype(np.int64)
+    counts = np.full(40, 4, np.int64)
+    out = []
+    for pos, nrm in ((g.position, g.normal),
+                     (g.position.astype(np.float64), g.normal.astype(np.float64))):
+        o32, d32 = np.empty((160, 3), np.float32), np.empty((160, 3), np.float32)
+        t32, slot = np.empty(160, np.float32), np.empty(160, np.int64)
+        k = _list_rays(pos, nrm, q, nq, np.zeros(0), rows, lists, counts, rows,
+                       np.zeros(40, np.int64), 4, o32, d32, t32, slot)
+        out.append((k, o32[:k], d32[:k], t32[:k], slot[:k]))
+    assert out[0][0] == 160
+    for x, y in zip(*out):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_a_mask_without_power_keeps_no_level():
+    """A secondary mask and a subset without an estimating photon of power: their levels
+    are zeros (what the estimate gives them), one shared array each kind, eager and lazy,
+    and the map holds 2 x 24 B a point less than with a photon in each."""
+    for lazy in (False, True):
+        rng = np.random.default_rng(10)
+        ph = _plane(20000, rng)
+        n = len(ph)
+        none = np.zeros(n, bool)
+        g = GatherMap(ph, 0.05, 16, 1, "knn_simpson", max_points=3000, subsets=[none, none],
+                      secondary=[none], lazy=lazy)
+        P = len(g.position)
+        g.complete()
+        assert g.E.any()
+        for level in (g.subset_maps[0].E, g.subset_maps[1].E, g.secondary_levels[0]):
+            assert level.shape == (P, 3) and not level.any()
+        assert g.subset_maps[0].E is g.subset_maps[1].E
+        assert g.subset_maps[0].E.flags.c_contiguous  # (the lookup kernels read it)
+        one = np.zeros(n, bool)
+        one[rng.integers(0, n, 50)] = True
+        h = GatherMap(ph, 0.05, 16, 1, "knn_simpson", max_points=3000, subsets=[one, one],
+                      secondary=[one], lazy=lazy).complete()
+        assert held_bytes(h) - held_bytes(g) >= 2 * 24 * P - 64
+        for a, b in zip(g.subset_maps[0].lookup(np.c_[rng.random((50, 2)), np.zeros(50)],
+                                                np.tile([0.0, 0.0, 1.0], (50, 1))),
+                        (np.zeros((50, 3)),)):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_gather_counts_keep_few_powers_as_a_palette():
+    rng = np.random.default_rng(4)
+    n = 20000
+    bounces = rng.integers(0, 5, (n, 4)).astype(np.uint8)
+    levels = rng.random(12) * 3.0
+    power = levels[rng.integers(0, 12, n)]
+    power[::50] = 0.0
+    power[[7, 4711]] = (5.5, 6.5)  # (rare values, which a sample of the photons misses)
+    lim = np.array([6, 4, 4, 4])
+    g = GatherCounts(bounces, power, lim, 0.005)
+    plain = GatherCounts(bounces, rng.random(n), lim, 0.005)
+    assert np.array_equal(g.power.view(np.int64), power.view(np.int64))
+    assert isinstance(g._power, tuple) and len(g._power[0]) == 15
+    assert held_bytes(g) <= held_bytes(plain) - 7 * n + levels.nbytes + 64
+    # (a decision reads the same sums: against a counts object holding the plain array)
+    ref = GatherCounts.__new__(GatherCounts)
+    ref.__dict__.update(g.__dict__ | {"_power": power.copy(), "_cache": {}})
+    for key in ((1, 1, 0, 0), (3, 2, 1, 0), (5, 1, 2, 2)):
+        assert g.drops(0, key) == ref.drops(0, key)
+        assert g.kept_share(0, key) == ref.kept_share(0, key)
+    np.testing.assert_array_equal(g._classes()[1], ref._classes()[1])
+
+
+def test_a_maps_usable_masks_are_kept_as_bits():
+    """chaincounts' per-key usable masks (a caustic map's, read after specular chains):
+    bits (1/8 B a photon and key), the same mask, and the masked estimate of
+    chaincounts.irradiance that of the bool masks."""
+    from engine import chaincounts
+    rng = np.random.default_rng(12)
+    pm = PhotonMap(_plane(5003, rng))  # (not a multiple of 8 photons)
+    pm.photons.bounces = rng.integers(0, 4, (len(pm.photons), 4)).astype(np.uint8)
+    lim = np.array([3, 2, 2, 2])
+    counts = np.array([[1, 1, 0, 0], [2, 1, 1, 0], [3, 2, 1, 1]] * 30, np.int64)
+    q = np.c_[rng.random((90, 2)), np.zeros(90)]
+    nq = np.tile([0.0, 0.0, 1.0], (90, 1))
+    got = chaincounts.irradiance(pm, lim, counts, q, nq, 0.08, 16, 1, "knn_simpson")
+    cache = chaincounts.map_cache(pm)
+    assert cache
+    for key, (bits, every, some) in cache.items():
+        usable = pm.photons.usable(lim, key)
+        assert bits.dtype == np.uint8 and bits.shape == (1, (len(pm.photons) + 7) // 8)
+        np.testing.assert_array_equal(chaincounts._usable(pm.photons, lim, key, cache),
+                                      usable)
+        assert (every, some) == (usable.all(), usable.any())
+    for j, key in enumerate(map(tuple, counts[:3])):
+        want = pm.irradiance(q[j::3], nq[j::3], 0.08, 16, 1, "knn_simpson",
+                             masks=pm.photons.usable(lim, key)[None])[1][0]
+        if not pm.photons.usable(lim, key).all():
+            np.testing.assert_array_equal(got[j::3], want)
