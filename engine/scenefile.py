@@ -850,6 +850,26 @@ def _object(scene, obj, i, base):
         if mesh.normals is not None:
             nm = np.linalg.inv(M).T
             mesh.normals = mesh.normals @ nm.T
+        if np.linalg.det(M) < 0:
+            _mirror_winding(mesh)
+
+
+def _mirror_winding(mesh) -> None:
+    """A mirroring transform (det < 0) turns a mesh inside out: its faces' corners go
+    0, 2, 1 (and every per-corner array with them), so the winding normal points out again
+    beside the transformed shading normals, as the add-on's export and mirrored instances
+    order them (addon/export.py, engine/geometry.py _prototype_order)."""
+    F = len(mesh.faces)
+    mesh.faces = np.asarray(mesh.faces)[:, [0, 2, 1]]
+
+    def corners(a):
+        a = None if a is None else np.asarray(a)
+        return a[:, [0, 2, 1]] if a is not None and a.ndim == 3 and len(a) == F else a
+    mesh.normals = corners(mesh.normals)
+    mesh.uvs = corners(mesh.uvs)
+    mesh.colors = corners(mesh.colors)
+    if mesh.coordinates:
+        mesh.coordinates = {k: corners(v) for k, v in mesh.coordinates.items()}
 
 
 def _check_ply_header(path: str):

@@ -109,3 +109,24 @@ def test_a_template_without_instances_is_not_drawn_and_said(tmp_path):
     assert [m.name for m in scene.meshes] == ["plane.000"] or "ball" not in [
         m.name for m in scene.meshes]
     assert any("'ball' is a template" in w and "not drawn" in w for w in scene.all_warnings())
+
+
+def test_a_mirrored_copy_keeps_its_faces_outward(tmp_path):
+    """A scene-file object under a mirroring scale (det < 0) is turned inside out by the
+    transform alone: its corners go 0, 2, 1 so that its winding normal points out beside
+    its shading normals, as the add-on's export and mirrored instances order them (a
+    reviewer found the copies' winding inward: smooth glass 1.06x its unmirrored self)."""
+    copies, _ = load_scene(_copies(tmp_path))
+    copies.validate()
+    geo, _ = prepare(copies)
+    ball = [i for i, m in enumerate(copies.meshes) if m.vertices is not None
+            and len(m.faces) > 2]
+    assert len(ball) == 3
+    for k in ball:
+        rows = np.flatnonzero(geo.object_id == k)
+        tri = geo.v0[rows] + (geo.e1[rows] + geo.e2[rows]) / 3.0
+        centre = 0.5 * (tri.min(axis=0) + tri.max(axis=0))  # (geo's own frame)
+        outward = np.einsum("ij,ij->i", geo.ng[rows], tri - centre)
+        assert (outward > 0).mean() > 0.99, copies.meshes[k].name
+        ns = geo.shading_normals(rows, np.full(len(rows), 1 / 3), np.full(len(rows), 1 / 3))
+        assert (np.einsum("ij,ij->i", ns, geo.ng[rows]) > 0).all()
