@@ -31,9 +31,10 @@ from collections import deque
 from contextlib import contextmanager
 from dataclasses import replace
 
+from .effects import shot_words
 from .film import Film
-from .progressive import (ADAPTIVE_WARNING, Budget, PassMerger, budget_spent, max_passes_of,
-                          overrun_warning, pass_settings)
+from .progressive import (ADAPTIVE_WARNING, Budget, PassMerger, add_shot_counts, budget_spent,
+                          max_passes_of, overrun_warning, pass_settings)
 from .render import (_check_region, close_context, prepare_context, render_cryptomatte,
                      render_pass, warning_key, warning_teller)
 from .scene import Scene
@@ -388,6 +389,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     pending: dict = {}   # pass -> future
     finished: dict = {}  # pass -> Film, waiting for the passes before it
     log, effects, warnings, keys = [], [], [], set()
+    shots = {}  # the caustic shots' counts over the passes (progressive.add_shot_counts)
     cancelled = False
     next_pass = 1
     try:
@@ -460,6 +462,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                         warnings.append(w)
                 keys.update(warning_key(w) for w in warnings)
                 merger.add(one)
+                add_shot_counts(shots, one.stats)
                 elapsed = time.perf_counter() - t_start
                 info = dict(passes=merger.passes, photons=merger.photons, elapsed=elapsed,
                             error_estimate=merger.error,
@@ -492,7 +495,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     film = merger.film
     film.stats.update(progressive=True, passes=merger.passes, error_estimate=merger.error,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
-                      effects=effects, time_total=time.perf_counter() - t_start,
+                      effects=shot_words(effects, shots), time_total=time.perf_counter() - t_start,
                       distributed=dict(workers=len(client.nthreads()), threads=nthreads))
     film.warnings = list(warnings or scene.all_warnings())
     if settings.adaptive_threshold > 0:  # the passes take all their samples (pass_settings)

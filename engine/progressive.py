@@ -37,6 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .datapasses import FIRST_SAMPLE
+from .effects import shot_words
 from .film import EFFECTS, Film
 from .lights import light_census
 from .mallocheap import render_heap
@@ -207,6 +208,16 @@ class PassMerger:
             self.film.data[key] = (total / i).astype(np.float32)
 
 
+def add_shot_counts(shots: dict, stats: dict) -> None:
+    """Sum a pass' caustic shot counts (stats caustic_shot_stored, caustic_photons_emitted,
+    caustic_shot_aimed: render._photon_pass) into shots, in place, for effects.shot_words
+    over all the passes (the local and the Dask passes alike)."""
+    for key in ("caustic_shot_stored", "caustic_photons_emitted"):
+        if stats.get(key) is not None:
+            shots[key] = shots.get(key, 0) + int(stats[key])
+    shots["caustic_shot_aimed"] = bool(stats.get("caustic_shot_aimed"))
+
+
 def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                        budget: Budget | None = None, progress=None, should_cancel=None,
                        on_pass=None, region=None, on_warning=None) -> Film:
@@ -252,6 +263,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     log = []
     cancelled = False
     i = 0
+    shots = {}  # the caustic shots' stored / emitted photons over the passes (shot_words)
     try:
         # One malloc setting over all the passes (engine/mallocheap.py): the heaps a
         # pass grew serve the next, trimmed once at the end, not after every pass.
@@ -273,6 +285,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                     i -= 1
                     break
                 merger.add(one)
+                add_shot_counts(shots, one.stats)
                 elapsed = time.perf_counter() - t_start
                 info = dict(passes=i, photons=merger.photons, elapsed=elapsed,
                             error_estimate=merger.error, k_nearest=ctx.settings.k_nearest,
@@ -289,7 +302,8 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     film = merger.film
     film.stats.update(progressive=True, passes=i, error_estimate=merger.error,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
-                      effects=ctx.plan.report(), light_census=light_census(ctx.lights, scene),
+                      effects=shot_words(ctx.plan.report(), shots),
+                      light_census=light_census(ctx.lights, scene),
                       time_total=time.perf_counter() - t_start)
     film.warnings = scene.all_warnings() + ctx.plan.warnings + pass_warnings
     tell(film.warnings)

@@ -449,6 +449,14 @@ def test_glossy_tiles_say_how_little_of_their_light_makes_a_caustic():
                          f"({100 * stored / emitted:.1f} %)"), line
     assert shot_words(["caustics: on - x", "photon maps: on - y"], {}) == [
         "caustics: on - x", "photon maps: on - y"]
+    # Progressive passes say it too, summed over the passes (review48: the words were
+    # the single render's only).
+    from engine.progressive import Budget, render_progressive
+    film = render_progressive(s, RenderSettings(photons=5000, caustic_photons=20_000,
+                                                spp=1, workers=1), Budget(passes=2))
+    line = next(ln for ln in film.stats["effects"] if ln.startswith("caustics:"))
+    assert film.stats["passes"] == 2
+    assert " aimed photons stored (" in line, line
 
 
 def test_a_mirror_and_a_glass_ball_are_caustic_casters_by_name():
