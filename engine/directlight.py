@@ -1001,7 +1001,7 @@ class DirectLightBuffers:
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
                  bsdf=None, buffers=None, rows=None, transmission=None, passages=None,
                  light_cut=None, medium_sigma=None, world_sigma=None, link=None,
-                 glossy=None):
+                 glossy=None, used=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -1048,6 +1048,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     rough reflective lobes' part of the radiance, sheen aside (accumulate_bsdf again over
     the same entries with the diffuse f and the sheen's weight at 0: the light passes'
     Glossy Direct, engine/lightpasses.py).
+    used (n,) int64: the transparent bounces each hit's camera path made before it
+    (Cycles' transparent_bounce, which its shadow rays start from: they cross the
+    shadow's max_hits minus that many; ShadowTransmittance's used); None: 0.
     Returns (E or radiance, number of shadow rays traced)."""
     if link is not None and n and samples:
         links, recv = link
@@ -1055,7 +1058,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                             recv, shadow=shadow, tree=tree, bsdf=bsdf, buffers=buffers,
                             rows=rows, transmission=transmission, passages=passages,
                             light_cut=light_cut, medium_sigma=medium_sigma,
-                            world_sigma=world_sigma)
+                            world_sigma=world_sigma, used=used)
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
     # No bent normal (nsm is ns): every bump term is 1, none is written or read.
@@ -1143,8 +1146,16 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                     else:
                         ray_cap = np.zeros(m_rays, np.int64)
                         ray_cap[r[on]] = np.take(passages, hits)
+                ray_used = None
+                if used is not None:
+                    # Each traced ray's path's transparent bounces, from its hit.
+                    r = buf.ray[:m_all]
+                    on = r >= 0
+                    ray_used = np.zeros(m_rays, np.int64)
+                    ray_used[r[on]] = np.take(used, buf.row[:m_all][on])
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
-                                    buf.contrib, buf.ray, m_all, shadow_cls, ray_cap, crossed)
+                                    buf.contrib, buf.ray, m_all, shadow_cls, ray_cap, crossed,
+                                    ray_used)
                 if was_blocked is not None:
                     _dim_in_medium(buf, m_all, ~(was_blocked & ~blocked), t_keep,
                                    world_sigma)

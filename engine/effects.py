@@ -1303,8 +1303,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             + " (invisible, as in Cycles)" if volumes else "") if x)
         cap = s.transparent_max_bounces
         plan.add("transparency", True, what
-                 + (f"; shadow rays cross up to {cap} transparent surfaces" if cap
-                    else "; transparent max bounces 0: they block shadow rays"))
+                 + (f"; shadow rays cross up to {cap} transparent surfaces, less those "
+                    f"their camera path crossed, and a camera path ends at the surface "
+                    f"after its {_ordinal(cap)} (Light Paths > Max Bounces > Transparent, "
+                    "counted along the whole path as in Cycles)" if cap
+                    else "; transparent max bounces 0: they block shadow rays, and a "
+                    "camera path ends at the surface after its first"))
     sigma = getattr(table, "absorption", None)
     scat = getattr(table, "scattering", None)
     if sigma is not None and scat is not None:
@@ -1568,6 +1572,13 @@ def _instance_groups(names) -> list[tuple[str, int, str]]:
 
 def _shown(name: str, count: int) -> str:
     return f"'{name}'" + (f" ({count:,} instances)" if count > 1 else "")
+
+
+def _ordinal(n: int) -> str:
+    """1 -> "1st", 2 -> "2nd", 8 -> "8th", 11 -> "11th", 22 -> "22nd"."""
+    n = int(n)
+    tail = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{tail}"
 
 
 def _quoted(names, most: int | None = 4) -> str:

@@ -39,7 +39,7 @@ def rough_transmission_rows(prm, cand) -> np.ndarray:
 
 
 def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters,
-                      counts=None) -> np.ndarray:
+                      counts=None, used=None) -> np.ndarray:
     """Radiance (K,3) towards wo that the rough glass hits rows (K,) int64 of the batch
     `hit` (bsdf.SurfaceHit; prm (N, N_PACK) their packed lobes, sel (N, N_LOBES) the
     continuation's lobe-choice probabilities, valid where psum (N,) > 0: elsewhere no
@@ -53,7 +53,8 @@ def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters,
     order; None: none, the camera's first hits): shadow rays through flat glass passages
     cross only as many as the limits allow after the refraction's own transmission bounce
     (chaincounts.flat_passages, TRANSMISSION: Cycles finds a light behind a pane beyond
-    rough glass by that refraction and the pane's two)."""
+    rough glass by that refraction and the pane's two). used: (K,) int64, the transparent
+    bounces the rows' camera paths made before them (directlight.direct_light's; None: 0)."""
     k_rows = len(rows)
     if k_rows == 0 or not samples:
         return np.zeros((k_rows, 3))
@@ -85,6 +86,6 @@ def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters,
                              ctx.accel, SHADOW, k_rows, shadow=shadow,
                              tree=None if chosen is None else chosen[1],
                              transmission=transmission, passages=passages,
-                             link=receiver_link(ctx, hit, rows))
+                             link=receiver_link(ctx, hit, rows), used=used)
     counters.shadow_rays += rays
     return out

@@ -132,7 +132,8 @@ _EMPTY_F = np.zeros(0)
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                       skip_mesh_lights=False, bsdf=None, buffers=None, rows=None,
-                      counts=None, shade_glossy=None, glossy_out=None) -> np.ndarray:
+                      counts=None, shade_glossy=None, glossy_out=None,
+                      used=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
@@ -160,7 +161,10 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     shadelight.shade_bsdf_weights); False elsewhere.
     glossy_out: None, or an (n,3) zero array that receives, with bsdf, the rough
     reflective lobes' part of the result, sheen aside (Cycles counts sheen as diffuse;
-    the light passes' Glossy Direct, engine/lightpasses.py): direct_light's glossy."""
+    the light passes' Glossy Direct, engine/lightpasses.py): direct_light's glossy.
+    used: (n,) int64, the transparent bounces each hit's camera path made before it: its
+    shadow rays cross that many fewer transparent surfaces (Cycles' transparent_bounce,
+    path-wide; directlight.direct_light's used); None: 0 (first hits)."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     light_cut = None
@@ -214,7 +218,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
                            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
-                           else None, link=link, glossy=g_out)
+                           else None, link=link, glossy=g_out, used=used)
     counters.shadow_rays += rays
     if glossy_out is not None and bsdf is not None and link is not None:
         # Light Linking splits the hits by receiver set: the same samples again with the
@@ -225,7 +229,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             bsdf=(np.zeros_like(bsdf[0]),) + bsdf[1:], rows=rows, passages=passages,
             light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
             world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None else None,
-            link=link)[0]
+            link=link, used=used)[0]
     if shade_glossy is not None:
         shade_glossy[:] = False
     panes, shades = panes_for(ctx), shades_for(ctx)
@@ -2130,7 +2134,7 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
                   rows=None, bounce=None, extra=None, clamp_tp=None, shade_glossy=None,
-                  glossy_out=None):
+                  glossy_out=None, used=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -2155,17 +2159,20 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     the direct term is the caller's to clamp); None: no clamp.
     shade_glossy: direct_irradiance's (the rows whose glossy lobes took the lamps through
     shades), written when glossy rows take shadow rays; None: not asked. glossy_out:
-    direct_irradiance's (the glossy lobes' part of direct), with glossy rows."""
+    direct_irradiance's (the glossy lobes' part of direct), with glossy rows.
+    used: (K,) int64 per shaded row, the transparent bounces its camera path made
+    (direct_irradiance's); None: 0."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
                                    buffers=buffers, rows=rows, counts=extra,
-                                   shade_glossy=shade_glossy, glossy_out=glossy_out)
+                                   shade_glossy=shade_glossy, glossy_out=glossy_out,
+                                   used=used)
     else:
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
-                                   rows=rows, counts=extra)
+                                   rows=rows, counts=extra, used=used)
         np.multiply(f, direct, out=direct)  # f x E, in place
     if bounce is not None:
         counters.count("camera shadow", bounce, counters.shadow_rays - shadow_rays_before)
@@ -2939,6 +2946,18 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # still collects emission and the background where its ray ends (Cycles'
     # PATH_RAY_TERMINATE_AFTER_TRANSPARENT), but that hit is neither shaded nor continued.
     limits = s.bounce_limits
+    # Cycles' Light Paths > Max Bounces > Transparent, counted along the whole path
+    # (path_state_next: every transparent pass adds one to transparent_bounce, no bounce
+    # resets it; docs/design.md, Transparent shadows): each path's passes so far. Once a
+    # pass brings it to the limit, the next surface ends the path (Cycles'
+    # PATH_RAY_TERMINATE_ON_NEXT_SURFACE: its emission is still collected, and the world
+    # where the ray misses; integrate_surface_terminate), and a hit's shadow rays cross
+    # only the passes left. A volume-only surface's pass is none (path_state_volume_next).
+    t_limit = max(int(s.transparent_max_bounces), 1)
+    t_count = np.zeros(len(o), np.int64)
+    volume_only = (np.asarray(ctx.table.volume_only, bool)
+                   if getattr(ctx.table, "volume_only", None) is not None
+                   and np.any(ctx.table.volume_only) else None)
     # Cycles' Clamp Direct / Indirect (engine/sampleclamp.py): off, nothing is touched.
     # Cycles' bounce of a contribution is the chain's bent bounces (chain[:, 0]) for light
     # sampled at a hit, one less for an emitter or the world the ray meets; 0 is direct.
@@ -3242,6 +3261,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if lpass is not None:
                 lpass.take(kept)
             chain = np.take(chain, kept, axis=0)
+            t_count = np.take(t_count, kept)
             if shade_from is not None:
                 shade_from = shade_from[kept]
             if may_split is not None:
@@ -3306,6 +3326,19 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 | (chain[:, 0] - chain[:, 1] - chain[:, 2] > limits[1])) if bounce > 0 else None
         if over is not None and not over.any():
             over = None
+        # Paths whose last pass reached the transparent limit end at this hit: neither
+        # shaded nor continued, not even through its transparent share (unlike a bounce
+        # limit's PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
+        ended = t_count >= t_limit if bounce > 0 else None
+        if ended is not None and not ended.any():
+            ended = None
+        if ended is not None:
+            over_pass = over  # (the bounce limits' rows that still pass)
+            if over_pass is not None:
+                over_pass = over_pass & ~ended
+            over = ended if over is None else over | ended
+        else:
+            over_pass = over
         # A pixel's footprint: only the photon estimates read it.
         footprint = None
         if s.photon_mapping:
@@ -3475,7 +3508,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 rows=None if every else dsel, bounce=bounce,
                 extra=None if bounce == 0 else _chain_counts(chain if every else chain[dsel]),
                 clamp_tp=(ctp if every else np.take(ctp, dsel, axis=0)) if clamping else None,
-                shade_glossy=sg, glossy_out=g_part)
+                shade_glossy=sg, glossy_out=g_part,
+                used=(t_count if every else np.take(t_count, dsel))
+                if bounce > 0 and t_count.any() else None)
             if sg is not None and sg.any():
                 shade_rows = np.zeros(n, np.bool_)
                 shade_rows[dsel[sg]] = True
@@ -3529,19 +3564,20 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 glargs = (prm if hit.prm is None else hit.prm, sel, psum, modes)
                 gcounts = None if bounce == 0 else _chain_counts(np.take(chain, gl, axis=0))
                 Wg = None if shade_W is None else shade_W[gl]
+                gused = (np.take(t_count, gl) if bounce > 0 and t_count.any() else None)
                 if Wg is None or (Wg == 1.0).all():
                     Lt = transmitted_light(ctx, hit, gl, *glargs, gsamples, counters,
-                                           counts=gcounts)
+                                           counts=gcounts, used=gused)
                 else:
                     # The served lamps' light apart, each by its weight (the same samples).
                     weighted = [li for li in sorted(shades.served) if (Wg[:, li] != 1.0).any()]
                     Lt = transmitted_light(ctx, hit, gl, *glargs,
                                            [e for e in gsamples if e[0] not in weighted],
-                                           counters, counts=gcounts)
+                                           counters, counts=gcounts, used=gused)
                     for li in weighted:
                         Lt = Lt + Wg[:, li][:, None] * transmitted_light(
                             ctx, hit, gl, *glargs, [e for e in gsamples if e[0] == li],
-                            counters, counts=gcounts)
+                            counters, counts=gcounts, used=gused)
                 if clamping:
                     Lt = sampleclamp.clamp(Lt, sampleclamp.split_throughput(tp, cscale), gl,
                                            sampleclamp.bounce_limits(
@@ -3598,7 +3634,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if may_split is not None:
                 cont = cont[:6] + (cont[6][go], cont[7][go])
             # But it passes a transparent share, unbent (Cycles' TERMINATE_AFTER_TRANSPARENT).
-            extra = passes_past_limit(ctx.table, hit, over, d_in, tp_in, cls_in)
+            extra = (passes_past_limit(ctx.table, hit, over_pass, d_in, tp_in, cls_in)
+                     if over_pass is not None else (_NO_ROWS,))
             if len(extra[0]):
                 keep, o, d, tp, ray_cls, pdf_b = (
                     np.concatenate((a, b)) for a, b in zip((keep, o, d, tp, ray_cls, pdf_b),
@@ -3643,6 +3680,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 ray_cls))
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
+        # The transparent passes (the unbent continuations, a volume-only surface's
+        # aside) count against Max Bounces > Transparent.
+        t_count = np.take(t_count, keep)
+        passed = ~bent
+        if volume_only is not None:
+            passed &= ~np.take(volume_only, np.take(hit.mat, keep))
+        t_count += passed
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
         org_ns_in = org_ns if kept is None else np.take(org_ns, kept, axis=0)
         org_p_in = org_p if kept is None else np.take(org_p, kept, axis=0)

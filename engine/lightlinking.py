@@ -303,13 +303,13 @@ class LightLinks:
 
     def direct(self, direct_light, packed, hit_arrays, samples, accel, shadow_cls, n, recv,
                rows=None, transmission=None, bsdf=None, passages=None, medium_sigma=None,
-               world_sigma=None, tree=None, trees=None, **kw):
+               world_sigma=None, tree=None, trees=None, used=None, **kw):
         """directlight.direct_light with Light and Shadow Linking (its `link`): the hits
         of each receiver set (recv (n,) int64, -1: none) with their own packing (and,
         when a light tree picks the lights, with trees(s): set_selector's tree of that
         set), and each shadow group's lights with its own BVH; the per-hit inputs taken
         at each set's rows (bsdf's fd and transmission's arrays count the hits; bsdf's
-        prm, wo and sel are read at the rows), the sums put back. Returns (E (n,3),
+        prm, wo and sel are read at the rows; used too), the sums put back. Returns (E (n,3),
         shadow rays)."""
         sets = np.unique(recv)
         groups = list(range(len(self.shadow_groups))) or [-1]
@@ -332,7 +332,7 @@ class LightLinks:
             return direct_light(self.packed_for(packed, int(sets[0])), hit_arrays, samples,
                                 accel, shadow_cls, n, rows=rows, transmission=transmission,
                                 bsdf=bsdf, passages=passages, medium_sigma=medium_sigma,
-                                world_sigma=world_sigma, tree=t, **kw)
+                                world_sigma=world_sigma, tree=t, used=used, **kw)
         out = np.zeros((n, 3))
         rays = 0
         hrow = np.arange(n, dtype=np.int64) if rows is None else np.asarray(rows, np.int64)
@@ -358,7 +358,8 @@ class LightLinks:
                                     acc, shadow_cls, len(sel), rows=hrow[sel],
                                     transmission=tr_, bsdf=b, passages=pick(passages, sel),
                                     medium_sigma=pick(medium_sigma, sel),
-                                    world_sigma=pick(world_sigma, sel), tree=t, **kw)
+                                    world_sigma=pick(world_sigma, sel), tree=t,
+                                    used=pick(used, sel), **kw)
                 out[sel] += E
                 rays += r
         return out, rays

@@ -522,11 +522,11 @@ class ShadowTransmittance:
     hetero = None
 
     def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
-                      crossed_out=None) -> np.ndarray:
+                      crossed_out=None, used=None) -> np.ndarray:
         """_transmittance's (R,3), with the heterogeneous media's correction
         (heterogeneous.HeterogeneousMedia.correction: ratio tracking over the parts inside
         a medium with a density texture) on the rays that get through."""
-        trans = self._transmittance(o32, d32, t32, rows, cls, passages, crossed_out)
+        trans = self._transmittance(o32, d32, t32, rows, cls, passages, crossed_out, used)
         het = self.hetero
         if het is not None and len(trans):
             r = np.arange(len(o32)) if rows is None else np.asarray(rows, np.int64)
@@ -539,7 +539,7 @@ class ShadowTransmittance:
         return trans
 
     def _transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
-                       crossed_out=None) -> np.ndarray:
+                       crossed_out=None, used=None) -> np.ndarray:
         """(R,3) RGB transmittance of the shadow rays `rows` (default: all) from o32 (R,3)
         along d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space),
         through transparent surfaces: the product of (1 - alpha) x transparent tint of the
@@ -549,14 +549,21 @@ class ShadowTransmittance:
         cross (Cycles' bounce limits: each passage stands for two refractions,
         chaincounts.flat_passages); more: blocked. None: no cap. crossed_out: (R,) int64
         or None: written at rows with the flat passages each ray crossed (with a cap only;
-        a ray blocked past its cap counts the passage that blocked it)."""
+        a ray blocked past its cap counts the passage that blocked it). used: (R,) int64
+        per ray (as o32), the transparent bounces its camera path made before the point
+        it leaves (Cycles copies the path's transparent_bounce to the shadow path and
+        lets it cross transparent_max_bounce minus that many: intersect_shadow.h,
+        integrate_shadow_max_transparent_hits); None: 0, max_hits each."""
         if rows is None:
             rows = np.arange(len(o32))
         rows = np.asarray(rows, np.int64)
         ray_rows = rows  # (the walk below reuses the name for the hits' table rows)
         n = len(rows)
         trans = np.ones((n, 3))
-        count = np.zeros(n, np.int64)
+        # (The walk blocks a ray once its count reaches max_hits: a path's earlier passes
+        # start it there.)
+        count = (np.zeros(n, np.int64) if used is None
+                 else np.asarray(used, np.int64)[rows].copy())
         if n == 0:
             return trans
         # The flat passages each ray has crossed, against its cap (None: no cap).
@@ -698,18 +705,20 @@ class ShadowTransmittance:
         return trans
 
     def pass_blocked(self, o32, d32, t32, blocked, contrib, ray, m_all, cls=None,
-                     passages=None, crossed_out=None):
+                     passages=None, crossed_out=None, used=None):
         """After an OCCLUDED query: re-trace the blocked shadow rays through transparent
         surfaces; rays that get through are marked unblocked in `blocked` and the entries
         (j < m_all) of `contrib` that use them scaled by their transmittance (the layout
         of directlight.sample_lights). t32 must hold the rays' distances as they were
         before the query (Embree overwrites them). passages: (R,) the rays' most flat
         passages (transmittance's; None: no cap). crossed_out: (R,) int64 or None, the
-        flat passages each re-traced ray crossed (transmittance's; the rest untouched)."""
+        flat passages each re-traced ray crossed (transmittance's; the rest untouched).
+        used: (R,) the transparent bounces each ray's path made before (transmittance's;
+        None: 0)."""
         rows = np.nonzero(blocked)[0]
         if len(rows) == 0:
             return
-        trans = self.transmittance(o32, d32, t32, rows, cls, passages, crossed_out)
+        trans = self.transmittance(o32, d32, t32, rows, cls, passages, crossed_out, used)
         through = np.any(trans > 0.0, axis=1)
         if not through.any():
             return
