@@ -43,11 +43,23 @@ class GatherPassages:
         """None for a scene whose shadow rays cross no surface (CameraPassages.for_context:
         no flat passage nor transparent pass; then no ray is ever clear past its first
         hit), else the state of n gathering hits."""
-        camera = CameraPassages.for_context(ctx, 0)
-        if camera is None:
-            return None
+        shadow = getattr(ctx, "shadow", None)
         self = cls()
-        self.tables = camera.tables
+        self.tables = self.mat_pass = None
+        if shadow is not None and shadow.shared:
+            # Shared instance rows (engine/sharedrows.py) have no (T,) columns for the
+            # kernel, and their shadow rays cross transparent passes only (no flat
+            # passages: pk.flat_tables): the same rule on the hits' rows, so instances
+            # count what their expansion counts (tests/test_instancing.py).
+            self.geo = ctx.geo
+            self.mat_pass = np.asarray(shadow.transparent_materials(ctx.table), bool)
+            if not self.mat_pass.any():
+                return None
+        else:
+            camera = CameraPassages.for_context(ctx, 0)
+            if camera is None:
+                return None
+            self.tables = camera.tables
         self.clear = np.zeros(n)  # 1.0: clear (a float: camera_passage's pdf slot)
         self.entry = np.full(n, -1, np.int64)
         self.pre = np.zeros(n)
@@ -82,6 +94,9 @@ class GatherPassages:
         clear_out = np.zeros(K)
         entry_out = np.empty(K, np.int64)
         pre_out = np.empty(K)
+        if self.tables is None:
+            self._step_shared(prim, d_in, idx, keep, d_out, clear_in, entry_in, pre_in)
+            return
         scratch = [np.zeros((K, 3)) for _ in range(4)]
         camera_passage(*self.tables, c(prim, np.int64), c(d_in, np.float64),
                        c(p, np.float64), keep, c(d_out, np.float64), clear_in, zeros_m,
@@ -91,3 +106,21 @@ class GatherPassages:
         self.clear[rows] = clear_out
         self.entry[rows] = entry_out
         self.pre[rows] = pre_out
+
+    def _step_shared(self, prim, d_in, idx, keep, d_out, clear_in, entry_in, pre_in):
+        """step on shared instance rows: camera_passage's transparent-pass rule (a
+        continuation straight on through a material of mat_pass keeps the state; anything
+        else ends it) on the kept hits' rows alone."""
+        t = np.asarray(prim, np.int64)[keep]
+        hit = t >= 0
+        passed = np.zeros(len(keep), bool)
+        passed[hit] = self.mat_pass[np.asarray(self.geo.material[t[hit]], np.int64)]
+        a = np.asarray(d_in, np.float64)[keep]
+        b = np.asarray(d_out, np.float64)
+        straight = (np.einsum("ij,ij->i", a, b)
+                    >= (1.0 - 1e-12) * np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+        passed &= straight
+        rows = np.take(idx, keep)
+        self.clear[rows] = np.where(passed, clear_in[keep], 0.0)
+        self.entry[rows] = np.where(passed, entry_in[keep], -1)
+        self.pre[rows] = np.where(passed, pre_in[keep], 0.0)
