@@ -117,7 +117,7 @@ def rough_refractors(geo: Geometry, table: MaterialTable, emitting: list, accel,
     lamp's light through it is direct (its shadow rays), its photons there direct-kind,
     which the caustic shot does not keep."""
     none = np.zeros(0, np.int64)
-    if (not AIM_ROUGH_REFRACTORS or not emitting or not len(rough_tri)
+    if (not AIM_ROUGH_REFRACTORS or not emitting or not np.any(rough_tri)
             or not diff_tri.any() or settings.caustic_photons <= 0
             or shots_unread(settings, geo, table, indirect)):
         return none
@@ -377,21 +377,21 @@ def layer_reflectance(table: MaterialTable, mats) -> tuple:
     scaled by 2 x Specular IOR Level, as principled.setup) and Kulla and Conty's average
     Fresnel Fss = (eta - 1) / (4.08567 + 1.00071 eta) (fresnel.fresnel_dielectric_Fss),
     each times the coat's weight for a coat. (0, 0) without such a layer."""
-    from .closures import principled as pr
+    from .closures import fresnel, principled as pr
     q = np.asarray(table.closure_params, np.float64)[np.asarray(mats, np.int64)]
     f0s, fss = [0.0], [0.0]
 
     def add(ior, scale, weight):
-        ior = np.maximum(ior, 1e-5)
-        f0 = np.clip(((ior - 1.0) / (ior + 1.0)) ** 2 * scale, 0.0, 0.9999999)
-        eta = (1.0 + np.sqrt(f0)) / (1.0 - np.sqrt(f0))
-        ok = weight > 0.0
-        f0s.extend((weight * f0)[ok].tolist())
-        fss.extend((weight * (eta - 1.0) / (4.08567 + 1.00071 * eta))[ok].tolist())
+        for n, k, w in zip(ior, scale, weight):
+            if w > 0.0:  # (a few material rows: the scalar kernels called from Python)
+                f0 = min(fresnel.F0_from_ior(max(float(n), 1e-5)) * float(k), 0.9999999)
+                f0s.append(w * f0)
+                fss.append(w * fresnel.fresnel_dielectric_Fss(fresnel.ior_from_F0(f0)))
     add(q[:, pr.M_IOR], 2.0 * np.maximum(q[:, pr.M_LEVEL], 0.0),
         np.where(q[:, pr.M_SPEC] > 0.0, 1.0, 0.0) * (1.0 - q[:, pr.M_METALLIC])
         * (1.0 - q[:, pr.M_TRANS]))
-    add(np.maximum(q[:, pr.M_COAT_IOR], 1.0), 1.0, np.maximum(q[:, pr.M_COAT_W], 0.0))
+    add(np.maximum(q[:, pr.M_COAT_IOR], 1.0), np.ones(len(q)),
+        np.maximum(q[:, pr.M_COAT_W], 0.0))
     return max(f0s), max(fss)
 
 

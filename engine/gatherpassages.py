@@ -90,13 +90,13 @@ class GatherPassages:
         clear_in = c(np.take(self.clear, idx), np.float64)
         entry_in = c(np.take(self.entry, idx), np.int64)
         pre_in = c(np.take(self.pre, idx), np.float64)
+        if self.tables is None:
+            self._step_shared(prim, d_in, idx, keep, d_out, clear_in, entry_in, pre_in)
+            return
         zeros_m = np.zeros((M, 3))
         clear_out = np.zeros(K)
         entry_out = np.empty(K, np.int64)
         pre_out = np.empty(K)
-        if self.tables is None:
-            self._step_shared(prim, d_in, idx, keep, d_out, clear_in, entry_in, pre_in)
-            return
         scratch = [np.zeros((K, 3)) for _ in range(4)]
         camera_passage(*self.tables, c(prim, np.int64), c(d_in, np.float64),
                        c(p, np.float64), keep, c(d_out, np.float64), clear_in, zeros_m,

@@ -3330,15 +3330,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # shaded nor continued, not even through its transparent share (unlike a bounce
         # limit's PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
         ended = t_count >= t_limit if bounce > 0 else None
-        if ended is not None and not ended.any():
-            ended = None
-        if ended is not None:
-            over_pass = over  # (the bounce limits' rows that still pass)
-            if over_pass is not None:
-                over_pass = over_pass & ~ended
+        over_pass = over  # (the bounce limits' rows that still pass a transparent share)
+        if ended is not None and ended.any():
+            if over is not None:
+                over_pass = over & ~ended
             over = ended if over is None else over | ended
-        else:
-            over_pass = over
         # A pixel's footprint: only the photon estimates read it.
         footprint = None
         if s.photon_mapping:
