@@ -596,6 +596,37 @@ def _light_path_line(plan, geo, table) -> None:
                  "; ".join(parts) + "; photons and diffuse rays see the material itself")
 
 
+
+def _subsurface_line(plan: EffectPlan, geo: Geometry, table: MaterialTable, s,
+                     has_tris: bool) -> None:
+    """Says which surfaces scatter beneath them (Principled Subsurface Weight > 0, the
+    Subsurface Scattering node) and how: the random walk (engine/subsurfacewalk.py) for
+    camera paths, the diffuse stand-in (engine/subsurface.py) for photons and gather rays,
+    or the stand-in alone where the walk is off. A subsurface candle read as a plain
+    diffuse one would otherwise look like a bug (studio48)."""
+    params = getattr(table, "subsurface", None) or []
+    if not has_tris or not any(p is not None for p in params):
+        return
+    used = [int(m) for m in np.asarray(geo.used_materials(), np.int64)
+            if m < len(params) and params[m] is not None]
+    if not used:
+        return
+    names = _quoted(sorted({table.names[m] for m in used}), most=REPORT_NAMES_MAX)
+    stand_in = ("a diffuse surface of the albedo Cycles' random walk gives a thick object "
+                "of its Base Color")
+    if not getattr(s, "subsurface_walk", True):
+        plan.add("subsurface", False, f"{names} shaded as {stand_in} (Subsurface Random "
+                 "Walk is off)")
+    elif getattr(geo, "shared", None) is not None:
+        # (subsurfacewalk.SubsurfaceWalks.for_context: instanced rows have no per-object
+        # BVH to walk in yet)
+        plan.add("subsurface", False, f"{names} shaded as {stand_in}: the scene keeps its "
+                 "instances as placements, in which no walk runs yet")
+    else:
+        plan.add("subsurface", True, f"camera paths walk beneath {names} as Cycles' Random "
+                 "Walk does (light enters and leaves at different points); photons and "
+                 f"final-gather rays that reach them see {stand_in}")
+
 def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, settings,
             probe_clamp: bool = True) -> EffectPlan:
     # probe_clamp: measure what Cycles' Indirect clamp cuts for the clamping line
@@ -1224,7 +1255,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           + ") is indirect light to Cycles, whose clamp cuts much of it "
                           "(it reaches Cycles' paths after a refraction, in rare bright "
                           "samples): ours takes it by shadow rays, smoothly, and keeps it, "
-                          "so Cycles renders such a room darker than ours; set Indirect to 0 "
+                          "so Cycles renders what it lights darker than ours; set Indirect to 0 "
                           "in both to compare them")
         elif named:
             kinds_of = {li.name: li.kind for li in emitting}
@@ -1257,9 +1288,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             probed = (": a probe of its first diffuse bounces here finds none over it"
                       if probe_clamp and has_tris else "")
             glass_note = ("; Cycles clamps each path sample, and the bounce light of a "
-                          f"{lit} room comes to its paths in rare bright samples that the "
+                          f"{lit} scene comes to its paths in rare bright samples that the "
                           "clamp cuts, while photon estimates are smooth and seldom reach "
-                          "it: such rooms can read brighter here than in Cycles (where the "
+                          "it: such scenes can read brighter here than in Cycles (where the "
                           f"clamp cuts anything{probed}); set Indirect to 0 in both to "
                           "compare them")
         if s.clamp_indirect > 0 and plan.caustics and plan.casters:
@@ -1337,6 +1368,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                        else "; photons do not scatter in the medium (Volume bounces 0)")
                     if scattering
                     else "volume scattering is not simulated"))
+    _subsurface_line(plan, geo, table, s, has_tris)
     seated = getattr(geo, "seated_volumes", None) or []
     if seated:
         # Fog boxes standing on a floor (engine/volumecontact.py): said, because Cycles

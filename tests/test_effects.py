@@ -897,7 +897,7 @@ def test_report_says_when_clamping_is_on():
             "photon estimates 10 (R + G + B at most 30 per sample)") in text
     # The sunlit room's note is for scenes a sun or the world lights (newuser42 read it
     # under a bulb and in a black image).
-    assert "sunlit room" not in text
+    assert "sunlit" not in text
     text = effects(s.render(dataclasses.replace(base, clamp_direct=2.5)))
     assert "direct light 2.5 (R + G + B at most 7.5 per sample)" in text
     s.add_sun(direction=(0.3, 0.2, -1), strength=2.0, name="Sun")
@@ -905,7 +905,7 @@ def test_report_says_when_clamping_is_on():
     # Why a room reads brighter than Cycles at its default Indirect 10 (newuser40).
     assert "rare bright samples that the clamp cuts" in text
     assert "set Indirect to 0 in both" in text
-    assert "bounce light of a sunlit room" in text
+    assert "bounce light of a sunlit scene" in text
     # A World colour without a sun: not "sunlit" (newuser45's evening room).
     sky = PaperScene(width=16, height=16)
     sky.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
@@ -913,7 +913,7 @@ def test_report_says_when_clamping_is_on():
     sky.background = (0.2, 0.3, 0.4)
     sky.set_camera((0, -5, 2), (0, 0, 0.5))
     text = effects(sky.render(dataclasses.replace(base, clamp_indirect=10.0)))
-    assert "bounce light of a sky-lit (World) room" in text and "sunlit" not in text, text
+    assert "bounce light of a sky-lit (World) scene" in text and "sunlit" not in text, text
     # No light at all: a black image, no clamping paragraph.
     dark = PaperScene(width=16, height=16)
     dark.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
@@ -1261,3 +1261,28 @@ def test_caustics_line_says_no_photons_are_traced_where_filter_glossy_reads_none
     assert "photons aimed" not in blurred, blurred
     sharp = _line(_plan(s, cycles_filter_glossy=0.0), "caustics:")
     assert sharp.startswith("caustics: on - 200,000 photons aimed at 'Ball'"), sharp
+
+
+def test_subsurface_line_says_how_the_walk_runs():
+    """A Subsurface Weight > 0 surface is named with how it is rendered (studio48: the
+    report said nothing about a candle's random walk): the walk for camera paths and the
+    diffuse stand-in for photons and gather rays, or the stand-in alone with the walk off;
+    a scene without one has no such line."""
+    from engine import subsurfacewalk as sw
+    s = PaperScene(width=8, height=8, background=(1, 1, 1))
+    sp = sw.SubsurfaceParams.make(1.0, (0.8,) * 3, (1.0, 0.5, 0.25), 1.5, 0.3, 0.5)
+    s.add_material(Material("wax", tuple(sp.stand_in()), roughness=0.5, specular=0.0,
+                            subsurface=sp))
+    s.add_sphere((0, 0, 0), 1.0, "wax", segments=16)
+    s.set_camera((0, -4, 0), (0, 0, 0), view_angle=35)
+    base = RenderSettings(photons=1000, caustic_photons=0, spp=1)
+    text = effects(s.render(base))
+    assert "subsurface: on - camera paths walk beneath 'wax'" in text, text
+    assert "final-gather rays that reach them see a diffuse surface" in text
+    text = effects(s.render(dataclasses.replace(base, subsurface_walk=False)))
+    assert "subsurface: off - 'wax' shaded as a diffuse surface" in text, text
+    assert "(Subsurface Random Walk is off)" in text
+    plain = PaperScene(width=8, height=8, background=(1, 1, 1))
+    plain.add_sphere((0, 0, 0), 1.0, "white_diffuse", segments=16)
+    plain.set_camera((0, -4, 0), (0, 0, 0), view_angle=35)
+    assert "subsurface" not in effects(plain.render(base))
