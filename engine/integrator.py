@@ -56,7 +56,7 @@ from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .panelight import pane_irradiance, panes_for
 from .shadelight import shade_bsdf_weights, shade_light, shades_for
 from .mediumstart import point_medium
-from .shadowtransmittance import CameraPassages
+from .shadowtransmittance import CameraPassages, ShadowTransmittance
 from .gatherpassages import GatherPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
@@ -883,7 +883,7 @@ GUIDE_REGATHERS = False
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     level=0, should_cancel=None, lean=_UNSET, extra=None,
-                    glow_only=False, caustic=None) -> np.ndarray:
+                    glow_only=False, caustic=None, passes=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -908,7 +908,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     bounce gathers that way from level 0's gather ends.
     caustic: (N,3) float64 zeros, level 0: receives (added in place) the irradiance the
     chains carry where Cycles' Filter Glossy blurs the caustic / glow maps' paths
-    (engine/glossysplit.py), the maps' light at D; None: that goes into the result."""
+    (engine/glossysplit.py), the maps' light at D; None: that goes into the result.
+    passes: (N,) int64, the transparent bounces each hit's path made before it (the
+    camera path's, Cycles' transparent_bounce; None: 0). The rays' chains go on counting
+    from there (a transparent pass adds one, as path_state_next counts it along the
+    whole path): a chain that reaches Light Paths > Max Bounces > Transparent ends at its
+    next surface (its emission counted, no lookup, no continuation), and a regathered
+    end's shadow rays and next gather start from its count (_gather_pass_counts)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -1002,6 +1008,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                        glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
+    # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
+    # nothing to count), the limit and the volume-only surfaces (their pass is none).
+    t_limit, t_h, t_vol = _gather_pass_counts(ctx, n, passes, glow_only)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -1040,6 +1049,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         if turned_refl is not None:
             turned_h[:] = False
+        if t_h is not None:
+            t_h[:] = 0 if passes is None else passes
         if medium_h is not None:
             # From the gathering surface: the medium its camera path was in (a floor
             # inside a fog cube; not its own medium's surface), else not known.
@@ -1178,6 +1189,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             elif depth > 0 and passed is not None:
                 _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx,
                                  hit.prim, E, G)
+            if t_h is not None and depth > 0:
+                # Chains whose last pass reached the limit end here (Cycles'
+                # PATH_RAY_TERMINATE_ON_NEXT_SURFACE): their emission is counted above;
+                # no lookup, no continuation.
+                on = np.flatnonzero(np.take(t_h, idx) < t_limit)
+                if len(on) < m:
+                    if len(on) == 0:
+                        break
+                    o, d, tp, idx, prim, u, v, t = (np.take(a, on, axis=0) for a in (
+                        o, d, tp, idx, prim, u, v, t))
+                    if per_ray:
+                        ray_cls = np.take(ray_cls, on)
+                    y = y.take(on)
+                    m = len(on)
             if lean is None:
                 wd = c(lobe_weights(ctx.table, y)["diffuse"], np.float64)
                 yf = y
@@ -1220,7 +1245,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                     v[rows], np.take(d, rows, axis=0),
                                     None if cnt is None else cnt[idx[rows]],
                                     None if sec_E is None else
-                                    _point_secondary(sec_E, got[2][again[:n_again]])))
+                                    _point_secondary(sec_E, got[2][again[:n_again]]),
+                                    None if t_h is None else t_h[idx[rows]]))
             if ends is not None and len(ends):
                 # The glow that lights the ends (one ray each: their irradiance from the
                 # emitting media, Eg), reflected by their diffuse lobe towards the
@@ -1231,7 +1257,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 Eg = gather_indirect(ctx, y_end, rng, counters, rays=1, level=level + 1,
                                      should_cancel=should_cancel, lean=lean,
                                      extra=None if cnt is None else cnt[idx[ends]],
-                                     glow_only=True)
+                                     glow_only=True,
+                                     passes=None if t_h is None else t_h[idx[ends]])
                 add_gathered(E, idx, c(ends, np.int64), c(tp, np.float64),
                              c(wd, np.float64), c(Eg, np.float64), G, _NO_FLAG,
                              _NO_LENGTH, 0.0, False, _NO_ROWS)
@@ -1284,11 +1311,38 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # volume's, if any).
                 medium_h[idx[keep]] = media.after_continuation(
                     ctx.geo, sigma, prim, d_in, keep, d, medium_h[idx], outside=world_row)
+            if t_h is not None and len(keep):
+                # The unbent continuations are transparent passes (a volume-only
+                # surface's aside), as the camera chain counts them.
+                dk = np.take(d_in, keep, axis=0)
+                passed_k = ((d[:, 0] == dk[:, 0]) & (d[:, 1] == dk[:, 1])
+                            & (d[:, 2] == dk[:, 2]))
+                if t_vol is not None:
+                    passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
+                t_h[idx[keep]] += passed_k
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+def _gather_pass_counts(ctx, n, passes, glow_only=False):
+    """(t_limit, t_h, t_vol) for gather_indirect's chains: Light Paths > Max Bounces >
+    Transparent (at least 1, as the camera chain's), t_h (n,) int64 each hit row's
+    transparent bounces (filled per gather step from passes) or None where no chain can
+    reach the limit (no material a ray passes and no count given), t_vol (M,) bool the
+    volume-only materials (their pass is none, path_state_volume_next) or None."""
+    table = ctx.table
+    t_limit = max(int(ctx.settings.transparent_max_bounces), 1)
+    counted = passes is not None and np.any(passes)
+    if not counted and not n:
+        return t_limit, None, None
+    if not counted and not ShadowTransmittance.transparent_materials(table).any():
+        return t_limit, None, None
+    vol = getattr(table, "volume_only", None)
+    t_vol = np.asarray(vol, bool) if vol is not None and np.any(vol) else None
+    return t_limit, np.zeros(n, np.int64), t_vol
 
 
 def _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx, from_prim, E, G):
@@ -1542,7 +1596,9 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     may add to one row). pending: per gather step (target (K,) int64, tp (K,3), wd (K,3),
     prim (K,), u, v (K,), d (K,3), extra (K,4) or None, secondary (K,3) or None: the
     secondary caustic of the lookups' points, NaN rows none: _point_secondary) of the
-    ends. The surface data are recomputed from the rays' hits (surface_hit is row by row:
+    ends, then passes (K,) int64 or None: the ends' chains' transparent bounces (their
+    shadow rays cross the passes left, their gather goes on counting from there). The
+    surface data are recomputed from the rays' hits (surface_hit is row by row:
     the same values the step had). Random numbers:
     a stream spawned from rng (_spawn, which draws nothing from rng), so the same for any
     worker count as the chunk's own."""
@@ -1557,6 +1613,11 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     else:
         known = np.concatenate([np.full((len(p[0]), 3), np.nan) if p[8] is None else p[8]
                                 for p in pending])
+    if all(p[9] is None for p in pending):
+        passes = None
+    else:
+        passes = np.concatenate([np.zeros(len(p[0]), np.int64) if p[9] is None else p[9]
+                                 for p in pending])
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
                                      for a in zip(*(p[:7] for p in pending)))
     rng = _spawn(rng)
@@ -1567,7 +1628,8 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
         _regather_batch(ctx, E, target[a:b], tp[a:b], wd[a:b], prim[a:b], u[a:b], v[a:b],
                         d[a:b], G, rng, counters, level, should_cancel, lean,
                         None if extra is None else extra[a:b],
-                        None if known is None else known[a:b])
+                        None if known is None else known[a:b],
+                        None if passes is None else passes[a:b])
 
 
 # Ends a regather batch holds at most (its surface data, direct-light buffers and the next
@@ -1577,10 +1639,13 @@ REGATHER_BATCH = 1 << 15
 
 
 def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, level,
-                    should_cancel, lean, extra=None, known=None):
+                    should_cancel, lean, extra=None, known=None, passes=None):
     """_regather for one slice of its ends (rng: the batch's spawned stream); extra: the
     ends' bounces beyond their level's (gather_indirect's; None: none); known: (K,3) the
-    ends' secondary caustic from their lookups' points, NaN rows none (None: none)."""
+    ends' secondary caustic from their lookups' points, NaN rows none (None: none);
+    passes: (K,) int64 the ends' transparent bounces (None: 0)."""
+    if passes is not None and not passes.any():
+        passes = None
     y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
@@ -1595,11 +1660,12 @@ def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, lev
                            buffers=_gather_buffers(ctx, level).direct,
                            counts=chaincounts.camera_counts(
                                np.zeros((1, 4), np.int64) if extra is None else extra,
-                               (level + 1, level + 1, 0, 0)))
+                               (level + 1, level + 1, 0, 0)), used=passes)
     counters.count("regather shadow", level + 1, counters.shadow_rays - before)
     Esub = (Ed
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
-                              should_cancel=should_cancel, lean=lean, extra=extra)
+                              should_cancel=should_cancel, lean=lean, extra=extra,
+                              passes=passes)
             + _secondary_irradiance(ctx, y, rng, level + 1, extra, known))
     c = np.ascontiguousarray
     add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
@@ -2161,7 +2227,8 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     shades), written when glossy rows take shadow rays; None: not asked. glossy_out:
     direct_irradiance's (the glossy lobes' part of direct), with glossy rows.
     used: (K,) int64 per shaded row, the transparent bounces its camera path made
-    (direct_irradiance's); None: 0."""
+    (direct_irradiance's; the final gather's chains count on from it: gather_indirect's
+    passes); None: 0."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
@@ -2194,12 +2261,14 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
                                    None if footprint is None else footprint[dsel],
                                    should_cancel, None if scattered is None else scattered[dsel],
                                    None if extra is None else extra[dsel],
-                                   None if clamp_tp is None else clamp_tp[dsel])
+                                   None if clamp_tp is None else clamp_tp[dsel],
+                                   None if used is None else used[dsel])
             caustic[dsel] = c
             indirect[dsel] = ind
             return direct, caustic, indirect
     caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
-                                      footprint, should_cancel, scattered, extra, clamp_tp)
+                                      footprint, should_cancel, scattered, extra, clamp_tp,
+                                      used)
     return direct, caustic, indirect
 
 
@@ -2282,10 +2351,11 @@ def _secondary_per_pixel(ctx) -> int:
 
 
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
-                  scattered=None, extra=None, clamp_tp=None):
+                  scattered=None, extra=None, clamp_tp=None, used=None):
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
-    extra, clamp_tp: shade_diffuse's (each estimate clamped on its own, as Cycles clamps
-    each path's contributions apart)."""
+    extra, clamp_tp, used: shade_diffuse's (each estimate clamped on its own, as Cycles
+    clamps each path's contributions apart; the gather's chains count their transparent
+    bounces from used, gather_indirect's passes)."""
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
@@ -2316,7 +2386,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         chained = np.zeros_like(f) if d_pdf is not None else None
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
-                                       caustic=chained)
+                                       caustic=chained, passes=used)
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
         if chained is not None:
@@ -2352,7 +2422,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         # glow even without a photon map (it then looks nothing up: its rays add the
         # glow along their segments, engine/volumeemission.py).
         glow = f * gather_indirect(ctx, hit, rng, counters, sampler,
-                                   should_cancel=should_cancel, extra=extra)
+                                   should_cancel=should_cancel, extra=extra, passes=used)
         if clamp_tp is not None:
             glow = sampleclamp.clamp(glow, clamp_tp, None, sampleclamp.limits(s)[1])
         indirect = indirect + glow

@@ -91,3 +91,69 @@ def test_half_transparent_cards_at_the_default_limit():
     img = _pixel(_cards_over("lit", 5, alpha=0.5, sun=True), 10, spp=64)
     want = ALBEDO / np.pi * SUN * 0.5 ** 5 * 0.5 ** 5
     assert abs(img.mean() / want - 1.0) < 0.1, img.mean() / want
+
+
+# The final gather (translimit49): a gather ray's chain is the camera path's next bounce,
+# so it counts its passes from the camera path's and its end's shadow rays cross the
+# passes left. Scenes: a camera at z = 0.5 looking down (orthographic) through k clear
+# 8 x 8 m cards (z = 0.1, 0.2, ...) at a grey floor; a grey ceiling at z = 1 facing down,
+# a point light at z = 0.7 and nc clear cards between them (z = 0.8, 0.9, ...). The
+# floor's gather rays cross its k cards again (and the nc ones) to the ceiling; the cards
+# span the floor's hemisphere but for ~0.3 % of its cosine-weighted rays.
+
+def _floor_under_ceiling(k, nc):
+    s = PaperScene(8, 8)
+    s.add_material(Material("grey", (ALBEDO,) * 3))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "grey", name="floor")
+    s.add_plane((0, 0, 1.0), (0, 0, -1), 8.0, "grey", name="ceiling")
+    s.add_material(Material("card", (0.0, 0.0, 0.0), alpha=0.0))
+    for i in range(k):
+        s.add_plane((0, 0, 0.1 + 0.1 * i), (0, 0, 1), 8.0, "card", name=f"card{i}")
+    for i in range(nc):
+        s.add_plane((0, 0, 0.8 + 0.1 * i), (0, 0, 1), 8.0, "card", name=f"top{i}")
+    s.add_point_light((0, 0, 0.7), power=100.0)
+    s.camera = Camera(position=(0, 0, 0.5), rotation=np.eye(3), kind="ORTHO",
+                      ortho_scale=0.5)
+    return s
+
+
+def _gathered(scene, transparent, photon_mapping=True, radius=None):
+    film = render(scene, RenderSettings(spp=4, photon_mapping=photon_mapping, workers=1,
+                                        seed=1, transparent_max_bounces=transparent,
+                                        photons=20_000, caustic_photons=2_000,
+                                        radius=radius))
+    return film.combined[..., :3]
+
+
+@pytest.mark.parametrize("transparent", [3, 4])
+def test_gather_chains_count_on_from_the_camera_path(transparent):
+    """k = 2 cards, none at the ceiling: the floor's gather chains reach the ceiling after
+    2 + 2 passes, so at T = 3 and 4 they end before it (Cycles' path ends at the surface
+    after its T-th pass: no indirect light, the image is the direct-only render's; at
+    T = 3 the floor's own shadow rays are cut too); at T = 5 the ceiling's photon-lit
+    light comes back. On main the chains counted from 0: T = 3 and 4 read the ceiling."""
+    direct = _gathered(_floor_under_ceiling(2, 0), transparent, photon_mapping=False)
+    full = _gathered(_floor_under_ceiling(2, 0), transparent)
+    assert (direct.mean() > 0) == (transparent == 4), direct.mean()
+    assert np.array_equal(full, direct), (full.mean(), direct.mean())
+    # (T = 5: the same direct light, the ceiling's added)
+    full5 = _gathered(_floor_under_ceiling(2, 0), 5)
+    direct5 = _gathered(_floor_under_ceiling(2, 0), 5, photon_mapping=False)
+    assert full5.mean() > 1.2 * direct5.mean() > 0, (full5.mean(), direct5.mean())
+
+
+def test_a_regathered_end_crosses_the_passes_left():
+    """k = 1 card over the floor, nc = 2 between the lamp and the ceiling; a 10 m search
+    radius makes every gather ray short, so each end gathers again (direct light by
+    shadow rays). Its chain arrives with 1 + 1 + 2 = 4 passes: at T = 5 its shadow rays
+    have 1 left for the 2 cards (the ceiling is dark to them, and its own gather ray ends
+    after one more pass), so the floor keeps its direct light alone; at T = 8 the ceiling
+    is lit. On main the end's shadow rays had the full T: lit at both."""
+    for transparent, lit_ceiling in ((5, False), (8, True)):
+        direct = _gathered(_floor_under_ceiling(1, 2), transparent, photon_mapping=False)
+        full = _gathered(_floor_under_ceiling(1, 2), transparent, radius=10.0)
+        assert direct.mean() > 0
+        if lit_ceiling:
+            assert full.mean() > 1.2 * direct.mean(), (transparent, full.mean(), direct.mean())
+        else:
+            assert np.array_equal(full, direct), (transparent, full.mean(), direct.mean())
