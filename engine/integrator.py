@@ -3515,8 +3515,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             ctx.scene.mist, s.pass_alpha_threshold, pano=cam.panorama is not None,
             motion=motion)
         if want_ao:  # (the camera chain's surfaces: Cycles' PATH_RAY_CAMERA paths)
-            aopass.add_ao(acc, ctx, hit, prim, u, v, pix, tp, np.nonzero(ray_cls == CAMERA)[0],
-                          s.ao_distance, counters)
+            # (not where the transparent limit ends the path: integrate_surface_terminate
+            # comes first; the others' AO rays cross the passes left)
+            aopass.add_ao(acc, ctx, hit, prim, u, v, pix, tp,
+                          np.nonzero((ray_cls == CAMERA) if ended is None
+                                     else (ray_cls == CAMERA) & ~ended)[0],
+                          s.ao_distance, counters,
+                          used=t_count if bounce > 0 and t_count.any() else None)
         # The paths from a glossy hit that took the shade samples, meeting a shade: each
         # served lamp's light through it weighted against those samples (its NEE here in
         # the glass stage, its emission met by the refraction next bounce: lamp_w).

@@ -157,3 +157,38 @@ def test_a_regathered_end_crosses_the_passes_left():
             assert full.mean() > 1.2 * direct.mean(), (transparent, full.mean(), direct.mean())
         else:
             assert np.array_equal(full, direct), (transparent, full.mean(), direct.mean())
+
+
+def _ao_through_cards(k, transparent):
+    """The AO pass (distance 10 m) of a floor seen from above through k clear 40 x 40 m
+    cards at z = 1, 1.1, ...: a cosine-weighted AO ray leaving the floor at angle theta
+    reaches height z within the distance iff cos(theta) >= z / 10, with probability
+    1 - (z / 10)^2."""
+    s = PaperScene(8, 8, background=(1.0, 1.0, 1.0))
+    s.add_material(Material("floor", (ALBEDO,) * 3))
+    s.add_plane((0, 0, 0), (0, 0, 1), 40.0, "floor", name="floor")
+    s.add_material(Material("card", (0.0, 0.0, 0.0), alpha=0.0))
+    for i in range(k):
+        s.add_plane((0, 0, 1.0 + 0.1 * i), (0, 0, 1), 40.0, "card", name=f"card{i}")
+    s.camera = Camera(position=(0, 0, 5), rotation=np.eye(3), kind="ORTHO",
+                      ortho_scale=2.0)
+    film = render(s, RenderSettings(spp=64, photon_mapping=False, workers=1, seed=1,
+                                    transparent_max_bounces=transparent,
+                                    data_passes=("ao",), ao_distance=10.0))
+    return film.data["ao"][..., 0]
+
+
+@pytest.mark.parametrize("transparent,k,want", [(3, 2, (1.1 / 10) ** 2), (1, 1, 0.0),
+                                                (2, 2, 0.0)])
+def test_ao_rays_cross_only_the_passes_left(transparent, k, want):
+    """Cycles' AO ray is a shadow path with the camera path's transparent bounces
+    (Blender 5.0.1, docs/compatibility.md "### translimit49": 2 clear cards at T = 3
+    read 0.013, at T = 4 and 8 1.0; 3 small cards at T = 3: 0.0002, no AO where the
+    path ends): at T = 3 behind 2 cards it crosses only the first card (the rays that
+    reach z = 1.1 within 10 m are blocked: (1.1 / 10)^2 get through), at T = 4 both; at
+    T = 1 behind 1 and T = 2 behind 2 the floor ends the path (no AO sample). On main
+    every AO ray crossed them all: 1.0."""
+    ao = _ao_through_cards(k, transparent)
+    assert abs(ao.mean() - want) < 0.01, (transparent, k, ao.mean(), want)
+    if k == 2 and transparent == 3:
+        assert abs(_ao_through_cards(2, 4).mean() - 1.0) < 1e-9
