@@ -270,11 +270,12 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     sub = [(li, tr, cnt, u1[pts], u2[pts], None if s3 is None else s3[pts])
            for li, tr, cnt, u1, u2, s3 in samples]
     fd = None if bsdf is None else bsdf[0][pts]
+    used_ = None if used is None else np.take(np.asarray(used, np.int64), pts)
     if panes is not None:
         # Suns and the world through single-plane glass panes (engine/panelight.py): the
         # diffuse lobe's light, which the photons through the panes no longer carry as
         # caustics.
-        Ep, rays = pane_irradiance(ctx, panes, p_, ns_, ng_, offset_, sub)
+        Ep, rays = pane_irradiance(ctx, panes, p_, ns_, ng_, offset_, sub, used=used_)
         counters.shadow_rays += rays
         E[pts] += Ep if fd is None else Ep * fd
     if shades is not None and rng is not None:
@@ -289,7 +290,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             glossy = (np.take(bsdf[1], at, axis=0), np.take(bsdf[4], at, axis=0),
                       np.take(np.asarray(hit.wo, np.float64), at, axis=0),
                       ctx.plan.specular_depth > 0)
-        Es, Lg, rays = shade_light(ctx, shades, p_, ns_, ng_, offset_, sub, rng, glossy)
+        Es, Lg, rays = shade_light(ctx, shades, p_, ns_, ng_, offset_, sub, rng, glossy,
+                                   used=used_)
         counters.shadow_rays += rays
         if fd is not None:
             Es = Es * fd
@@ -2274,12 +2276,15 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
 
 def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, sample_id,
                       footprint, bounce, rng, counters, should_cancel, clamping, lpass,
-                      clamp_tp=None):
+                      clamp_tp=None, used=None):
     """The BSSRDF part of a camera bounce's subsurface hits: walks (j, W, per_walk) from
     SubsurfaceWalks.entries at the shaded rows dsel, walked (SubsurfaceWalks.exits) and
     each exit shaded as a Lambertian surface of weight W x the walk's throughput (direct
     light, caustic and indirect estimates), added where the entry's own diffuse share
-    goes (the same passes and bounce limits). clamp_tp: _add_lamp_light's."""
+    goes (the same passes and bounce limits). clamp_tp: _add_lamp_light's. used: (N,)
+    int64 per batch row, the transparent bounces its camera path made (None: 0): the
+    exits' shadow rays and gather chains count on from the entry's (Cycles' walk keeps
+    the path's transparent_bounce)."""
     s = ctx.settings
     j, W, per_walk = walks
     ctp = tp if clamp_tp is None else clamp_tp
@@ -2298,7 +2303,8 @@ def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, s
         None if sample_id is None else np.take(sample_id, rows),
         None if footprint is None else np.take(footprint, rows), should_cancel,
         bounce=bounce, extra=None if bounce == 0 else _chain_counts(chain[rows]),
-        clamp_tp=np.take(ctp, rows, axis=0) if clamping else None)
+        clamp_tp=np.take(ctp, rows, axis=0) if clamping else None,
+        used=None if used is None else np.take(used, rows))
     if clamping:
         direct = sampleclamp.clamp(direct, ctp, rows, sampleclamp.bounce_limits(
             s, np.take(chain[:, 0], rows)))
@@ -3611,7 +3617,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     sss_rng = np.random.default_rng(rng.integers(1 << 62))
                 _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium,
                                   sample_id, footprint, bounce, sss_rng, counters,
-                                  should_cancel, clamping, lpass, ctp)
+                                  should_cancel, clamping, lpass, ctp,
+                                  used=t_count if bounce > 0 and t_count.any() else None)
         if GLASS_LIGHT_SAMPLING:
             # Rough glass hits sample the lights behind their surface too (Cycles' light
             # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:
