@@ -257,3 +257,39 @@ def test_an_ior_1_refraction_is_a_transmission_bounce(k, transparent, transmissi
     assert np.allclose(img, LE if seen else 0.0, rtol=1e-6, atol=0), img.mean()
     assert np.all(_emitter_under_ior1_panes(10, 8, 2) == 0.0)
     assert np.all(_emitter_under_ior1_panes(3, 0, 0) == 0.0)
+
+
+def _floor_under_pane_and_cards(transparent):
+    """A floor under a single-plane glass pane (z = 1, IOR 1.5) and 2 clear 10 m cards
+    above it (z = 1.1, 1.2), a sun 70 degrees off the zenith; an orthographic camera at
+    z = 0.8 sees the middle 0.2 m of the floor through 2 small clear cards (z = 0.3,
+    0.35, 0.24 m wide) that the floor's rays towards the pane (refracted to 38.8 degrees)
+    pass beside. Direct light only (the pane's next-event estimate, engine/panelight.py)."""
+    s = PaperScene(8, 8)
+    s.add_material(Material("floor", (ALBEDO,) * 3))
+    s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.5,
+                            roughness=0.0))
+    s.add_plane((0, 0, 0), (0, 0, 1), 10.0, "floor", name="floor")
+    s.add_plane((0, 0, 1.0), (0, 0, 1), 10.0, "glass", name="pane")
+    s.add_material(Material("card", (0.0, 0.0, 0.0), alpha=0.0))
+    for i in range(2):
+        s.add_plane((0, 0, 0.3 + 0.05 * i), (0, 0, 1), 0.24, "card", name=f"card{i}")
+        s.add_plane((0, 0, 1.1 + 0.1 * i), (0, 0, 1), 10.0, "card", name=f"top{i}")
+    t = np.radians(70.0)
+    s.add_sun((np.sin(t), 0.0, -np.cos(t)), strength=SUN, angle_degrees=1.0, name="sun")
+    s.camera = Camera(position=(0, 0, 0.8), rotation=np.eye(3), kind="ORTHO",
+                      ortho_scale=0.2)
+    film = render(s, RenderSettings(spp=4, photon_mapping=False, workers=1, seed=1,
+                                    transparent_max_bounces=transparent))
+    return film.combined[..., :3]
+
+
+def test_pane_light_crosses_only_the_passes_left():
+    """The sun's light through the pane is Cycles' continuation through the glass, which
+    carries the camera path's 2 passes: the 2 cards past the pane are crossed at T = 4
+    (the same light as at T = 8), not at T = 3. On main the rays on from the pane had the
+    full T: lit at T = 3."""
+    assert np.all(_floor_under_pane_and_cards(3) == 0.0)
+    lit = _floor_under_pane_and_cards(4)
+    assert lit.mean() > 0.0
+    np.testing.assert_array_equal(lit, _floor_under_pane_and_cards(8))
