@@ -39,12 +39,17 @@ DEFAULT_DISTANCE = 10.0
 SALT = 0x5DEECE66DA3B1F27
 
 
-def add_ao(acc, ctx, hit, prim, u, v, pix, tp, rows, distance: float, counters=None):
+def add_ao(acc, ctx, hit, prim, u, v, pix, tp, rows, distance: float, counters=None,
+           used=None):
     """The AO pass' samples at the camera-chain hits rows (K,) int64 of a bounce: hit
     (the batch's SurfaceHit: p, ns, ng, offset, mat, alpha), prim, u, v (N,) their
     triangles and barycentrics, pix (N,), tp (N,3). distance: the rays' length (m,
     > 0; 0 or less: nothing is unoccluded, the pass stays 0); counters: the camera
-    pass' Counters (its shadow rays counted), or None."""
+    pass' Counters (its shadow rays counted), or None. used: (N,) int64 the transparent
+    bounces each hit's camera path made (None: 0): its AO ray crosses Light Paths > Max
+    Bounces > Transparent minus that many transparent surfaces, as its shadow rays
+    (Cycles' AO ray is a shadow path with the path's transparent_bounce; Blender 5.0.1,
+    measured: docs/compatibility.md "### translimit49")."""
     if len(rows) == 0 or not distance > 0.0:
         return
     rows = np.ascontiguousarray(rows, np.int64)
@@ -69,7 +74,9 @@ def add_ao(acc, ctx, hit, prim, u, v, pix, tp, rows, distance: float, counters=N
     shadow = getattr(ctx, "shadow", None)
     if shadow is not None and blocked.any():
         bl = np.nonzero(blocked)[0]
-        trans[bl] = shadow.transmittance(o32[bl], d32[bl], t32[bl], cls=SHADOW)
+        trans[bl] = shadow.transmittance(
+            o32[bl], d32[bl], t32[bl], cls=SHADOW,
+            used=None if used is None else np.take(np.asarray(used, np.int64), rows[bl]))
     if counters is not None:
         counters.shadow_rays += len(rows)
     buf = acc.data.get(KEY)

@@ -56,7 +56,7 @@ from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .panelight import pane_irradiance, panes_for
 from .shadelight import shade_bsdf_weights, shade_light, shades_for
 from .mediumstart import point_medium
-from .shadowtransmittance import CameraPassages
+from .shadowtransmittance import CameraPassages, ShadowTransmittance
 from .gatherpassages import GatherPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
@@ -270,11 +270,12 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     sub = [(li, tr, cnt, u1[pts], u2[pts], None if s3 is None else s3[pts])
            for li, tr, cnt, u1, u2, s3 in samples]
     fd = None if bsdf is None else bsdf[0][pts]
+    used_ = None if used is None else np.take(np.asarray(used, np.int64), pts)
     if panes is not None:
         # Suns and the world through single-plane glass panes (engine/panelight.py): the
         # diffuse lobe's light, which the photons through the panes no longer carry as
         # caustics.
-        Ep, rays = pane_irradiance(ctx, panes, p_, ns_, ng_, offset_, sub)
+        Ep, rays = pane_irradiance(ctx, panes, p_, ns_, ng_, offset_, sub, used=used_)
         counters.shadow_rays += rays
         E[pts] += Ep if fd is None else Ep * fd
     if shades is not None and rng is not None:
@@ -289,7 +290,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             glossy = (np.take(bsdf[1], at, axis=0), np.take(bsdf[4], at, axis=0),
                       np.take(np.asarray(hit.wo, np.float64), at, axis=0),
                       ctx.plan.specular_depth > 0)
-        Es, Lg, rays = shade_light(ctx, shades, p_, ns_, ng_, offset_, sub, rng, glossy)
+        Es, Lg, rays = shade_light(ctx, shades, p_, ns_, ng_, offset_, sub, rng, glossy,
+                                   used=used_)
         counters.shadow_rays += rays
         if fd is not None:
             Es = Es * fd
@@ -883,7 +885,7 @@ GUIDE_REGATHERS = False
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     level=0, should_cancel=None, lean=_UNSET, extra=None,
-                    glow_only=False, caustic=None) -> np.ndarray:
+                    glow_only=False, caustic=None, passes=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -908,7 +910,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     bounce gathers that way from level 0's gather ends.
     caustic: (N,3) float64 zeros, level 0: receives (added in place) the irradiance the
     chains carry where Cycles' Filter Glossy blurs the caustic / glow maps' paths
-    (engine/glossysplit.py), the maps' light at D; None: that goes into the result."""
+    (engine/glossysplit.py), the maps' light at D; None: that goes into the result.
+    passes: (N,) int64, the transparent bounces each hit's path made before it (the
+    camera path's, Cycles' transparent_bounce; None: 0). The rays' chains go on counting
+    from there (a transparent pass adds one, as path_state_next counts it along the
+    whole path): a chain that reaches Light Paths > Max Bounces > Transparent ends at its
+    next surface (its emission counted, no lookup, no continuation), and a regathered
+    end's shadow rays and next gather start from its count (_gather_pass_counts)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -1002,6 +1010,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                        glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
+    # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
+    # nothing to count), the limit and the volume-only surfaces (their pass is none).
+    t_limit, t_h, t_vol = _gather_pass_counts(ctx, n, passes, glow_only)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -1040,6 +1051,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         if turned_refl is not None:
             turned_h[:] = False
+        if t_h is not None:
+            t_h[:] = 0 if passes is None else passes
         if medium_h is not None:
             # From the gathering surface: the medium its camera path was in (a floor
             # inside a fog cube; not its own medium's surface), else not known.
@@ -1178,6 +1191,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             elif depth > 0 and passed is not None:
                 _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx,
                                  hit.prim, E, G)
+            if t_h is not None and depth > 0:
+                # Chains whose last pass reached the limit end here (Cycles'
+                # PATH_RAY_TERMINATE_ON_NEXT_SURFACE): their emission is counted above;
+                # no lookup, no continuation.
+                on = np.flatnonzero(np.take(t_h, idx) < t_limit)
+                if len(on) < m:
+                    if len(on) == 0:
+                        break
+                    o, d, tp, idx, prim, u, v, t = (np.take(a, on, axis=0) for a in (
+                        o, d, tp, idx, prim, u, v, t))
+                    if per_ray:
+                        ray_cls = np.take(ray_cls, on)
+                    y = y.take(on)
+                    m = len(on)
             if lean is None:
                 wd = c(lobe_weights(ctx.table, y)["diffuse"], np.float64)
                 yf = y
@@ -1220,7 +1247,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                     v[rows], np.take(d, rows, axis=0),
                                     None if cnt is None else cnt[idx[rows]],
                                     None if sec_E is None else
-                                    _point_secondary(sec_E, got[2][again[:n_again]])))
+                                    _point_secondary(sec_E, got[2][again[:n_again]]),
+                                    None if t_h is None else t_h[idx[rows]]))
             if ends is not None and len(ends):
                 # The glow that lights the ends (one ray each: their irradiance from the
                 # emitting media, Eg), reflected by their diffuse lobe towards the
@@ -1231,7 +1259,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 Eg = gather_indirect(ctx, y_end, rng, counters, rays=1, level=level + 1,
                                      should_cancel=should_cancel, lean=lean,
                                      extra=None if cnt is None else cnt[idx[ends]],
-                                     glow_only=True)
+                                     glow_only=True,
+                                     passes=None if t_h is None else t_h[idx[ends]])
                 add_gathered(E, idx, c(ends, np.int64), c(tp, np.float64),
                              c(wd, np.float64), c(Eg, np.float64), G, _NO_FLAG,
                              _NO_LENGTH, 0.0, False, _NO_ROWS)
@@ -1250,8 +1279,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             d_in = d
             pdf = None
             if yf is y:
-                keep, o, d, tp, ray_cls, *pdf = continue_specular(
-                    ctx, y, tp, rng, ray_cls, choice=choice, want_pdf=chains is not None)
+                keep, o, d, tp, ray_cls, *pdf, pass_lobe = continue_specular(
+                    ctx, y, tp, rng, ray_cls, choice=choice, want_pdf=chains is not None,
+                    want_pass=True)
                 keep_f = keep
             else:
                 # Lean hits never continue (no lobe but the diffuse one); the survival
@@ -1259,9 +1289,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 go_u = rng.random(m)
                 if not n_full:
                     break
-                keep, o, d, tp, ray_cls, *pdf = continue_specular(
+                keep, o, d, tp, ray_cls, *pdf, pass_lobe = continue_specular(
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
-                    go_u=go_u[full], choice=choice, want_pdf=chains is not None)
+                    go_u=go_u[full], choice=choice, want_pdf=chains is not None,
+                    want_pass=True)
                 keep_f = keep
                 keep = full[keep]
             if passed is not None:
@@ -1284,11 +1315,36 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # volume's, if any).
                 medium_h[idx[keep]] = media.after_continuation(
                     ctx.geo, sigma, prim, d_in, keep, d, medium_h[idx], outside=world_row)
+            if t_h is not None and len(keep):
+                # The pass lobe's continuations are transparent passes (a volume-only
+                # surface's aside), as the camera chain counts them.
+                passed_k = pass_lobe.copy()
+                if t_vol is not None:
+                    passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
+                t_h[idx[keep]] += passed_k
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+def _gather_pass_counts(ctx, n, passes, glow_only=False):
+    """(t_limit, t_h, t_vol) for gather_indirect's chains: Light Paths > Max Bounces >
+    Transparent (at least 1, as the camera chain's), t_h (n,) int64 each hit row's
+    transparent bounces (filled per gather step from passes) or None where no chain can
+    reach the limit (no material a ray passes and no count given), t_vol (M,) bool the
+    volume-only materials (their pass is none, path_state_volume_next) or None."""
+    table = ctx.table
+    t_limit = max(int(ctx.settings.transparent_max_bounces), 1)
+    counted = passes is not None and np.any(passes)
+    if not counted and not n:
+        return t_limit, None, None
+    if not counted and not ShadowTransmittance.transparent_materials(table).any():
+        return t_limit, None, None
+    vol = getattr(table, "volume_only", None)
+    t_vol = np.asarray(vol, bool) if vol is not None and np.any(vol) else None
+    return t_limit, np.zeros(n, np.int64), t_vol
 
 
 def _passed_emission(ctx, passed, chains, unsampled, y, prim, d, tp, idx, from_prim, E, G):
@@ -1542,7 +1598,9 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     may add to one row). pending: per gather step (target (K,) int64, tp (K,3), wd (K,3),
     prim (K,), u, v (K,), d (K,3), extra (K,4) or None, secondary (K,3) or None: the
     secondary caustic of the lookups' points, NaN rows none: _point_secondary) of the
-    ends. The surface data are recomputed from the rays' hits (surface_hit is row by row:
+    ends, then passes (K,) int64 or None: the ends' chains' transparent bounces (their
+    shadow rays cross the passes left, their gather goes on counting from there). The
+    surface data are recomputed from the rays' hits (surface_hit is row by row:
     the same values the step had). Random numbers:
     a stream spawned from rng (_spawn, which draws nothing from rng), so the same for any
     worker count as the chunk's own."""
@@ -1557,6 +1615,11 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     else:
         known = np.concatenate([np.full((len(p[0]), 3), np.nan) if p[8] is None else p[8]
                                 for p in pending])
+    if all(p[9] is None for p in pending):
+        passes = None
+    else:
+        passes = np.concatenate([np.zeros(len(p[0]), np.int64) if p[9] is None else p[9]
+                                 for p in pending])
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
                                      for a in zip(*(p[:7] for p in pending)))
     rng = _spawn(rng)
@@ -1567,7 +1630,8 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
         _regather_batch(ctx, E, target[a:b], tp[a:b], wd[a:b], prim[a:b], u[a:b], v[a:b],
                         d[a:b], G, rng, counters, level, should_cancel, lean,
                         None if extra is None else extra[a:b],
-                        None if known is None else known[a:b])
+                        None if known is None else known[a:b],
+                        None if passes is None else passes[a:b])
 
 
 # Ends a regather batch holds at most (its surface data, direct-light buffers and the next
@@ -1577,10 +1641,13 @@ REGATHER_BATCH = 1 << 15
 
 
 def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, level,
-                    should_cancel, lean, extra=None, known=None):
+                    should_cancel, lean, extra=None, known=None, passes=None):
     """_regather for one slice of its ends (rng: the batch's spawned stream); extra: the
     ends' bounces beyond their level's (gather_indirect's; None: none); known: (K,3) the
-    ends' secondary caustic from their lookups' points, NaN rows none (None: none)."""
+    ends' secondary caustic from their lookups' points, NaN rows none (None: none);
+    passes: (K,) int64 the ends' transparent bounces (None: 0)."""
+    if passes is not None and not passes.any():
+        passes = None
     y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
@@ -1595,11 +1662,12 @@ def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, lev
                            buffers=_gather_buffers(ctx, level).direct,
                            counts=chaincounts.camera_counts(
                                np.zeros((1, 4), np.int64) if extra is None else extra,
-                               (level + 1, level + 1, 0, 0)))
+                               (level + 1, level + 1, 0, 0)), used=passes)
     counters.count("regather shadow", level + 1, counters.shadow_rays - before)
     Esub = (Ed
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
-                              should_cancel=should_cancel, lean=lean, extra=extra)
+                              should_cancel=should_cancel, lean=lean, extra=extra,
+                              passes=passes)
             + _secondary_irradiance(ctx, y, rng, level + 1, extra, known))
     c = np.ascontiguousarray
     add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
@@ -1833,7 +1901,7 @@ def passes_past_limit(table, hit, over, d, tp, ray_cls):
 
 
 def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
-                      uv=None, go_u=None, split=None):
+                      uv=None, go_u=None, split=None, want_pass=False):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -1856,6 +1924,9 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     index may then appear twice, and two last elements are returned, (K,) bool, the rays a
     split made, and (K,) float64, the probability with which Cycles' glass sampling would
     have chosen each such ray's half (camerakernels.glass_both_share; 1 on the others).
+    want_pass: one more last element, (K,) bool, the rays the transparent pass lobe made
+    (a transparent bounce to Cycles; every other lobe's ray is a bounce of its kind, an
+    IOR 1 refraction too, which goes on unbent).
     The same uniform numbers are drawn either way."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit, ctx.geo)[1], tp))
@@ -1866,7 +1937,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
         empty = np.zeros((0, 3))
         out = (idx, empty, empty, empty, np.zeros(0, np.int64))
         out = out + (np.zeros(0),) if want_pdf else out
-        return out if split is None else out + (np.zeros(0, bool), np.zeros(0))
+        out = out if split is None else out + (np.zeros(0, bool), np.zeros(0))
+        return out + (np.zeros(0, bool),) if want_pass else out
     r = rng.random(m)
     lobe = np.empty(m, np.int64)
     prob = np.empty(m)
@@ -1909,7 +1981,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
                        split_p)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
     out = out + (pdf[:k],) if want_pdf else out
-    return out if split is None else out + (split_out[:k], split_p[:k])
+    out = out if split is None else out + (split_out[:k], split_p[:k])
+    return out + (np.take(lobe, rows[:k]) == PASS_LOBE,) if want_pass else out
 
 
 # Camera paths sample the lights through rough glass (engine/glasslight.py; False: the
@@ -2161,7 +2234,8 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     shades), written when glossy rows take shadow rays; None: not asked. glossy_out:
     direct_irradiance's (the glossy lobes' part of direct), with glossy rows.
     used: (K,) int64 per shaded row, the transparent bounces its camera path made
-    (direct_irradiance's); None: 0."""
+    (direct_irradiance's; the final gather's chains count on from it: gather_indirect's
+    passes); None: 0."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
@@ -2194,23 +2268,28 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
                                    None if footprint is None else footprint[dsel],
                                    should_cancel, None if scattered is None else scattered[dsel],
                                    None if extra is None else extra[dsel],
-                                   None if clamp_tp is None else clamp_tp[dsel])
+                                   None if clamp_tp is None else clamp_tp[dsel],
+                                   None if used is None else used[dsel])
             caustic[dsel] = c
             indirect[dsel] = ind
             return direct, caustic, indirect
     caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
-                                      footprint, should_cancel, scattered, extra, clamp_tp)
+                                      footprint, should_cancel, scattered, extra, clamp_tp,
+                                      used)
     return direct, caustic, indirect
 
 
 def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, sample_id,
                       footprint, bounce, rng, counters, should_cancel, clamping, lpass,
-                      clamp_tp=None):
+                      clamp_tp=None, used=None):
     """The BSSRDF part of a camera bounce's subsurface hits: walks (j, W, per_walk) from
     SubsurfaceWalks.entries at the shaded rows dsel, walked (SubsurfaceWalks.exits) and
     each exit shaded as a Lambertian surface of weight W x the walk's throughput (direct
     light, caustic and indirect estimates), added where the entry's own diffuse share
-    goes (the same passes and bounce limits). clamp_tp: _add_lamp_light's."""
+    goes (the same passes and bounce limits). clamp_tp: _add_lamp_light's. used: (N,)
+    int64 per batch row, the transparent bounces its camera path made (None: 0): the
+    exits' shadow rays and gather chains count on from the entry's (Cycles' walk keeps
+    the path's transparent_bounce)."""
     s = ctx.settings
     j, W, per_walk = walks
     ctp = tp if clamp_tp is None else clamp_tp
@@ -2229,7 +2308,8 @@ def _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium, s
         None if sample_id is None else np.take(sample_id, rows),
         None if footprint is None else np.take(footprint, rows), should_cancel,
         bounce=bounce, extra=None if bounce == 0 else _chain_counts(chain[rows]),
-        clamp_tp=np.take(ctp, rows, axis=0) if clamping else None)
+        clamp_tp=np.take(ctp, rows, axis=0) if clamping else None,
+        used=None if used is None else np.take(used, rows))
     if clamping:
         direct = sampleclamp.clamp(direct, ctp, rows, sampleclamp.bounce_limits(
             s, np.take(chain[:, 0], rows)))
@@ -2282,10 +2362,11 @@ def _secondary_per_pixel(ctx) -> int:
 
 
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
-                  scattered=None, extra=None, clamp_tp=None):
+                  scattered=None, extra=None, clamp_tp=None, used=None):
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
-    extra, clamp_tp: shade_diffuse's (each estimate clamped on its own, as Cycles clamps
-    each path's contributions apart)."""
+    extra, clamp_tp, used: shade_diffuse's (each estimate clamped on its own, as Cycles
+    clamps each path's contributions apart; the gather's chains count their transparent
+    bounces from used, gather_indirect's passes)."""
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
@@ -2316,7 +2397,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         chained = np.zeros_like(f) if d_pdf is not None else None
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
-                                       caustic=chained)
+                                       caustic=chained, passes=used)
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
         if chained is not None:
@@ -2352,7 +2433,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         # glow even without a photon map (it then looks nothing up: its rays add the
         # glow along their segments, engine/volumeemission.py).
         glow = f * gather_indirect(ctx, hit, rng, counters, sampler,
-                                   should_cancel=should_cancel, extra=extra)
+                                   should_cancel=should_cancel, extra=extra, passes=used)
         if clamp_tp is not None:
             glow = sampleclamp.clamp(glow, clamp_tp, None, sampleclamp.limits(s)[1])
         indirect = indirect + glow
@@ -3445,8 +3526,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             ctx.scene.mist, s.pass_alpha_threshold, pano=cam.panorama is not None,
             motion=motion)
         if want_ao:  # (the camera chain's surfaces: Cycles' PATH_RAY_CAMERA paths)
-            aopass.add_ao(acc, ctx, hit, prim, u, v, pix, tp, np.nonzero(ray_cls == CAMERA)[0],
-                          s.ao_distance, counters)
+            # (not where the transparent limit ends the path: integrate_surface_terminate
+            # comes first; the others' AO rays cross the passes left)
+            aopass.add_ao(acc, ctx, hit, prim, u, v, pix, tp,
+                          np.nonzero((ray_cls == CAMERA) if ended is None
+                                     else (ray_cls == CAMERA) & ~ended)[0],
+                          s.ao_distance, counters,
+                          used=t_count if bounce > 0 and t_count.any() else None)
         # The paths from a glossy hit that took the shade samples, meeting a shade: each
         # served lamp's light through it weighted against those samples (its NEE here in
         # the glass stage, its emission met by the refraction next bounce: lamp_w).
@@ -3536,7 +3622,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     sss_rng = np.random.default_rng(rng.integers(1 << 62))
                 _shade_subsurface(ctx, sss, walks, hit, dsel, acc, pix, tp, chain, medium,
                                   sample_id, footprint, bounce, sss_rng, counters,
-                                  should_cancel, clamping, lpass, ctp)
+                                  should_cancel, clamping, lpass, ctp,
+                                  used=t_count if bounce > 0 and t_count.any() else None)
         if GLASS_LIGHT_SAMPLING:
             # Rough glass hits sample the lights behind their surface too (Cycles' light
             # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:
@@ -3599,8 +3686,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         d_in, pdf_in = d, pdf_b
         tp_in, cls_in = tp, ray_cls
         cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,
-                                 uv=uv, split=None if may_split is None else may_split > 0)
+                                 uv=uv, split=None if may_split is None else may_split > 0,
+                                 want_pass=True)
         keep, o, d, tp, ray_cls, pdf_b = cont[:6]
+        pass_lobe = cont[-1]  # (the transparent passes among them)
         share = None
         if probe_world is not None and bounce == 0:
             # The world's light through the reflective lobes where it escapes: from the
@@ -3625,8 +3714,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if over is not None:
             # Past a limit: no bounce from here (the numbers drawn as for every path).
             go = ~over[keep]
-            keep, o, d, tp, ray_cls, pdf_b = (a[go] for a in (keep, o, d, tp, ray_cls,
-                                                              pdf_b))
+            keep, o, d, tp, ray_cls, pdf_b, pass_lobe = (
+                a[go] for a in (keep, o, d, tp, ray_cls, pdf_b, pass_lobe))
             if may_split is not None:
                 cont = cont[:6] + (cont[6][go], cont[7][go])
             # But it passes a transparent share, unbent (Cycles' TERMINATE_AFTER_TRANSPARENT).
@@ -3636,6 +3725,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 keep, o, d, tp, ray_cls, pdf_b = (
                     np.concatenate((a, b)) for a, b in zip((keep, o, d, tp, ray_cls, pdf_b),
                                                            extra))
+                pass_lobe = np.concatenate((pass_lobe, np.ones(len(extra[0]), bool)))
                 if may_split is not None:
                     cont = cont[:6] + (np.concatenate((cont[6],
                                                        np.zeros(len(extra[0]), bool))),
@@ -3659,13 +3749,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     cscale = cscale[keep]
                 if cont[6].any():
                     cscale = cont[7] if cscale is None else cscale * cont[7]
-        # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
-        # unbent) is none; else glossy or transmission by the continued ray's class.
+        # The bounce's kind (Cycles' path_state_next): a transparent pass (the pass lobe:
+        # the ray goes on unbent) is none; else glossy or transmission by the continued
+        # ray's class, an IOR 1 refraction's unbent ray too (Blender 5.0.1: a transmission
+        # bounce, not a transparent one; docs/compatibility.md "### translimit49").
         chain = np.take(chain, keep, axis=0)
-        # (Component by component: np.any(d != d_in[keep], axis=1)'s booleans, NaN
-        # included, without numpy's slow reduction over a short last axis.)
-        dk = np.take(d_in, keep, axis=0)
-        bent = (d[:, 0] != dk[:, 0]) | (d[:, 1] != dk[:, 1]) | (d[:, 2] != dk[:, 2])
+        bent = ~pass_lobe
         chain[:, 0] += bent
         if lpass is not None:
             lpass.take(keep)
@@ -3676,10 +3765,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 ray_cls))
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
-        # The transparent passes (the unbent continuations, a volume-only surface's
+        # The transparent passes (the pass lobe's continuations, a volume-only surface's
         # aside) count against Max Bounces > Transparent.
         t_count = np.take(t_count, keep)
-        passed = ~bent
+        passed = pass_lobe
         if volume_only is not None:
             passed &= ~np.take(volume_only, np.take(hit.mat, keep))
         t_count += passed

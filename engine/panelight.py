@@ -387,7 +387,7 @@ class _Rays:
 
 
 def _through(ctx, panes, k, pane, p, ns, ng, offset, w0, wc, inside, on_k, shadow, scale,
-             buf):
+             buf, used=None):
     """The rows of points p (N,3) whose light from outside direction w reaches them along
     inside direction w_t through pane k: w = w0 (N,3), w_t its refraction, or where inside
     (N,) w_t = wc (N,3), w its refraction back out; on_k (N,) the pane a row must meet
@@ -423,11 +423,14 @@ def _through(ctx, panes, k, pane, p, ns, ng, offset, w0, wc, inside, on_k, shado
     trans[blocked] = 0.0
     if shadow is not None and blocked.any():
         bl = np.nonzero(blocked)[0]
-        trans[bl] = shadow.transmittance(o32[bl], d32[bl], keep_t[bl], cls=SHADOW)
+        # (the ray on crosses the transparent surfaces its point's camera path left)
+        trans[bl] = shadow.transmittance(
+            o32[bl], d32[bl], keep_t[bl], cls=SHADOW,
+            used=None if used is None else np.take(used, np.take(buf.idx, keep[bl])))
     return keep, trans, M + M2
 
 
-def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
+def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None, used=None):
     """(N,3) irradiance at points p (N,3) (shading normals ns, geometric normals ng on the
     lit side, origin offsets offset (N,)) from the suns' and the world's samples among
     `samples` (integrator.light_sample_list entries) through the panes. Each sample's
@@ -462,8 +465,14 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
     at a direction whose first surface is that pane. A w_t meets one pane first, so
     summing the panes' terms counts each direction once (an AREA point on another pane
     counts for that pane only).
+    used: (N,) int64 the transparent bounces each point's camera path made (None: 0):
+    the rays on from the panes cross Light Paths > Max Bounces > Transparent minus that
+    many transparent surfaces (Cycles' continuation through the pane carries the path's
+    transparent_bounce).
     Returns (E, rays traced)."""
     N = len(p)
+    if used is not None:
+        used = np.ascontiguousarray(used, np.int64)
     E = np.zeros((N, 3))
     if N == 0 or panes is None:
         return E, 0
@@ -501,7 +510,7 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
                     # that does lights every receiver behind it.
                     continue
                 keep, trans, n_rays = _through(ctx, panes, k, pane, p, ns, ng, offset, w, w,
-                                               not_inside, no_k, shadow, scale, buf)
+                                               not_inside, no_k, shadow, scale, buf, used)
                 rays += n_rays
                 if len(keep):
                     pkk.sun_accumulate(E, buf.idx, keep, buf.cos_i, buf.cos_t, buf.eta2,
@@ -545,7 +554,7 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
                 # The outside direction: the map's or the outside cosine sample, or the
                 # inside sample (cosine, or towards a point on a pane) refracted back out.
                 keep, trans, n_rays = _through(ctx, panes, k, pane, p, ns, ng, offset, w0,
-                                               wc, inside, on_k, shadow, scale, buf)
+                                               wc, inside, on_k, shadow, scale, buf, used)
                 rays += n_rays
                 if not len(keep):
                     continue

@@ -549,7 +549,7 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     return E, rays
 
 
-def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
+def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None, used=None):
     """(N,3) irradiance at points p (N,3) (shading normals ns, geometric normals ng on the
     viewer's side, origin offsets offset (N,)) from the served lights' samples among
     `samples` (integrator.light_sample_list entries: each one's u1, u2 choose the point
@@ -581,8 +581,10 @@ def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
     Lg += L(y -> x) f(wo, w) cos / pdf_w(y) x w_light, pdf_w = pdf_A d^2 / |n_y . w| the
     sample's solid-angle pdf at x, w_light = (n pdf_w)^2 / ((n pdf_w)^2 + pdf_b^2) (the
     power heuristic, n the lamp's light samples, pdf_b principled.bsdf_pdf with sel: the
-    continuation's; mis False: w_light 1). Returns ((N,3) E, (N,3) Lg (zeros without
-    glossy), rays traced)."""
+    continuation's; mis False: w_light 1). used: (N,) int64 the transparent bounces each
+    point's camera path made (None: 0): the lamp's shadow rays from y cross Light Paths >
+    Max Bounces > Transparent minus that many (directlight.direct_light's used). Returns
+    ((N,3) E, (N,3) Lg (zeros without glossy), rays traced)."""
     from .bsdf import closures, surface_hit
     from .closures import principled as pr
     from .directlight import direct_light
@@ -698,11 +700,13 @@ def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
                 transmission = (c(prm), c(Y.ns, np.float64), c(Y.wo, np.float64), full,
                                 np.zeros((len(jdx), pr.N_LOBES)))
                 Ly, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
-                                      shadow=shadow, transmission=transmission)
+                                      shadow=shadow, transmission=transmission,
+                                      used=None if used is None else used[jdx])
                 rays += nr
             else:
                 Eb, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
-                                      shadow=shadow)
+                                      shadow=shadow,
+                                      used=None if used is None else used[jdx])
                 rays += nr
                 Ly = shades.tl[np.asarray(Y.mat)] * Eb / math.pi  # T E_back / pi
             g = jcr * cos_y / (jdist * jdist * np.maximum(pdf_a, 1e-300))
