@@ -245,8 +245,8 @@ def test_smooth_cap_walks_where_its_normal_faces_away():
     so a Shade Smooth cap seen low walks where its leaning normals face away from the
     viewer (the studio48 candle's cap: 0.818 of Cycles before, docs/accuracy.md
     subsurf49). Entering about the shading normal itself started no walk there: the
-    walk's light read 0.02 of the diffuse stand-in's; now as the stand-in within 10 %
-    (the walk's light spreads farther on the cap than the stand-in's)."""
+    window read 0.24-0.29 of the diffuse stand-in (its six far rows 0); now as the
+    stand-in within 10 % (0.98-1.05 over seeds 2 and 3)."""
     walked, stand_in = _far_cap(True), _far_cap(False)
     assert stand_in.min() > 0.3  # (every pixel on the cap, lit)
     walked, stand_in = walked.mean(axis=(0, 1)), stand_in.mean(axis=(0, 1))
