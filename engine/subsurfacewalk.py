@@ -9,10 +9,14 @@ clamped to [0, 1] and L the layering of the coat / sheen / specular lobes above)
   - the BSSRDF part walks beneath the surface (Cycles kernel/integrator/subsurface.h
     subsurface_bounce, subsurface_random_walk.h subsurface_random_walk):
       entry     a GGX refraction (VNDF-sampled microfacet normal of alpha = roughness^2,
-                relative index 1 / IOR; the Principled's IOR, the node's own), rejected
-                where the direction would leave through the geometric normal's side
-                (DIFFUSE_ENTRY: the share Cycles' newer source enters by a cosine-
-                distributed direction about -N instead; 0 measures as bpy 5.0's Cycles);
+                relative index 1 / IOR; the Principled's IOR, the node's own) about the
+                BSSRDF's normal: Cycles' bssrdf->N, the shading normal turned towards
+                the geometric one where the viewer's mirror direction would fall below
+                the surface (maybe_ensure_valid_specular_reflection, as the glossy lobes':
+                bssrdf_normals), rejected where the direction would leave through the
+                geometric normal's side (DIFFUSE_ENTRY: the share Cycles' newer source
+                enters by a cosine-distributed direction about -N instead; 0 measures as
+                bpy 5.0's Cycles);
       medium    per channel sigma_t and single-scattering albedo alpha from Cycles'
                 fit (subsurface_random_walk_remap: radius = Radius x Scale x 1/(4 pi),
                 the Base Color as the multiple-scattering albedo, anisotropy g); the
@@ -27,9 +31,15 @@ clamped to [0, 1] and L the layering of the coat / sheen / specular lobes above)
                 sigma_s (1 - g) after them; at most BSSRDF_MAX_BOUNCES steps (beyond:
                 absorbed), dropped below VOLUME_THROUGHPUT_EPSILON;
       exit      the walk's exit point is shaded as a Lambertian surface of weight 1 (its
-                shading normal seen from outside: subsurface_shader_data_setup), lit by
-                the usual next-event estimate and the photon / final-gather estimates,
-                times the walk's throughput.
+                interpolated shading normal seen from outside, as it is: Cycles'
+                subsurface_shader_data_setup; not replaced by the face's normal where
+                the walk's direction leaves below it), lit by the usual next-event
+                estimate and the photon / final-gather estimates, times the walk's
+                throughput.
+(BSSRDF_NORMALS: on a Shade Smooth cylinder's flat cap, whose interpolated normals lean
+towards the rim, the entry on the shading normal itself started no walk where that
+normal faces away from the viewer, the exits' guard dimmed the side; the candle of
+docs/accuracy.md's studio48 read 0.818 of Cycles on its cap, 0.995 now: subsurf49.)
 Cycles mixes classic free-flight sampling with Dwivedi-guided sampling by MIS (variance
 reduction only, the same expectation); both are here with Cycles' MIS weights.
 
@@ -63,6 +73,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .accel import _intersect_rows
+from .closures import principled as pr
 from .jit import kernel, register_warm_up
 
 # Cycles' constants (kernel/types.h, kernel/integrator/subsurface_random_walk.h).
@@ -81,6 +92,11 @@ USE_COMPILED = True
 # 1/(4 pi)) lit straight on reflects R = 0.734 and transmits T = 0.257 in Cycles; this walk
 # gives R 0.735, T 0.256 with 0 and R 0.760, T 0.232 with 0.5 (docs/accuracy.md, sss41).
 DIFFUSE_ENTRY = 0.0
+# Cycles' normals at the walk's ends (subsurf49): the entry refracts about the BSSRDF's
+# normal (bssrdf_normals: the shading normal turned as the glossy lobes'), the exit's
+# Lambertian takes its interpolated normal unguarded. False: the entry about the hit's
+# shading normal, the exits' normals guarded (before subsurf49; for A/B runs).
+BSSRDF_NORMALS = True
 
 
 @dataclass(frozen=True)
@@ -279,6 +295,26 @@ def entry_directions(n, ng, wi, alpha, ior, u, diffuse_share=None):
     return wo, ok
 
 
+@kernel
+def bssrdf_normals(ns, ng, wo, out):
+    """Cycles' BSSRDF normal at N entries (svm/closure.h: bssrdf->N =
+    maybe_ensure_valid_specular_reflection(sd, N), the normal the entry's refraction
+    turns about): the shading normal ns (N,3) turned towards the geometric normal ng
+    (N,3) (both on the viewer's side) just enough that the mirror direction of the
+    unit view direction wo (N,3) about it rises above the surface
+    (principled.valid_reflection_normal, as the glossy lobes' normal), or ns itself;
+    written to out (N,3), unit."""
+    for i in range(ns.shape[0]):
+        raised, p0, p1, p2 = pr.valid_reflection_normal(ns[i, 0], ns[i, 1], ns[i, 2],
+                                                        ng[i, 0], ng[i, 1], ng[i, 2],
+                                                        wo[i, 0], wo[i, 1], wo[i, 2])
+        ln = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        if raised and ln > 0.0:
+            out[i, 0], out[i, 1], out[i, 2] = p0 / ln, p1 / ln, p2 / ln
+        else:
+            out[i, 0], out[i, 1], out[i, 2] = ns[i, 0], ns[i, 1], ns[i, 2]
+
+
 class ObjectMeshes:
     """Each walking object's own triangles in an Embree BVH (Cycles' local intersection:
     a walk meets only its object's surface), built on first use; thread-safe."""
@@ -306,7 +342,7 @@ class ObjectMeshes:
 
 
 def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=None,
-         albedo=None, radius=None):
+         albedo=None, radius=None, n_entry=None):
     """Random walks from M entry points. obj (M,) the entry triangles' objects; p, n, ng,
     wi (M,3) the entry point, BSSRDF normal, geometric normal (both on the viewer's side)
     and the direction to the viewer; offset (M,) the entry's ray-origin offset; sp (M,)
@@ -316,7 +352,9 @@ def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=N
     over the albedo (Cycles' throughput / (w L))). stats: None, or a dict whose "rays"
     entry is increased by the rays the walks cast. albedo: None (each walk's sp.color),
     or (M,3) in [0, 1] each walk's own (a textured Base Color at its entry); radius:
-    None (sp.radius) or (M,3) each walk's Radius x Scale (metres)."""
+    None (sp.radius) or (M,3) each walk's Radius x Scale (metres). n_entry: None (n), or
+    (M,3) the unit normals the entry refracts about (Cycles' bssrdf->N: bssrdf_normals);
+    n stays the walk's own (Cycles' sd->N: its guided directions)."""
     m = len(p)
     albedo = (np.array([s.color for s in sp], np.float64).reshape(m, 3) if albedo is None
               else np.asarray(albedo, np.float64).reshape(m, 3))
@@ -325,7 +363,8 @@ def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=N
     g = np.array([s.anisotropy for s in sp], np.float64)
     ior = np.array([s.ior for s in sp], np.float64)
     alpha_ggx = np.array([s.roughness for s in sp], np.float64) ** 2
-    d, ok = entry_directions(n, ng, wi, alpha_ggx, ior, rng.random((m, 3)))
+    d, ok = entry_directions(n if n_entry is None else n_entry, ng, wi, alpha_ggx, ior,
+                             rng.random((m, 3)))
     # Channels whose radius is too small for the walk (Cycles: a diffuse closure of their
     # weight instead) are out of the walk; the caller shades them at the entry.
     sigma_t, alpha, tp = coefficients(albedo, np.maximum(radius, 1e-16), g)
@@ -784,10 +823,15 @@ class SubsurfaceWalks:
         offset = (np.take(hit.offset, r) if hit.offset is not None
                   else np.full(len(r), 1e-6 * max(ctx.geo.extent, 1e-3)))
         counts = {}
+        ns, ng, wo = (np.ascontiguousarray(np.take(a, r, axis=0), np.float64)
+                      for a in (hit.ns, hit.ng, hit.wo))
+        n_entry = None
+        if BSSRDF_NORMALS:
+            n_entry = np.empty_like(ns)
+            bssrdf_normals(ns, ng, wo, n_entry)
         ok, xprim, xu, xv, xd, tp = walk(
-            self.meshes, obj, np.take(hit.p, r, axis=0), np.take(hit.ns, r, axis=0),
-            np.take(hit.ng, r, axis=0), np.take(hit.wo, r, axis=0), offset, sp, rng, counts,
-            *(per_walk or (None, None)))
+            self.meshes, obj, np.take(hit.p, r, axis=0), ns, ng, wo, offset, sp, rng, counts,
+            *(per_walk or (None, None)), n_entry=n_entry)
         i = np.flatnonzero(ok & (tp.max(axis=1) > 0))
         with self._stats_lock:
             self.stats["walks"] += len(r)
@@ -796,8 +840,23 @@ class SubsurfaceWalks:
         if not len(i):
             return None
         # Seen from outside (Cycles turns the exit ray round: front-facing normals).
-        xhit = surface_hit(ctx.geo, ctx.table, xprim[i], xu[i], xv[i], -xd[i])
+        xhit = surface_hit(ctx.geo, ctx.table, xprim[i], xu[i], xv[i], -xd[i],
+                           unguarded=self._exit_unguarded(xprim[i], xu[i], xv[i]))
         return i, xhit, W[i] * tp[i]
+
+    def _exit_unguarded(self, prim, u, v):
+        """(E,) bool: the exits whose interpolated shading normal the Lambertian keeps
+        where the walk's direction leaves below it (bsdf.surface_hit's unguarded rows;
+        Cycles' subsurface_shader_data_setup takes sd->N as it is), every exit but those
+        whose normal points into the surface (ns . ng <= 0: broken custom normals keep
+        the guard's fall-back to the face, as turnedglossy's rows); None: the guard
+        everywhere (BSSRDF_NORMALS off, or no interpolated normals)."""
+        geo = self.ctx.geo
+        cn = getattr(geo, "corner_normals", None)
+        if not BSSRDF_NORMALS or cn is None or not len(cn):
+            return None
+        ns = geo.shading_normals(prim, u, v)
+        return np.einsum("ij,ij->i", ns, np.asarray(geo.ng[prim], np.float64)) > 0.0
 
 
 def material_params(materials) -> list:
@@ -807,8 +866,9 @@ def material_params(materials) -> list:
 
 @register_warm_up
 def _warm_up():
-    """Compile (or load) walk_rows (no walk: nothing is traced)."""
+    """Compile (or load) walk_rows and bssrdf_normals (no walk: nothing is traced)."""
     e3, e1 = np.zeros((0, 3)), np.zeros(0)
+    bssrdf_normals(e3, e3, e3, np.zeros((0, 3)))
     none = np.zeros(0, np.int64)
     walk_rows(0, 0, np.zeros(1, np.int64), none, none, e3, e3, e3, e3, e3, e3, e3, e3, e3,
               e1, e1, e1, e1, e3, np.zeros(0, np.uint64), none.copy(), e1, e1, e3,
