@@ -7,8 +7,8 @@ closure, i.e. none (`bsdf_blur`'s "TODO: Recompute energy preservation after blu
 Such an interface loses light (the masking-shadowing term, refracted samples that leave
 on the wrong side), the more the rougher and the more oblique. Our shadow rays cross a
 window passage with the smooth slab's transmittance (shadowtransmittance._crossing);
-with the switch CYCLES_BLUR on, a shadow ray from a diffuse hit D crossing a passage
-takes in addition
+with the switch CYCLES_BLUR on (off by default), a shadow ray from a diffuse hit D
+crossing a passage takes in addition
 
     factor(cos_in, alpha, ior) = T_blur(cos_in, alpha) / T_sharp(cos_in)
 
@@ -40,9 +40,12 @@ import numpy as np
 
 from .jit import kernel, register_warm_up
 
-# Emulate Cycles' blurred window glass at Filter Glossy > 0 (False: shadow rays cross a
-# passage with the smooth slab's transmittance, as before fgslab49).
-CYCLES_BLUR = True
+# Emulate Cycles' blurred window glass at Filter Glossy > 0 (False: shadow rays and
+# photons cross a passage with the smooth slab's transmittance, as before fgslab49).
+# Off by default: within 3 % of Cycles for panels and a sun at the zenith, but a sun at
+# 45 degrees 1.058 and a white world 1.047 (the split's chains' extra light), and the
+# pane-on-a-sill ceiling 0.76 (0.96 off); docs/compatibility.md "fgslab49".
+CYCLES_BLUR = False
 
 # Cycles' default Light Paths > Max Bounces > Glossy: the inner reflections followed.
 MAX_REFLECTIONS = 4

@@ -350,6 +350,9 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 
 
 _NO_PASSAGES = (pk._NO_FLAT_MAT, pk._NO_FLAT_LIMIT)  # (flat_tables' "none")
+# Photons out of a flat passage keep blurredpassage's factor at Filter Glossy > 0 (with
+# blurredpassage.CYCLES_BLUR; False: the shadow rays' side alone).
+BLUR_PASSAGE_PHOTONS = True
 
 
 def passages_carried(light) -> bool:
@@ -424,7 +427,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     # passage keep its factor (None: off, Filter Glossy 0, or no passage crossed).
     fg = float(getattr(settings, "cycles_filter_glossy", 0.0) or 0.0)
     passage_blur = ((fg, blurredpassage.table(), blurredpassage.IOR)
-                    if blurredpassage.CYCLES_BLUR and fg > 0.0 and len(flat[0]) else None)
+                    if blurredpassage.CYCLES_BLUR and BLUR_PASSAGE_PHOTONS and fg > 0.0
+                    and len(flat[0]) else None)
     # Which photons' last hit was a touching glass face met from inside, by slot
     # (CoincidentSurfaces.meet_hits; None: no glass touches anything).
     arrived = (np.zeros(int(slot.max()) + 1 if len(slot) else 0, bool)
