@@ -44,7 +44,7 @@ from .jit import kernel, register_warm_up
 # photons cross a passage with the smooth slab's transmittance, as before fgslab49).
 # Off by default: within 3 % of Cycles for panels and a sun at the zenith, but a sun at
 # 45 degrees 1.058 and a white world 1.047 (the split's chains' extra light), and the
-# pane-on-a-sill ceiling 0.76 (0.96 off); docs/compatibility.md "fgslab49".
+# pane-on-a-sill ceiling 0.76 (1.00 off); docs/compatibility.md "fgslab49".
 CYCLES_BLUR = False
 
 # Cycles' default Light Paths > Max Bounces > Glossy: the inner reflections followed.
