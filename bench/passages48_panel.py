@@ -12,7 +12,10 @@ an orthographic camera under the slab), the panel SIZE m square at HEIGHT m (def
 at ANGLE degrees from the zenith instead, world:0 a white world), and without the slab
 for scale; Cycles 1024 spp
 (seed 0), ours 16 spp, 20k + 20k photons. The ratios are ours / Cycles at each Filter
-Glossy and Cycles' own 1 / 0.
+Glossy and Cycles' own 1 / 0; "ours now / Cycles 1" with engine/blurredpassage.py's
+factor on the window passage (fgslab49, docs/compatibility.md "fgslab49"), "ours 1 /
+Cycles 1" with it off (engine.blurredpassage.CYCLES_BLUR False: as before). Cycles' renders
+are cached under $TMPDIR/passages48_cycles (delete to re-render).
 """
 import math
 import os
@@ -29,9 +32,12 @@ def main():
     import addon
     import blender_helpers as bh
     import test_window_unsampled_cycles as tw
+    from engine import blurredpassage
     if not hasattr(bpy.types.Scene, "photonmap"):
         addon.register()
     tmp = tempfile.mkdtemp(prefix="passages48_")
+    cache = os.path.join(tempfile.gettempdir(), "passages48_cycles")
+    os.makedirs(cache, exist_ok=True)
     cases = sys.argv[1:] or ["0.5:1.5", "2:1.5", "4:1.5", "8:1.5", "2:3", "2:6", "sun:0",
                              "sun:45", "world:0"]
 
@@ -62,11 +68,13 @@ def main():
 
     def mean(s, engine, name):
         s.render.engine = engine
-        return float(bh.read_rgba(bpy, bh.render_exr(bpy, s, os.path.join(tmp, name)))
-                     [..., :3].mean())
+        path = os.path.join(cache if engine == "CYCLES" else tmp, name)
+        if not (engine == "CYCLES" and os.path.exists(path)):
+            path = bh.render_exr(bpy, s, path)
+        return float(bh.read_rgba(bpy, path)[..., :3].mean())
 
     print("size m | height m | Cycles bare | Cycles 0 | Cycles 1 | Cycles 1/0 | "
-          "ours 0 / Cycles 0 | ours 1 / Cycles 1")
+          "ours 0 / Cycles 0 | ours 1 / Cycles 1 | ours now / Cycles 1")
     for case in cases:
         size, height = case.split(":")
         size = size if size in ("sun", "world") else float(size)
@@ -74,18 +82,26 @@ def main():
         out = {}
         s = build(size, height, slab=False)
         bh.cycles_plain(s, 1024, 12)
-        out["bare"] = mean(s, "CYCLES", "bare.exr")
+        out["bare"] = mean(s, "CYCLES", f"{case}_bare.exr")
         for fg in (0.0, 1.0):
             s = build(size, height)
             bh.cycles_plain(s, 1024, 12).blur_glossy = fg
-            out[f"C{fg:g}"] = mean(s, "CYCLES", f"c{fg}.exr")
-            s = build(size, height)
-            bh.cycles_plain(s, 1024, 12).blur_glossy = fg
-            bh.cheap(s, spp=16, photons=20_000, caustic_photons=20_000)
-            out[f"O{fg:g}"] = mean(s, "PHOTONMAP", f"o{fg}.exr")
+            out[f"C{fg:g}"] = mean(s, "CYCLES", f"{case}_c{fg:g}.exr")
+            for on in ((False, True) if fg > 0 else (True,)):
+                s = build(size, height)
+                bh.cycles_plain(s, 1024, 12).blur_glossy = fg
+                bh.cheap(s, spp=16, photons=20_000, caustic_photons=20_000)
+                was = blurredpassage.CYCLES_BLUR
+                blurredpassage.CYCLES_BLUR = on
+                try:
+                    key = f"O{fg:g}" + ("n" if on and fg > 0 else "")
+                    out[key] = mean(s, "PHOTONMAP", f"o{fg}{on}.exr")
+                finally:
+                    blurredpassage.CYCLES_BLUR = was
         print(f"{size} | {height:g} | {out['bare']:.4f} | {out['C0']:.4f} | "
               f"{out['C1']:.4f} | {out['C1'] / out['C0']:.3f} | "
-              f"{out['O0'] / out['C0']:.3f} | {out['O1'] / out['C1']:.3f}", flush=True)
+              f"{out['O0'] / out['C0']:.3f} | {out['O1'] / out['C1']:.3f} | "
+              f"{out['O1n'] / out['C1']:.3f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -998,10 +998,33 @@ class DirectLightBuffers:
                 self.u[2, :m].reshape(K, n) if third else np.zeros((K, 1)))
 
 
+def _passage_blur(buf, m_all, m_rays, ns, rows, fd, filter_glossy):
+    """(m_rays,) the Filter Glossy alpha of each traced shadow ray's window glass
+    (ShadowTransmittance's blur): filterglossy.blur_alpha(filter_glossy, cos / pi) with
+    cos the ray's cosine to its hit's normal ns (rows: the hits' rows of ns; None: the
+    hits themselves), Cycles' min_ray_pdf after a Lambert bounce towards the light; 0
+    where the hit has no diffuse lobe (fd (n,3), per shaded hit, zero; None: every hit
+    has one)."""
+    from .filterglossy import blur_alphas
+    r = buf.ray[:m_all]
+    on = r >= 0
+    shaded = buf.row[:m_all][on]
+    hits = shaded if rows is None else np.asarray(rows, np.int64)[shaded]
+    pdf = np.full(m_rays, np.inf)
+    n = np.take(ns, hits, axis=0)
+    d = np.asarray(buf.d32[:m_rays], np.float64)[r[on]]
+    c = (n * d).sum(axis=1) / np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    p = np.maximum(c, 0.0) / math.pi
+    if fd is not None:
+        p = np.where(np.take(fd, shaded, axis=0).max(axis=1) > 0.0, p, np.inf)
+    pdf[r[on]] = p
+    return blur_alphas(filter_glossy, pdf)
+
+
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
                  bsdf=None, buffers=None, rows=None, transmission=None, passages=None,
                  light_cut=None, medium_sigma=None, world_sigma=None, link=None,
-                 glossy=None, used=None):
+                 glossy=None, used=None, filter_glossy=0.0):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -1051,6 +1074,11 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     used (n,) int64: the transparent bounces each hit's camera path made before it
     (Cycles' transparent_bounce, which its shadow rays start from: they cross the
     shadow's max_hits minus that many; ShadowTransmittance's used); None: 0.
+    filter_glossy: Cycles' Filter Glossy to emulate on window glass (0: none): a shadow
+    ray from a hit with a diffuse lobe (every hit without bsdf; with bsdf where fd > 0;
+    never with transmission) crossing a flat passage keeps blurredpassage.factor_lookup
+    of it at the blur alpha of the Lambert pdf towards the light (ShadowTransmittance's
+    blur; docs/compatibility.md "fgslab49").
     Returns (E or radiance, number of shadow rays traced)."""
     if link is not None and n and samples:
         links, recv = link
@@ -1058,7 +1086,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                             recv, shadow=shadow, tree=tree, bsdf=bsdf, buffers=buffers,
                             rows=rows, transmission=transmission, passages=passages,
                             light_cut=light_cut, medium_sigma=medium_sigma,
-                            world_sigma=world_sigma, used=used)
+                            world_sigma=world_sigma, used=used, filter_glossy=filter_glossy)
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
     # No bent normal (nsm is ns): every bump term is 1, none is written or read.
@@ -1153,9 +1181,15 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                     on = r >= 0
                     ray_used = np.zeros(m_rays, np.int64)
                     ray_used[r[on]] = np.take(used, buf.row[:m_all][on])
+                ray_blur = None
+                if (filter_glossy > 0.0 and transmission is None and shadow.flat_on
+                        and not shadow.shared):
+                    ray_blur = _passage_blur(buf, m_all, m_rays, hit_arrays[1], rows,
+                                             None if bsdf is None else bsdf[0],
+                                             filter_glossy)
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls, ray_cap, crossed,
-                                    ray_used)
+                                    ray_used, ray_blur)
                 if was_blocked is not None:
                     _dim_in_medium(buf, m_all, ~(was_blocked & ~blocked), t_keep,
                                    world_sigma)

@@ -20,7 +20,7 @@ from .glossysplit import settings_filter_glossy, shots_unread
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
-from . import raymaterials, shadelight, worldmedium
+from . import blurredpassage, raymaterials, shadelight, worldmedium
 from .shadelight import find_shades
 from .casterspheres import bounding_sphere, caster_spheres, per_caster
 from .casterspheres import corner_pieces as _corner_pieces
@@ -802,6 +802,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             rough_note += ("; window glass " + _quoted(plan.window_glass)
                            + ": passed by shadow rays (thin flat glass), not a caustic "
                            "caster; unaimed photons carry its reflections")
+            fg_win = float(getattr(s, "cycles_filter_glossy", 0.0) or 0.0)
+            if fg_win > 0.0 and blurredpassage.CYCLES_BLUR:
+                # (docs/compatibility.md "fgslab49": the light through it is dimmed)
+                rough_note += (f"; the light through it dimmed as Cycles' Filter Glossy "
+                               f"{fg_win:g} dims it")
         if plan.pane_glass:
             rough_note += ("; single-plane glass " + _quoted(plan.pane_glass)
                            + f": {pane_lights} through it by shadow rays, not a "

@@ -46,6 +46,7 @@ from .coincident import CoincidentSurfaces
 from .turnedlight import TurnedReflections
 from . import turnedglossy
 from . import glossysplit
+from . import blurredpassage
 from .console import short_count
 from .filterglossy import NO_BLUR, PathBlur
 from .glasslight import rough_transmission_rows, transmitted_light
@@ -128,6 +129,16 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
 
 
 _EMPTY_F = np.zeros(0)
+
+
+def _passage_filter_glossy(ctx, shadow) -> float:
+    """The Filter Glossy the shadow rays' window glass takes (directlight.direct_light's
+    filter_glossy): the render's, where blurredpassage.CYCLES_BLUR and the scene has flat
+    passages; else 0.0."""
+    if not blurredpassage.CYCLES_BLUR or shadow is None or not shadow.flat_on:
+        return 0.0
+    fg = float(getattr(ctx.settings, "cycles_filter_glossy", 0.0) or 0.0)
+    return fg if fg > 0.0 else 0.0
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
@@ -218,7 +229,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
                            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
-                           else None, link=link, glossy=g_out, used=used)
+                           else None, link=link, glossy=g_out, used=used,
+                           filter_glossy=_passage_filter_glossy(ctx, shadow))
     counters.shadow_rays += rays
     if glossy_out is not None and bsdf is not None and link is not None:
         # Light Linking splits the hits by receiver set: the same samples again with the
@@ -229,7 +241,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             bsdf=(np.zeros_like(bsdf[0]),) + bsdf[1:], rows=rows, passages=passages,
             light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
             world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None else None,
-            link=link, used=used)[0]
+            link=link, used=used, filter_glossy=_passage_filter_glossy(ctx, shadow))[0]
     if shade_glossy is not None:
         shade_glossy[:] = False
     panes, shades = panes_for(ctx), shades_for(ctx)

@@ -34,6 +34,8 @@ from .closures import ggx, tables
 from . import glassadjoint as ga
 from .closures.fresnel import F0_from_ior, schlick_remap
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
+from .blurredpassage import passage_factor
+from .filterglossy import blur_alpha
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
 from .trig import sincos_turn
@@ -435,7 +437,8 @@ _PLAIN_ARG = 31
 
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
-            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur_slot=NO_BLUR_SLOT):
+            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur_slot=NO_BLUR_SLOT,
+            passage_blur=None):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -451,7 +454,11 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     SHADE_GLASS a next-event lamp shade's (engine/shadelight.py); empty (the default, and
     for photons of lights served by neither): none. blur_slot (slots,) float64: the
     photons' Filter Glossy state by slot (_scatter; -1 at emission), empty (the default):
-    none kept, every stored photon's blur pdf inf."""
+    none kept, every stored photon's blur pdf inf. passage_blur: None, or (Filter Glossy,
+    blurredpassage.table(), blurredpassage.IOR): a photon out of a flat passage keeps
+    passage_factor of its power at the blur of cos / pi, cos its direction's to the
+    glass's normal (Cycles blurs the slab after the diffuse bounce at the hit it lights;
+    docs/compatibility.md "fgslab49")."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -460,8 +467,13 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
         bend_cos = _FLAT_NORMAL_COS
     else:
         bend_cos = math.cos(math.radians(GLASS_ADJOINT_MIN_BEND_DEG))
+    fg, ptab, pior = (0.0, _NO_PASSAGE_TAB, _NO_PASSAGE_IOR) if passage_blur is None \
+        else passage_blur
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-                    GLASS_ADJOINT_MODE, bend_cos, blur_slot)
+                    GLASS_ADJOINT_MODE, bend_cos, blur_slot, float(fg), ptab, pior)
+
+
+_NO_PASSAGE_TAB, _NO_PASSAGE_IOR = np.ones((2, 2, 2)), np.array([1.0, 2.0])
 
 
 # How scatter sends photons at smooth glass with a bent shading normal.
@@ -757,7 +769,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface, st_blur,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-             adjoint_mode, bend_cos, blur_slot):
+             adjoint_mode, bend_cos, blur_slot, passage_fg, passage_tab, passage_ior):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -1241,6 +1253,20 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                         fl >> _TRI_SHIFT, t, dx, dy, dz, p_b[j, 0], p_b[j, 1], p_b[j, 2])):
                     # Out of a flat passage: the path as it was before the glass.
                     nf = (fl >> _PRE_SHIFT) & F_PATH
+                    if passage_fg > 0.0:
+                        # Cycles' blurred slab (blurredpassage): the factor at the blur
+                        # of the Lambert pdf along the photon's way.
+                        en = fl >> _TRI_SHIFT
+                        wx, wy, wz = winding_normal(e1, e2, en)
+                        ln = math.sqrt(wx * wx + wy * wy + wz * wz)
+                        lo = math.sqrt(ox * ox + oy * oy + oz * oz)
+                        cg = min(abs(ox * wx + oy * wy + oz * wz) / max(ln * lo, 1e-300), 1.0)
+                        fb = passage_factor(passage_tab, passage_ior, cg,
+                                            blur_alpha(passage_fg, cg / math.pi),
+                                            mat_ior[material[en]])
+                        q0 *= fb
+                        q1 *= fb
+                        q2 *= fb
                 elif (pane_on and not passage and not pane and (fl & _F_KIND) == 0
                       and ((glass and transmitted
                             and (pane_tri[t] >= 0 or pane_tri[t] == SHADE_GLASS))

@@ -31,7 +31,7 @@ from .lights.group import photon_emitters
 from .lightlinking import (blocker_accel_of, link_row_of, mesh_photon_links,
                            mesh_photon_rows, past_non_blockers, unlinked_first_hits)
 from .parallel import Cancelled, chunk_length, ordered_map
-from . import media, photonmedium, worldmedium
+from . import blurredpassage, media, photonmedium, worldmedium
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
@@ -350,6 +350,9 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 
 
 _NO_PASSAGES = (pk._NO_FLAT_MAT, pk._NO_FLAT_LIMIT)  # (flat_tables' "none")
+# Photons out of a flat passage keep blurredpassage's factor at Filter Glossy > 0 (with
+# blurredpassage.CYCLES_BLUR; False: the shadow rays' side alone).
+BLUR_PASSAGE_PHOTONS = True
 
 
 def passages_carried(light) -> bool:
@@ -420,6 +423,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     # reverse-pdf state by slot (photonkernels._scatter's blur_slot; -1: none yet).
     blur_slot = (np.full(int(slot.max()) + 1 if len(slot) else 0, -1.0)
                  if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR_SLOT)
+    # Cycles' blurred window glass (engine/blurredpassage.py): photons out of a flat
+    # passage keep its factor (None: off, Filter Glossy 0, or no passage crossed).
+    fg = float(getattr(settings, "cycles_filter_glossy", 0.0) or 0.0)
+    passage_blur = ((fg, blurredpassage.table(), blurredpassage.IOR)
+                    if blurredpassage.CYCLES_BLUR and BLUR_PASSAGE_PHOTONS and fg > 0.0
+                    and len(flat[0]) else None)
     # Which photons' last hit was a touching glass face met from inside, by slot
     # (CoincidentSurfaces.meet_hits; None: no glass touches anything).
     arrived = (np.zeros(int(slot.max()) + 1 if len(slot) else 0, bool)
@@ -542,6 +551,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 vis_on, limits, *stored.room(m), *nxt_sets[k], hit_rows,
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
                                 may_diffuse=may_diffuse, blur_slot=blur_slot,
+                                passage_blur=passage_blur,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         if scattered is not None:

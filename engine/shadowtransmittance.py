@@ -39,6 +39,7 @@ import numpy as np
 from . import media, raymaterials
 from . import photonkernels as pk
 from .accel import Accel
+from .blurredpassage import factor_lookup
 from .closures import principled as pr
 from .closures import tables
 from .coincident import CoincidentSurfaces
@@ -399,6 +400,25 @@ class CameraPassages:
         return o, t
 
 
+def _blur_passages(trans, slots, blur, entered, d, e1, e2, tri_material, mat_ior):
+    """trans[slots] (rays just out of a flat passage entered through triangles `entered`
+    along d (K,3)) *= blurredpassage.factor_lookup at the ray's cosine to the entry face,
+    its blur alpha blur[slots] and the glass's IOR (mat_ior (M,) of tri_material (T,)):
+    Cycles' blurred slab
+    at Filter Glossy (docs/compatibility.md "fgslab49")."""
+    a = blur[slots]
+    on = np.flatnonzero(a > 0.0)
+    if len(on) == 0:
+        return
+    g = entered[on]
+    n = np.cross(np.take(e1, g, axis=0), np.take(e2, g, axis=0))
+    dd = d[on]
+    c = np.abs((n * dd).sum(axis=1)) / np.maximum(
+        np.linalg.norm(n, axis=1) * np.linalg.norm(dd, axis=1), 1e-300)
+    f = factor_lookup(np.minimum(c, 1.0), a[on], np.take(mat_ior, np.take(tri_material, g)))
+    trans[slots[on]] *= f[:, None]
+
+
 @kernel
 def scale_entries(contrib, ray, m_all, ray_trans):
     """contrib[j] *= ray_trans[ray[j]] (RGB) for the entries j < m_all with a traced
@@ -522,11 +542,12 @@ class ShadowTransmittance:
     hetero = None
 
     def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
-                      crossed_out=None, used=None) -> np.ndarray:
+                      crossed_out=None, used=None, blur=None) -> np.ndarray:
         """_transmittance's (R,3), with the heterogeneous media's correction
         (heterogeneous.HeterogeneousMedia.correction: ratio tracking over the parts inside
         a medium with a density texture) on the rays that get through."""
-        trans = self._transmittance(o32, d32, t32, rows, cls, passages, crossed_out, used)
+        trans = self._transmittance(o32, d32, t32, rows, cls, passages, crossed_out, used,
+                                    blur)
         het = self.hetero
         if het is not None and len(trans):
             r = np.arange(len(o32)) if rows is None else np.asarray(rows, np.int64)
@@ -539,7 +560,7 @@ class ShadowTransmittance:
         return trans
 
     def _transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
-                       crossed_out=None, used=None) -> np.ndarray:
+                       crossed_out=None, used=None, blur=None) -> np.ndarray:
         """(R,3) RGB transmittance of the shadow rays `rows` (default: all) from o32 (R,3)
         along d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space),
         through transparent surfaces: the product of (1 - alpha) x transparent tint of the
@@ -553,7 +574,11 @@ class ShadowTransmittance:
         per ray (as o32), the transparent bounces its camera path made before the point
         it leaves (Cycles copies the path's transparent_bounce to the shadow path and
         lets it cross transparent_max_bounce minus that many: intersect_shadow.h,
-        integrate_shadow_max_transparent_hits); None: 0, max_hits each."""
+        integrate_shadow_max_transparent_hits); None: 0, max_hits each. blur: (R,) float64
+        per ray (as o32) or None, the Filter Glossy alpha Cycles gives window glass on the
+        ray's way (filterglossy.blur_alpha of its diffuse hit's pdf towards the light;
+        0: none): each flat passage it crosses keeps blurredpassage.factor_lookup of the
+        smooth slab's light (docs/compatibility.md "fgslab49"); None: none blurs."""
         if rows is None:
             rows = np.arange(len(o32))
         rows = np.asarray(rows, np.int64)
@@ -570,6 +595,8 @@ class ShadowTransmittance:
         cap = (None if passages is None or not self.flat_on
                else np.asarray(passages, np.int64)[rows])
         crossed = None if cap is None else np.zeros(n, np.int64)
+        ray_blur = (None if blur is None or not self.flat_on
+                    else np.asarray(blur, np.float64)[rows])
         o = np.asarray(o32, np.float64)[rows]
         d = np.asarray(d32, np.float64)[rows]
         t = np.asarray(t32, np.float64)[rows]
@@ -639,7 +666,8 @@ class ShadowTransmittance:
                                                  hp, hu, hv, constant=False)
             state = np.empty(len(prim), np.int64)
             # Rays inside glass now: GOING after the step means out of a flat passage.
-            inside = None if cap is None else entry[slot] >= 0
+            inside = None if cap is None and ray_blur is None else entry[slot] >= 0
+            entered = entry[slot] if ray_blur is not None else None
             if self.flat_on:
                 flat = (o, d, np.ascontiguousarray(thit, np.float64), geo.v0, geo.e1, geo.e2,
                         self.object_id, self.flat_mat, self.flat_limit, self.glass,
@@ -651,6 +679,10 @@ class ShadowTransmittance:
                         entry, *flat, self.sigma, *seg, *seg_e)
             if inside is not None and inside.any():
                 out = np.flatnonzero(inside & (state == GOING))
+                if ray_blur is not None:
+                    _blur_passages(trans, slot[out], ray_blur, entered[out], d[out],
+                                   geo.e1, geo.e2, self.tri_material, self.mat_ior)
+            if cap is not None and inside is not None and inside.any():
                 crossed[slot[out]] += 1
                 over = out[crossed[slot[out]] > cap[slot[out]]]
                 if len(over):
@@ -705,7 +737,7 @@ class ShadowTransmittance:
         return trans
 
     def pass_blocked(self, o32, d32, t32, blocked, contrib, ray, m_all, cls=None,
-                     passages=None, crossed_out=None, used=None):
+                     passages=None, crossed_out=None, used=None, blur=None):
         """After an OCCLUDED query: re-trace the blocked shadow rays through transparent
         surfaces; rays that get through are marked unblocked in `blocked` and the entries
         (j < m_all) of `contrib` that use them scaled by their transmittance (the layout
@@ -714,11 +746,13 @@ class ShadowTransmittance:
         passages (transmittance's; None: no cap). crossed_out: (R,) int64 or None, the
         flat passages each re-traced ray crossed (transmittance's; the rest untouched).
         used: (R,) the transparent bounces each ray's path made before (transmittance's;
-        None: 0)."""
+        None: 0). blur: (R,) the rays' window-glass blur alphas (transmittance's; None:
+        none)."""
         rows = np.nonzero(blocked)[0]
         if len(rows) == 0:
             return
-        trans = self.transmittance(o32, d32, t32, rows, cls, passages, crossed_out, used)
+        trans = self.transmittance(o32, d32, t32, rows, cls, passages, crossed_out, used,
+                                   blur)
         through = np.any(trans > 0.0, axis=1)
         if not through.any():
             return
