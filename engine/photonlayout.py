@@ -10,9 +10,9 @@ photon).
 - power: Ward's RGBE (Graphics Gems II, "Real Pixels"; Jensen's photon map stores its
   power so), (N,4) uint8: three 8-bit mantissas and a shared exponent. Encoded to the
   nearest step, decoded as m 2^(e - 136), so 0 stays 0 (a zero channel stays exactly
-  0), the rounding is unbiased on average and each channel is within 1/256 of the
-  brightest channel's value (half a step of 2^(E - 8) where the brightest is in
-  [2^(E-1), 2^E), a whole step's half of 2^(E - 7) where it rounds up to 2^E). Channels below 2^-137 of a zero exponent byte decode to 0
+  0), the rounding is unbiased on average and each channel is within 1/255.5 of the
+  brightest channel's value (half a step: 2^(E - 9) where the brightest is in
+  [2^(E-1), 2^E), 2^(E - 8) where it rounded up to 256 steps, >= 255.5 2^(E - 8)). Channels below 2^-137 of a zero exponent byte decode to 0
   (float32 watts that small do not occur).
 
 The kernels read a map's arrays through read_vector / read_power (numba overloads chosen
@@ -26,6 +26,8 @@ COMPACT: PhotonMap stores its photons in this layout (True, the default) or keep
 float32 arrays (False: the layout before compact49, for A/B benches).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import types
@@ -48,22 +50,41 @@ RGBE_STEP = np.ldexp(1.0, np.arange(256) - RGBE_BIAS)
 
 
 def encode_vectors(v: np.ndarray) -> np.ndarray:
-    """(N,2) int16: the octahedral code of (N,3) unit vectors (any float dtype; zero rows
-    code as (0, 0), i.e. +z). Each vector maps to the octahedron |x| + |y| + |z| = 1,
-    the lower half folded over the upper, and the square's coordinates round to the
-    nearest of 65,535 steps."""
-    v = np.asarray(v, np.float64)
+    """(N,2) int16: the octahedral code of (N,3) unit vectors (float32 or float64; zero
+    rows code as (0, 0), i.e. +z). Each vector maps to the octahedron |x| + |y| + |z| =
+    1, the lower half folded over the upper, and the square's coordinates round to the
+    nearest of 65,535 steps (_encode_vectors: a kernel, ~50x numpy's whole-array passes
+    on a map build's million photons)."""
+    v = np.ascontiguousarray(v)
+    if v.dtype != np.float32:
+        v = v.astype(np.float64)
     out = np.empty((len(v), 2), np.int16)
-    if not len(v):
-        return out
-    s = np.maximum(np.abs(v).sum(axis=1), 1e-300)
-    x, y, z = v[:, 0] / s, v[:, 1] / s, v[:, 2] / s
-    low = z < 0.0
-    fx = np.where(low, (1.0 - np.abs(y)) * np.where(x >= 0.0, 1.0, -1.0), x)
-    fy = np.where(low, (1.0 - np.abs(x)) * np.where(y >= 0.0, 1.0, -1.0), y)
-    out[:, 0] = np.round(np.clip(fx, -1.0, 1.0) * OCT_SCALE)
-    out[:, 1] = np.round(np.clip(fy, -1.0, 1.0) * OCT_SCALE)
+    _encode_vectors(v, out)
     return out
+
+
+@kernel
+def _round_even(x):
+    """x rounded to the nearest integer, ties to even (numpy's np.round): float32
+    inputs scaled by powers of two land on ties often enough to bias half-up rounding."""
+    r = math.floor(x + 0.5)
+    if r - x == 0.5 and r % 2.0 != 0.0:
+        r -= 1.0
+    return r
+
+
+@kernel
+def _encode_vectors(v, out):
+    for i in range(v.shape[0]):
+        x, y, z = np.float64(v[i, 0]), np.float64(v[i, 1]), np.float64(v[i, 2])
+        s = max(abs(x) + abs(y) + abs(z), 1e-300)
+        x, y, z = x / s, y / s, z / s
+        if z < 0.0:
+            fx = (1.0 - abs(y)) * (1.0 if x >= 0.0 else -1.0)
+            fy = (1.0 - abs(x)) * (1.0 if y >= 0.0 else -1.0)
+            x, y = fx, fy
+        out[i, 0] = np.int16(_round_even(min(max(x, -1.0), 1.0) * OCT_SCALE))
+        out[i, 1] = np.int16(_round_even(min(max(y, -1.0), 1.0) * OCT_SCALE))
 
 
 def decode_vectors(code: np.ndarray, dtype=np.float32) -> np.ndarray:
@@ -83,34 +104,43 @@ def decode_vectors(code: np.ndarray, dtype=np.float32) -> np.ndarray:
 
 
 def encode_power(c: np.ndarray) -> np.ndarray:
-    """(N,4) uint8 RGBE of (N,3) non-negative powers (W, any float dtype): mantissas
+    """(N,4) uint8 RGBE of (N,3) non-negative powers (W, float32 or float64): mantissas
     round(c 2^(136 - e)) <= 255 with e the smallest exponent byte that keeps the
-    brightest channel's at most 255 (a row of zeros: all 0). Negative channels (none in a
-    photon's power) encode as 0."""
-    c = np.maximum(np.asarray(c, np.float64), 0.0)
-    out = np.zeros((len(c), 4), np.uint8)
-    if not len(c):
-        return out
-    v = c.max(axis=1)
-    _, big = np.frexp(v)  # v = f 2^big, f in [0.5, 1)
-    # e - 136 = big - 8: the brightest channel's mantissa in [128, 256); rounding it up
-    # to 256 takes the next exponent.
-    e = big + RGBE_BIAS - 8
-    m = np.round(c * np.ldexp(1.0, -(e - RGBE_BIAS))[:, None])
-    over = m.max(axis=1) > 255.0
-    if over.any():
-        e[over] += 1
-        m[over] = np.round(c[over] * np.ldexp(1.0, -(e[over] - RGBE_BIAS))[:, None])
-    low = e < 0  # below the range: the nearest steps of a zero exponent byte (mostly 0)
-    if low.any():
-        e[low] = 0
-        m[low] = np.round(c[low] * np.ldexp(1.0, RGBE_BIAS))
-    zero = v <= 0.0
-    e[zero] = 0
-    m[zero] = 0.0
-    out[:, :3] = np.clip(m, 0.0, 255.0)
-    out[:, 3] = np.clip(e, 0, 255)
+    brightest channel's at most 255 (a row of zeros: all 0; below the range, 2^-128 W,
+    the nearest steps of e = 0, mostly 0). Negative channels (none in a photon's power)
+    encode as 0. A kernel (_encode_power)."""
+    c = np.ascontiguousarray(c)
+    if c.dtype != np.float32:
+        c = c.astype(np.float64)
+    out = np.empty((len(c), 4), np.uint8)
+    _encode_power(c, out)
     return out
+
+
+@kernel
+def _encode_power(c, out):
+    for i in range(c.shape[0]):
+        r = max(np.float64(c[i, 0]), 0.0)
+        g = max(np.float64(c[i, 1]), 0.0)
+        b = max(np.float64(c[i, 2]), 0.0)
+        v = max(r, g, b)
+        if not v > 0.0:  # (0, or NaN)
+            out[i, 0] = out[i, 1] = out[i, 2] = out[i, 3] = 0
+            continue
+        big = math.frexp(v)[1]  # v = f 2^big, f in [0.5, 1)
+        # e - 136 = big - 8: the brightest channel's mantissa in [128, 256); one that
+        # rounds up to 256 takes the next exponent.
+        e = big + RGBE_BIAS - 8
+        if e < 0:
+            e = 0
+        f = math.ldexp(1.0, RGBE_BIAS - e)
+        if _round_even(v * f) > 255.0:
+            e += 1
+            f *= 0.5
+        out[i, 0] = np.uint8(min(_round_even(r * f), 255.0))
+        out[i, 1] = np.uint8(min(_round_even(g * f), 255.0))
+        out[i, 2] = np.uint8(min(_round_even(b * f), 255.0))
+        out[i, 3] = np.uint8(min(e, 255))
 
 
 def decode_power(code: np.ndarray, dtype=np.float64) -> np.ndarray:
@@ -181,23 +211,29 @@ def rgbe_decode(code, j):
     return np.float64(code[j, 0]) * f, np.float64(code[j, 1]) * f, np.float64(code[j, 2]) * f
 
 
+# The next four are numba overloads in the kernels (chosen by the array's dtype at
+# compile time, below); their Python bodies give the same values where a kernel runs as
+# its Python function (py_func: tests/test_photon_lookup.py).
 def read_vector(a, j):
     """Row j of a direction or normal array as 3 values: a float (N,3) array's own
-    elements (its dtype), an int16 (N,2) array's octahedral code decoded (float32).
-    Kernels only (a numba overload)."""
-    raise NotImplementedError("read_vector: kernels only")
+    elements (its dtype), an int16 (N,2) array's octahedral code decoded (float32)."""
+    if a.dtype == np.int16:
+        return oct_decode.py_func(a[j, 0], a[j, 1])
+    return a[j, 0], a[j, 1], a[j, 2]
 
 
 def read_power(a, j):
     """Row j of a power array as float64 x 3: a float (N,3) array's values, an (N,4)
-    uint8 array's RGBE code decoded. Kernels only (a numba overload)."""
-    raise NotImplementedError("read_power: kernels only")
+    uint8 array's RGBE code decoded."""
+    if a.dtype == np.uint8:
+        return rgbe_decode.py_func(a, j)
+    return np.float64(a[j, 0]), np.float64(a[j, 1]), np.float64(a[j, 2])
 
 
 def cos_scratch(a, n):
     """An (n,) array for cosines against a direction array a: a's dtype for a float
-    array, float32 for the octahedral code (its decoded precision). Kernels only."""
-    raise NotImplementedError("cos_scratch: kernels only")
+    array, float32 for the octahedral code (its decoded precision)."""
+    return np.empty(n, np.float32 if a.dtype == np.int16 else a.dtype)
 
 
 @overload(read_vector)
@@ -233,15 +269,15 @@ def _cos_scratch(a, n):
     return impl
 
 
+SNAP_CHORD2 = (1.5 * OCT_MAX_ANGLE) ** 2
+
+
 def snap_chord2(a):
     """The squared chord within which a normal read from a (read_vector) stands for an
     equal one: 0.0 for a float array (its values are exact), (1.5 OCT_MAX_ANGLE)^2 for
     the octahedral code (a photon on the query's own flat surface decodes within
-    OCT_MAX_ANGLE of the query's normal, and float32 rounding). Kernels only."""
-    raise NotImplementedError("snap_chord2: kernels only")
-
-
-SNAP_CHORD2 = (1.5 * OCT_MAX_ANGLE) ** 2
+    OCT_MAX_ANGLE of the query's normal, and float32 rounding)."""
+    return SNAP_CHORD2 if a.dtype == np.int16 else 0.0
 
 
 @overload(snap_chord2)
