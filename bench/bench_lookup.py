@@ -300,6 +300,8 @@ for (mid, caller, radius), calls in cap["calls"].items():
         for a in (out if isinstance(out, tuple) else (out,)):
             h.update(np.ascontiguousarray(a).tobytes())
     m_rows = sum(len(c[0]) for c in calls)
+    if m_rows == 0:
+        continue  # (calls without rows: nothing to time)
     rows.append(dict(caller=caller, photons=len(pm.photons), radius=radius,
                      calls=len(calls), rows=m_rows, us=t / m_rows * 1e6, hash=h.hexdigest()))
 # (Versions whose gather lookups test the points' surfaces take arguments this replay
