@@ -22,8 +22,10 @@ kernel source serves both layouts, and the float32 layout's arithmetic is the sa
 expressions as before (its films are unchanged with COMPACT off). Decoding is per photon
 read, in the kernels: decoding whole arrays back to float32 would not save the memory.
 
-COMPACT: PhotonMap stores its photons in this layout (True, the default) or keeps the
-float32 arrays (False: the layout before compact49, for A/B benches).
+COMPACT: PhotonMap stores its photons in this layout (True) or keeps the float32
+arrays (False, the default). Off: a render's own estimates replayed took 1.4-2.1x the
+CPU with the decode in the kernels' inner loops (Figure 6, docs/performance.md
+"compact49"), beyond issue 13's budget for the 24 B a held photon it saves.
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ from numba.extending import overload
 
 from .jit import kernel
 
-COMPACT = True
+COMPACT = False
 
 OCT_SCALE = 32767.0
 # The round-trip's largest angle between a unit vector and its decoded value (rad):

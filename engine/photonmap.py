@@ -120,7 +120,8 @@ class PhotonMap:
     The photons are kept in the structure's order (self.photons is that permutation of
     the input), so a search result indexes the photon arrays directly: the map adds under
     2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49 (53
-    with their surfaces, Photons.surface: 4 B).
+    with their surfaces, Photons.surface: 4 B; 25 / 29 with photonlayout.COMPACT on:
+    power, direction and normal in 12 B instead of 36).
     structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
     it serves best), required for "hashgrid". Raises ValueError for anything else.
     rows: (K,) int, the map holds only those photons (photons.take(rows), gathered once

@@ -123,6 +123,7 @@ def _plane_photons(n, rng):
 
 def test_a_map_holds_12_bytes_of_direction_normal_and_power(monkeypatch):
     ph = _plane_photons(5000, np.random.default_rng(2))
+    monkeypatch.setattr(L, "COMPACT", True)
     pm = PhotonMap(ph)
     q = pm.photons
     assert (q.direction.dtype, q.normal.dtype, q.power.dtype) == (np.int16, np.int16,
