@@ -199,6 +199,11 @@ from engine.jit import ensure_compiled
 from engine.render import render
 from engine.settings import RenderSettings
 from engine import photonmap
+try:  # compact49: capture float32 maps (any version replays them; see REPLAY)
+    from engine import photonlayout
+    photonlayout.COMPACT = False
+except ImportError:
+    pass
 ensure_compiled()
 with open(PICKLE, "rb") as f:
     scene = pickle.load(f)
@@ -206,20 +211,23 @@ scene.width, scene.height = W, H
 maps, calls, lookups = {}, {}, []
 irradiance, lookup = photonmap.PhotonMap.irradiance, photonmap.GatherMap.lookup
 def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
-           r_floor=None, should_cancel=None, masks=None):
+           r_floor=None, should_cancel=None, masks=None, hidden=None, read=None,
+           surface=None):
     caller = sys._getframe(1).f_code.co_name
-    if id(self) not in maps:
-        t, ph = self.tree, self.photons
-        maps[id(self)] = dict(tree=(t.position, t.axis, t.split, t.leaf, t.bounds),
-                              photons=(ph.position, ph.power, ph.direction, ph.normal,
-                                       ph.kind, ph.emitted))
-    calls.setdefault((id(self), caller, radius), []).append(
-        (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
-         None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
-         None if masks is None else np.array(masks)))
+    if hidden is None and read is None:  # (photon visibility's calls: not replayed)
+        if id(self) not in maps:
+            t, ph = self.tree, self.photons
+            maps[id(self)] = dict(tree=(t.position, t.axis, t.split, t.leaf, t.bounds),
+                                  photons=(ph.position, ph.power, ph.direction, ph.normal,
+                                           ph.kind, ph.emitted, None, ph.surface))
+        calls.setdefault((id(self), caller, radius), []).append(
+            (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
+             None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
+             None if masks is None else np.array(masks),
+             None if surface is None else np.array(np.broadcast_to(surface, (len(p),)))))
     return irradiance(self, p, n, radius, k, min_photons, estimator, return_boundary,
-                      r_floor, should_cancel, masks)
-def record_lookup(self, p, n, candidates=8, offset=None, **kw):  # kw: scratch=
+                      r_floor, should_cancel, masks, hidden, read, surface)
+def record_lookup(self, p, n, candidates=8, offset=None, **kw):  # kw: scratch=, surface=
     if not lookups:
         lookups.append((self.tree.position, self.tree.axis, self.tree.split,
                         self.tree.leaf, self.position, self.normal, self.E, self.boundary,
@@ -273,10 +281,18 @@ for (mid, caller, radius), calls in cap["calls"].items():
     pm = photonmap.PhotonMap.__new__(photonmap.PhotonMap)
     pm.workers, pm.structure, pm.tree = 1, "kdtree", tree(m["tree"])
     pm.photons = Photons(*m["photons"])
+    try:  # compact49: a version with the compact layout holds its maps so
+        from engine import photonlayout
+        if photonlayout.COMPACT:
+            photonlayout.compact(pm.photons)
+    except ImportError:
+        pass
     def run():
         # Captures before the gather map's masks (s18) hold 7 fields.
         return [pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
-                              **({"masks": more[0]} if more and more[0] is not None else {}))
+                              **({"masks": more[0]} if more and more[0] is not None else {}),
+                              **({"surface": more[1]} if len(more) > 1
+                                 and more[1] is not None else {}))
                 for p, n, k, mp, est, rb, rf, *more in calls]
     t, outs = cpu(run)
     h = hashlib.sha1()
@@ -284,9 +300,13 @@ for (mid, caller, radius), calls in cap["calls"].items():
         for a in (out if isinstance(out, tuple) else (out,)):
             h.update(np.ascontiguousarray(a).tobytes())
     m_rows = sum(len(c[0]) for c in calls)
+    if m_rows == 0:
+        continue  # (calls without rows: nothing to time)
     rows.append(dict(caller=caller, photons=len(pm.photons), radius=radius,
                      calls=len(calls), rows=m_rows, us=t / m_rows * 1e6, hash=h.hexdigest()))
-if cap["lookups"]:
+# (Versions whose gather lookups test the points' surfaces take arguments this replay
+# does not record: their GatherMap.lookup row is left out.)
+if cap["lookups"] and "surface" not in photonmap._gather_candidates.py_func.__code__.co_varnames[:8]:
     tp, ax, sp, lf, position, normal, E, B, radius = cap["lookups"][0]
     calls = cap["lookups"][1:]
     big = max(len(c[0]) for c in calls)
@@ -335,7 +355,10 @@ def render_calls(args):
     import bench_kernels as bk  # noqa: E402  (the blend export and the base-tree copy)
     where = args.work
     os.makedirs(where, exist_ok=True)
-    roots = {"before": bk.base_tree(args.base, where), "after": ROOT}
+    # --base: a commit (extracted under --work) or a checkout's folder (its compiled
+    # kernels' cache is used as it is: a fresh extraction compiles every kernel)
+    roots = {"before": (os.path.abspath(args.base) if os.path.isdir(args.base)
+                        else bk.base_tree(args.base, where)), "after": ROOT}
     head = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                           capture_output=True, text=True).stdout.strip()
     print(f"before = {args.base}, after = {head} (+ working tree); load average "
@@ -381,7 +404,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--render-calls", action="store_true",
                     help="only the table of a render's own estimates, before / after")
-    ap.add_argument("--base", default="1b8bc95", help="--render-calls: commit to compare")
+    ap.add_argument("--base", default="1b8bc95",
+                    help="--render-calls: commit or checkout folder to compare")
     ap.add_argument("--blends", default="figure6_box,figure7_blocker")
     ap.add_argument("--saved", nargs="*", default=[],
                     help="--render-calls: also (scene, settings) pickles saved by "

@@ -22,7 +22,11 @@ mean HDR-FLIP of each against it over --seeds at the add-on's defaults.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_photon_layout.py \\
         --pickles $TMPDIR/film_hashes/figure6_box.pkl ... [--flip figure6_box,...] \\
-        [--seeds 0,1]
+        [--seeds 0,1] [--shipped]
+
+--shipped (compact49): the layout the engine ships (engine/photonlayout.py: octahedral
+direction and normal, RGBE power, 12 B of the 36; decoded in the kernels) against the
+float32 maps, by its switch photonlayout.COMPACT (on / off), instead of the simulation.
 """
 from __future__ import annotations
 
@@ -122,16 +126,23 @@ def held_photons(ctx) -> int:
     return total
 
 
+SHIPPED = False  # --shipped: photonlayout.COMPACT on / off instead of the simulation
+
+
 def render(scene, kwargs, compact: bool):
-    """(film, photons held by the maps) of one render, the shots quantized if compact."""
+    """(film, photons held by the maps) of one render, the shots quantized if compact
+    (SHIPPED: the maps in the engine's compact layout, else its float32 layout)."""
     import importlib
     R = importlib.import_module("engine.render")  # (engine.render is also a function)
+    from engine import photonlayout
     from engine.settings import RenderSettings
     build, camera, got = R._build_maps, R.render_camera, {}
+    if SHIPPED:
+        photonlayout.COMPACT = compact
 
     def build_spy(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None, glow=None,
                   camera_map_radius=None):
-        if compact:
+        if compact and not SHIPPED:
             for ph in {id(p): p for p in (shot, caustic, glow) if p is not None}.values():
                 quantize(ph)
         return build(ctx, shot, caustic, use_caustic_shot, stop, pre_radius, glow,
@@ -165,7 +176,13 @@ def main():
     ap.add_argument("--flip", default="",
                     help="accuracy scenes (tools/accuracy_scenes.py) for HDR-FLIP vs Cycles")
     ap.add_argument("--seeds", default="0,1")
+    ap.add_argument("--shipped", action="store_true",
+                    help="the engine's compact layout (photonlayout.COMPACT on / off)")
     args = ap.parse_args()
+    global SHIPPED, SAVED_BYTES
+    SHIPPED = args.shipped
+    if SHIPPED:
+        SAVED_BYTES = 3 * (12 - 4)  # direction, power, normal: 4 B each
     from engine.jit import ensure_compiled
     ensure_compiled()
     print(f"160 x 120, 16 spp, 1 worker, seed 0; {SAVED_BYTES} B saved a photon held")

@@ -49,6 +49,7 @@ import numpy as np
 from . import kdtree
 from .jit import kernel
 from .parallel import ordered_map
+from .photonlayout import powers, read_vector, vectors
 from .photonmap import _accepted
 from .samesurface import NO_SURFACE, query_surfaces, same_surface, surface_ids
 
@@ -158,7 +159,7 @@ class PrecomputedIrradiance:
         m = len(ph)
         self.radius = float(radius)
         pos64 = ph.position.astype(np.float64)
-        n64 = ph.normal.astype(np.float64)
+        n64 = vectors(ph.normal)  # (float64; decoded where the map is compact)
         rk = np.zeros(m, np.float32)
         axis, split, leaf = t.nodes
         big = np.abs(ph.position).max() if m else 0.0
@@ -185,7 +186,7 @@ class PrecomputedIrradiance:
         keep = ~bnd & (r >= r_min) & (E.sum(axis=1) > 0)
         r = np.where(keep, r, 1.0)
         own = 3.0 / (math.pi * r * r)[:, None] \
-            * np.take(ph.power, rows, axis=0).astype(np.float64) \
+            * powers(ph.power, rows) \
             * own_term_removed(k, estimator)
         self.E = np.zeros((m, 3), np.float32)
         self.E[rows] = np.where(keep[:, None], E - own, 0.0)
@@ -261,7 +262,7 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, surface, k, r2
     for r in range(rk.shape[0]):
         i = a + r
         qx, qy, qz = np.float64(pos[i, 0]), np.float64(pos[i, 1]), np.float64(pos[i, 2])
-        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        nx, ny, nz = read_vector(normal, i)  # (photonlayout: float32 or octahedral)
         qs = np.int64(surface[i])
         rk[r] = np.float32(0.0)
         rt = min(max(seed, r_min), r_cap)

@@ -238,6 +238,7 @@ class DiffusePdf:
         _smooth_estimate reads): a callable (rows (H,) into sel, photons (H,) of pmap)
         -> (H,) bool, True where Cycles blurs the photon's path (min(pdf_D(-w_photon),
         Photons.blur_pdf) < fg: left out of the estimate)."""
+        from .photonlayout import vectors
         ph = pmap.photons
         stored = getattr(ph, "blur_pdf", None)
         sel = np.asarray(sel, np.int64)
@@ -248,7 +249,7 @@ class DiffusePdf:
             test = np.flatnonzero(np.take(self.largest, r) >= self.fg)
             if len(test):
                 pid = np.take(photons, test)
-                wi = -np.take(ph.direction, pid, axis=0).astype(np.float64)
+                wi = -vectors(ph.direction, pid)  # (photonlayout: either layout)
                 wi /= np.maximum(np.linalg.norm(wi, axis=1), 1e-300)[:, None]
                 pd = self.pdf(r[test], wi)
                 if stored is not None:

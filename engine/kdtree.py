@@ -45,6 +45,7 @@ import numpy as np
 
 from .jit import kernel, register_warm_up
 from .parallel import Cancelled, ordered_map, stop_array
+from .photonlayout import read_vector
 from .samesurface import continues_plane
 
 STACK = 64  # traversal stack: one entry per tree level (a tree of 2^63 points at most)
@@ -471,8 +472,10 @@ def nearest_facing_on_in(pos, axis, split, leaf, normal, surface, qs, qx, qy, qz
             dy = qy - np.float64(pos[j, 1])
             dz = qz - np.float64(pos[j, 2])
             dist2 = dx * dx + dy * dy + dz * dz
-            if dist2 < bound and \
-                    normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz > agreement \
+            if not dist2 < bound:
+                continue
+            m0, m1, m2 = read_vector(normal, j)  # (photonlayout: float32 or octahedral)
+            if m0 * nx + m1 * ny + m2 * nz > agreement \
                     and (qs < 0 or surface[j] == qs or surface[j] < 0
                          or continues_plane(pos, normal, j, qx, qy, qz, nx, ny, nz)):
                 best = j

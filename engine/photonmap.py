@@ -21,11 +21,12 @@ import math
 
 import numpy as np
 
-from . import hashgrid, kdtree, mortontree
+from . import hashgrid, kdtree, mortontree, photonlayout
 from . import photonkernels as pk
 from .jit import kernel, register_warm_up
 from .mortontree import morton_order  # noqa: F401 (query order; tests, benches)
 from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
+from .photonlayout import cos_scratch, read_power, read_vector
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
 from .samesurface import (COPLANAR_COS, NO_SURFACE, off_plane, query_surfaces, same_surface,
@@ -119,7 +120,8 @@ class PhotonMap:
     The photons are kept in the structure's order (self.photons is that permutation of
     the input), so a search result indexes the photon arrays directly: the map adds under
     2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49 (53
-    with their surfaces, Photons.surface: 4 B).
+    with their surfaces, Photons.surface: 4 B; 25 / 29 with photonlayout.COMPACT on:
+    power, direction and normal in 12 B instead of 36).
     structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
     it serves best), required for "hashgrid". Raises ValueError for anything else.
     rows: (K,) int, the map holds only those photons (photons.take(rows), gathered once
@@ -159,12 +161,18 @@ class PhotonMap:
             self.source = source
         power = np.take(photons.power, source, axis=0)
         if power_scale is not None:
+            if power.dtype == np.uint8:  # a compact map's photons: scaled as float32
+                power = photonlayout.decode_power(power, np.float32)
             power *= np.take(np.asarray(power_scale, np.float32), order)[:, None]
         self.photons = Photons(self.tree.position, power, *(
             np.take(a, source, axis=0) for a in (photons.direction, photons.normal,
                                                  photons.kind)), photons.emitted,
             surface=None if photons.surface is None else np.take(photons.surface, source),
             blur_pdf=None if photons.blur_pdf is None else np.take(photons.blur_pdf, source))
+        if photonlayout.COMPACT:
+            # Direction, normal and power in 12 B instead of 36 (engine/photonlayout.py:
+            # the kernels decode each photon they read).
+            photonlayout.compact(self.photons)
 
     def __len__(self):
         return len(self.photons)
@@ -408,8 +416,10 @@ def _accepted(direction, normal, surface, pos, j, nx, ny, nz, qs, qx, qy, qz):
     the front (d.N < 0) and lies on a surface facing the same way, the query's own or one
     continuing its plane (samesurface.same_surface's rule). surface: (P,) int32, -1 where
     unknown (PhotonMap.surface_ids: never empty)."""
-    cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
-    agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
+    d0, d1, d2 = read_vector(direction, j)  # (photonlayout: float32 or octahedral)
+    m0, m1, m2 = read_vector(normal, j)
+    cos_in = -(d0 * nx + d1 * ny + d2 * nz)
+    agree = m0 * nx + m1 * ny + m2 * nz
     # samesurface.same_surface without branches: the loops over a row's photons stay
     # vectorised (a branch calling continues_plane cost the k-NN rows 1.6x, even where
     # it was never taken).
@@ -432,7 +442,8 @@ def _back_face(normal, pos, j, nx, ny, nz, qx, qy, qz):
     docs/performance.md). A photon on the back of a zero-thickness sheet lies on the
     plane, not behind it, and still counts; a ball smaller than the disc still has
     photons of other directions that flag it."""
-    agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
+    m0, m1, m2 = read_vector(normal, j)
+    agree = m0 * nx + m1 * ny + m2 * nz
     h = ((np.float64(pos[j, 0]) - qx) * nx + (np.float64(pos[j, 1]) - qy) * ny
          + (np.float64(pos[j, 2]) - qz) * nz)
     return agree < -COPLANAR_COS and h < 0.0 and off_plane(pos, j, qx, qy, qz, nx, ny, nz)
@@ -668,7 +679,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
     # for the k-th accepted search and the sums (each read them: twice the work).
     row_ok = np.empty(cap, np.bool_)
     row_other = np.empty(cap, np.bool_)
-    row_cos = np.empty(cap, direction.dtype)  # cos_in in the photons' precision
+    row_cos = cos_scratch(direction, cap)  # cos_in in the photons' precision
     # The current block's candidates (_block_candidates): rows before blk_end use them
     # where nc >= 0.
     use_cand = knn and kind == KDTREE
@@ -1009,15 +1020,16 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                 w = 3.0 / area * x * x
             else:
                 w = min(max(1.0 - d / rk, 0.0), 1.0) / ((1.0 - 2.0 / 3.0) * area)
-            e0 += w * np.float64(power[pj, 0])
-            e1 += w * np.float64(power[pj, 1])
-            e2 += w * np.float64(power[pj, 2])
+            f0, f1, f2 = read_power(power, pj)  # (photonlayout: float32 or RGBE)
+            e0 += w * f0
+            e1 += w * f1
+            e2 += w * f2
             byte, bit = pj >> 3, pj & 7
             for s in range(S):
                 if (masks[s, byte] >> bit) & 1 and seen:
-                    ms[s, 0] += w * np.float64(power[pj, 0])
-                    ms[s, 1] += w * np.float64(power[pj, 1])
-                    ms[s, 2] += w * np.float64(power[pj, 2])
+                    ms[s, 0] += w * f0
+                    ms[s, 1] += w * f1
+                    ms[s, 2] += w * f2
             if not inside:
                 continue  # accepted photons beyond the k-th do not count towards the minimum
             if rec and count < W:
@@ -1026,14 +1038,14 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                     # (a floored focus sums its photons' plain power: below)
                     read_weight[i, count] = 1.0 if floored else w
             count += 1
-            a0 += np.float64(power[pj, 0])
-            a1 += np.float64(power[pj, 1])
-            a2 += np.float64(power[pj, 2])
+            a0 += f0
+            a1 += f1
+            a2 += f2
             for s in range(S):
                 if (masks[s, byte] >> bit) & 1 and seen:
-                    ms[s, 3] += np.float64(power[pj, 0])
-                    ms[s, 4] += np.float64(power[pj, 1])
-                    ms[s, 5] += np.float64(power[pj, 2])
+                    ms[s, 3] += f0
+                    ms[s, 4] += f1
+                    ms[s, 5] += f2
             c0 += pos[pj, 0] - np.float32(qx)
             c1 += pos[pj, 1] - np.float32(qy)
             c2 += pos[pj, 2] - np.float32(qz)
@@ -1240,7 +1252,9 @@ class GatherMap:
         # their float64 copies held (36 B a point less, docs/performance.md "mem48").
         self.position = tree.position
         chosen_rows = np.take(rows, np.take(points, tree.order))
-        self.normal = np.take(photons.normal, chosen_rows, axis=0)
+        self.normal = (np.take(photons.normal, chosen_rows, axis=0)
+                       if photons.normal.dtype != np.int16 else
+                       photonlayout.vectors(photons.normal, chosen_rows, np.float32))
         # Each point's surface (its photon's, Photons.surface): its own estimate reads its
         # surface's photons, and a lookup takes only a point on its own surface
         # (engine/samesurface.py). NO_SURFACE: unknown, the normal tests alone.

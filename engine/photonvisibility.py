@@ -41,6 +41,7 @@ from .jit import kernel, register_warm_up
 # The pre-test (rows with no other surface near are not traced) lives in plain Python
 # (engine/onesurface.py), so that editing it does not recompile these kernels.
 from .onesurface import one_surface_cells
+from .photonlayout import read_power, read_vector, snap_chord2
 from .photonmap import _query_lift, _ray_ends
 from .rayoffset import G32_PLANE, ulp32_scalar
 from .samesurface import query_surfaces
@@ -75,6 +76,7 @@ def _read_rays(pos, normal, p, n, lift, rows, slots, count, photons, o32, d32, t
     of _bent_path, adjacent, both with its row and photon: it is hidden when either is
     blocked. R <= 2 x the rows' photons. Returns the number of rays."""
     m = 0
+    snap = snap_chord2(normal)
     for r in range(rows.shape[0]):
         i = rows[r]
         s = slots[r]
@@ -84,8 +86,12 @@ def _read_rays(pos, normal, p, n, lift, rows, slots, count, photons, o32, d32, t
         for jj in range(count[s]):
             j = photons[s, jj]
             bx, by, bz = np.float64(pos[j, 0]), np.float64(pos[j, 1]), np.float64(pos[j, 2])
-            mx, my, mz = (np.float64(normal[j, 0]), np.float64(normal[j, 1]),
-                          np.float64(normal[j, 2]))
+            m0, m1, m2 = read_vector(normal, j)  # (photonlayout: float32 or octahedral)
+            mx, my, mz = np.float64(m0), np.float64(m1), np.float64(m2)
+            if (mx - nx) ** 2 + (my - ny) ** 2 + (mz - nz) ** 2 <= snap:
+                # The query's own orientation within the layout's round trip (compact
+                # photons: photonlayout.snap_chord2; float32 ones: exactly equal).
+                mx, my, mz = nx, ny, nz
             if nx == mx and ny == my and nz == mz:
                 # One orientation: photonmap._ray_ends' straight ray (no bend lift).
                 ox, oy, oz, dx, dy, dz, t = _ray_ends(qx, qy, qz, nx, ny, nz, la, bx, by,
@@ -515,9 +521,10 @@ def _visible_rows(power, rows, slots, bounds, hidden, usable, cls, count, photon
             if usable.shape[0] and not usable[c, pj]:
                 continue
             w = weight[s, jj]
-            e0 += w * np.float64(power[pj, 0])
-            e1 += w * np.float64(power[pj, 1])
-            e2 += w * np.float64(power[pj, 2])
+            f0, f1, f2 = read_power(power, pj)  # (photonlayout: float32 or RGBE)
+            e0 += w * f0
+            e1 += w * f1
+            e2 += w * f2
         if not ascending and h != h_hi:
             bad += 1
         f = factor[s]

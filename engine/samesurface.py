@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from .jit import kernel
+from .photonlayout import read_vector
 
 COPLANAR_ANGLE = math.radians(1.0)
 COPLANAR_COS = math.cos(COPLANAR_ANGLE)  # normals of two coplanar surfaces agree this well
@@ -64,7 +65,8 @@ def continues_plane(pos, normal, j, qx, qy, qz, nx, ny, nz):
     (qx, qy, qz) float64 with unit normal (nx, ny, nz): its normal within COPLANAR_ANGLE
     of the query's and its point within COPLANAR_ANGLE of the query's tangent plane seen
     from the query, with the float32 resolution of the positions (module docstring)."""
-    if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz < COPLANAR_COS:
+    m0, m1, m2 = read_vector(normal, j)  # (photonlayout: float32 or octahedral)
+    if m0 * nx + m1 * ny + m2 * nz < COPLANAR_COS:
         return False
     return not off_plane(pos, j, qx, qy, qz, nx, ny, nz)
 

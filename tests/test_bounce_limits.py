@@ -9,6 +9,7 @@ import pytest
 from engine import RenderSettings
 from engine import photonkernels as pk
 from engine.api import PaperScene
+from engine.photonlayout import vectors
 from engine.scene import Material
 from engine.photons import DIRECT
 from test_energy import closed_box, shoot
@@ -294,7 +295,7 @@ def test_chain_lookups_count_only_the_photons_usable_for_each_rows_counts():
     assert pm.photons.bounces is not None
     rng = np.random.default_rng(2)
     p = pm.photons.position[rng.choice(len(pm), 64, replace=False)].astype(np.float64)
-    n = pm.photons.normal[rng.choice(len(pm), 64, replace=False)].astype(np.float64)
+    n = vectors(pm.photons.normal, rng.choice(len(pm), 64, replace=False))  # (either layout)
     n = np.where(np.sum(n * n, axis=1, keepdims=True) > 0, n, (0, 0, 1))
     counts = np.zeros((64, 4), np.int64)
     counts[16:32] = (1, 1, 0, 0)
@@ -310,7 +311,9 @@ def test_chain_lookups_count_only_the_photons_usable_for_each_rows_counts():
         assert 0 < ok.sum() < len(ok)
         zeroed = copy.copy(pm)
         zeroed.photons = copy.copy(pm.photons)
-        zeroed.photons.power = np.where(ok[:, None], pm.photons.power, 0).astype(np.float32)
+        # (a compact map's RGBE row of zeros is a power of 0: the same decoded values)
+        zeroed.photons.power = np.where(ok[:, None], pm.photons.power, 0).astype(
+            pm.photons.power.dtype)
         np.testing.assert_array_equal(got[rows], zeroed.irradiance(p[rows], n[rows], *args))
     # Without counts: the map's own call.
     np.testing.assert_array_equal(chaincounts.irradiance(pm, lim, None, p, n, *args), plain)

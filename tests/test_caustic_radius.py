@@ -22,6 +22,7 @@ from ball_lens import (CELL, CENTRE, IOR, R, SUN, SUN_DIR, XS, YS, ball_scene,
                        trace_bundle)
 from engine import RenderSettings
 from engine.api import PaperScene
+from engine.photonlayout import powers
 from engine.photonmap import auto_radius, caustic_radius
 from engine.render import prepare_context, shoot_photons
 from engine.scene import Camera, Material
@@ -71,7 +72,7 @@ def test_ball_caustic_matches_the_analytic_spot(ball):
     E = _estimate(ctx, ctx.caustic_radius)
     pos = ctx.caustic_map.photons.position.astype(np.float64) + ctx.geo.offset
     on = np.abs(pos[:, 2]) < 1e-3
-    bins = bin_irradiance(pos[on, :2], ctx.caustic_map.photons.power[on, 1].astype(np.float64),
+    bins = bin_irradiance(pos[on, :2], powers(ctx.caustic_map.photons.power)[on, 1],
                           XS, YS, CELL)
     l1 = np.abs(E - ref).sum() / ref.sum()
     l1_bins = np.abs(bins - ref).sum() / ref.sum()

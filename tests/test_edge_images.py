@@ -7,6 +7,7 @@ import pytest
 
 from engine import RenderSettings
 from engine.accel import Accel
+from engine.photonlayout import powers, vectors
 from engine.edgeimages import edge_images, open_edges
 from engine.photonmap import PhotonMap
 from engine.photons import CAUSTIC, Photons
@@ -277,10 +278,10 @@ def test_the_secondary_map_keeps_a_panels_power(monkeypatch, images):
     pm = ctx.secondary_map
     p = pm.photons.position.astype(np.float64)
     # The panel's own photons (its images lie beyond its edges).
-    on = (pm.photons.normal[:, 1] < -0.9) & np.all((p[:, [0, 2]] >= lo[[0, 2]] - 1e-6) &
+    on = (vectors(pm.photons.normal)[:, 1] < -0.9) & np.all((p[:, [0, 2]] >= lo[[0, 2]] - 1e-6) &
                                                   (p[:, [0, 2]] <= hi[[0, 2]] + 1e-6), axis=1)
     assert on.sum() > 500 and (stats["secondary_images"] > 0) == images
-    power = pm.photons.power[on].astype(np.float64).mean(axis=1).sum()
+    power = powers(pm.photons.power, np.flatnonzero(on)).mean(axis=1).sum()
     h = 0.01
     X, Z = np.meshgrid(np.arange(lo[0] + h / 2, hi[0], h), np.arange(lo[2] + h / 2, hi[2], h))
     q = np.column_stack([X.ravel(), np.full(X.size, lo[1]), Z.ravel()])

@@ -31,7 +31,8 @@ def _zeroed(pm, mask):
     view = PhotonMap.__new__(PhotonMap)
     view.__dict__.update(pm.__dict__)
     ph = pm.photons
-    power = (ph.power * mask[:, None]).astype(np.float32)
+    # (either layout: a compact map's RGBE row of zeros is a power of 0)
+    power = (ph.power * mask[:, None]).astype(ph.power.dtype)
     view.photons = Photons(ph.position, power, ph.direction, ph.normal, ph.kind, ph.emitted)
     return view
 

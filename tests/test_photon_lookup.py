@@ -31,6 +31,8 @@ from engine.kdtree import (BUCKET_MAX, JUMP_REACH, LEAF_SIZE, KdTree, ball, ball
                            nearest_facing, nearest_facing_in, nearest_first, nearest_in,
                            nearest_walk, traversal_stack, unique_nearest)
 from engine.kdtree import heap_insert, heap_sort
+from engine import photonlayout
+from engine.photonlayout import powers, vectors
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap, _widen_listed)
 from engine.photons import Photons
@@ -142,6 +144,20 @@ def _focus(n, at=(0.5, 0.5, 0.0)):
                    np.zeros(n, np.uint8))
 
 
+def _held(ph):
+    """The photons with the values a map holds of them: the compact layout's
+    (engine/photonlayout.py round_trip) unless photonlayout.COMPACT is off."""
+    return photonlayout.round_trip(ph) if photonlayout.COMPACT else ph
+
+
+def _as_float(ph):
+    """A map's photons (either layout) as float32 arrays of the values the kernels read."""
+    return Photons(ph.position, powers(ph.power, dtype=np.float32),
+                   vectors(ph.direction, dtype=np.float32),
+                   vectors(ph.normal, dtype=np.float32), ph.kind, ph.emitted,
+                   ph.bounces, ph.surface, ph.blur_pdf)
+
+
 def _assert_same(ref, pm, q, nq, radius, k, min_photons, est, r_floor):
     Er, Br = ref.irradiance(q, nq, radius, k, min_photons, est, return_boundary=True,
                             r_floor=r_floor)
@@ -167,7 +183,7 @@ def test_estimators_match_the_numpy_reference(structure):
     nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
     r_floor = rng.random(len(q)) * 0.01
     for name, ph in maps.items():
-        ref = ReferencePhotonMap(ph, 1)
+        ref = ReferencePhotonMap(_held(ph), 1)
         pm = PhotonMap(ph, 1, structure=structure, cell=0.05)
         for est in ESTIMATOR_CODES:
             for rf in (None, r_floor):
@@ -189,7 +205,7 @@ def test_fixed_radius_estimators_match_the_reference_beyond_max_classic_k(struct
     q[:20, :2] = 0.5 + rng.normal(size=(20, 2)) * 1e-3
     nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
     for ph in maps.values():
-        ref = ReferencePhotonMap(ph, 1)
+        ref = ReferencePhotonMap(_held(ph), 1)
         pm = PhotonMap(ph, 1, structure=structure, cell=0.05)
         for est in ("classic", "radius"):
             _assert_same(ref, pm, q, nq, 0.1, 64, 8, est, None)
@@ -209,8 +225,8 @@ def test_estimators_match_the_reference_on_a_real_scene():
         ph = pm.photons
         sel = rng.choice(len(ph), 800, replace=False)
         q = ph.position[sel].astype(np.float64) + rng.normal(size=(800, 3)) * radius * 0.1
-        nq = ph.normal[sel].astype(np.float64)
-        ref = ReferencePhotonMap(ph, 1)
+        nq = vectors(ph.normal, sel)
+        ref = ReferencePhotonMap(_as_float(ph), 1)
         for est in ESTIMATOR_CODES:
             E = _assert_same(ref, pm, q, nq, radius, st.k_nearest, st.min_photons, est,
                              np.full(len(q), radius * 0.02))
@@ -823,7 +839,7 @@ def test_widening_over_a_listed_sphere_sums_the_old_bits(monkeypatch):
         pm = PhotonMap(ph, 1)
         masks = rng.random((2, len(ph))) < 0.5
         pos = pm.photons.position.astype(np.float64)
-        ok = (pm.photons.normal[:, 2] > 0.5) & (pm.photons.direction[:, 2] < 0)
+        ok = (vectors(pm.photons.normal)[:, 2] > 0.5) & (vectors(pm.photons.direction)[:, 2] < 0)
         for radius in radii:
             d2 = ((q[:, None, :] - pos[None]) ** 2).sum(axis=2)
             for i in range(m):

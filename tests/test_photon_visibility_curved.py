@@ -8,6 +8,7 @@ import pytest
 
 from engine import RenderSettings
 from engine.api import PaperScene, sphere_mesh
+from engine.photonlayout import vectors
 from engine.photonmap import PhotonMap
 from engine.photons import Photons
 from engine.photonvisibility import hidden_photons
@@ -62,7 +63,7 @@ def hidden_on_ball(floor, slab, seed=1):
     q, qn = on_ball(rng, 1500)
     rows, photons = hidden_photons(pmap, ctx.accel, q - off, qn, None, RADIUS, K)
     pos = pmap.photons.position.astype(np.float64) + off
-    return q, qn, pos, pmap.photons.normal.astype(np.float64), rows, pos[photons]
+    return q, qn, pos, vectors(pmap.photons.normal), rows, pos[photons]
 
 
 def test_a_balls_own_photons_are_all_visible():

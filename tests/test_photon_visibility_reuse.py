@@ -12,6 +12,7 @@ on a floor (curved pairs, tests/test_photon_visibility_curved.py)."""
 import numpy as np
 
 from engine import RenderSettings
+from engine.photonlayout import vectors
 from engine.photonmap import MAX_WIDEN_K, PhotonMap
 from engine.photonvisibility import _hidden_pairs, hidden_photons
 from engine.render import prepare_context, shoot_photons
@@ -27,7 +28,9 @@ def old_candidates(pmap, p, n, radius, k):
     within radius, nearest first (float64 squared distances from the float32 positions,
     float32 acceptance, as the kernels compute them)."""
     pos = pmap.photons.position
-    di, nm = pmap.photons.direction, pmap.photons.normal
+    # (the float32 values the kernels decode from a compact map: engine/photonlayout.py)
+    di = vectors(pmap.photons.direction, dtype=np.float32)
+    nm = vectors(pmap.photons.normal, dtype=np.float32)
     out = []
     for i in range(len(p)):
         d2 = (((p[i, 0] - pos[:, 0].astype(np.float64)) ** 2
