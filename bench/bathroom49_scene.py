@@ -7,7 +7,8 @@ the add-on's defaults) and with Cycles.
     PYTHONPATH=. .venv/bin/python bench/bathroom49_scene.py MODE OUT.exr [--res W H]
         [--masks MASKS.npy] [--save FILE.blend] [--set NAME=VALUE] [--no-clamp]
         [--filter-glossy F] [--cycles-seed S] [--drop NAME ...]
-        [--only area|sun|sky|strip] [--no-bump]
+        [--only area|sun|sky|strip] [--no-bump] [--ceramic-coat W]
+        [--bounces N]
 
 The room: 2.5 x 2.0 x 2.4 m (x -1.25..1.25, y -1..1, z 0..2.4), closed but for a window
 hole (0.7 x 0.6 m, no pane) in the left (-X) wall, the camera inside (20 mm lens). Glossy
@@ -29,7 +30,9 @@ Cycles' other settings - Light Paths, clamping, Filter Glossy - at their default
 the add-on reads too).
 --drop NAME removes objects whose names start with NAME (an A/B sub-scene); --only LIGHT
 keeps one light source ('strip': the strip's emission, the others removed, the World
-black; otherwise the strip is kept unlit, emission 0); --no-bump unlinks the tiles' Bump.
+black; otherwise the strip is kept unlit, emission 0); --no-bump unlinks the tiles' Bump;
+--ceramic-coat W sets the basin's and pedestal's Coat Weight (default 1); --bounces N sets
+Light Paths > Max Bounces Total, Diffuse, Glossy and Transmission to N.
 
 Prints `RESULT mode cpu_s=... wall_s=...` (this process and its children, from
 resource.getrusage; the scene build excluded). --masks writes an (H, W) int array of
@@ -83,14 +86,14 @@ def tiles(name, c1, c2, scale=16.0, bump=True):
     return m
 
 
-def bathroom_scene(only=None, drop=(), bump=True):
+def bathroom_scene(only=None, drop=(), bump=True, coat=1.0):
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     scene.view_settings.view_transform = "AgX"
     wall = tiles("WallTiles", (0.86, 0.87, 0.88), (0.74, 0.76, 0.78), bump=bump)
     floor = tiles("FloorTiles", (0.35, 0.35, 0.36), (0.28, 0.28, 0.3), scale=10.0, bump=bump)
     ceiling = principled("Ceiling", (0.8, 0.8, 0.8), 0.5)
-    ceramic = principled("Ceramic", (0.9, 0.9, 0.9), 0.05, Coat_Weight=1.0)
+    ceramic = principled("Ceramic", (0.9, 0.9, 0.9), 0.05, Coat_Weight=coat)
     chrome = principled("Chrome", (0.9, 0.9, 0.92), 0.05, metallic=1.0)
     mirror = principled("Mirror", (0.9, 0.9, 0.9), 0.0, metallic=1.0)
     towel = principled("Towel", (0.7, 0.25, 0.2), 0.8, Sheen_Weight=1.0)
@@ -179,12 +182,21 @@ def main():
     ap.add_argument("--drop", nargs="*", default=[])
     ap.add_argument("--only", choices=("area", "sun", "sky", "strip"))
     ap.add_argument("--no-bump", action="store_true", help="the tiles without their Bump")
+    ap.add_argument("--ceramic-coat", type=float, default=1.0,
+                    help="the basin's and pedestal's Coat Weight (default 1)")
+    ap.add_argument("--bounces", type=int,
+                    help="Light Paths > Max Bounces: Total, Diffuse, Glossy and Transmission "
+                         "all N (both engines read them; Cycles' defaults 12 / 4 / 4 / 12)")
     a = ap.parse_args()
     import addon
     addon.register()
-    scene = bathroom_scene(a.only, a.drop, not a.no_bump)
+    scene = bathroom_scene(a.only, a.drop, not a.no_bump, a.ceramic_coat)
     if a.filter_glossy is not None:
         scene.cycles.blur_glossy = a.filter_glossy
+    if a.bounces is not None:
+        c = scene.cycles
+        c.max_bounces = c.diffuse_bounces = c.glossy_bounces = a.bounces
+        c.transmission_bounces = a.bounces
     render(scene, a)
 
 
