@@ -596,7 +596,6 @@ def _light_path_line(plan, geo, table) -> None:
                  "; ".join(parts) + "; photons and diffuse rays see the material itself")
 
 
-
 def _subsurface_line(plan: EffectPlan, geo: Geometry, table: MaterialTable, s,
                      has_tris: bool) -> None:
     """Says which surfaces scatter beneath them (Principled Subsurface Weight > 0, the
@@ -623,9 +622,12 @@ def _subsurface_line(plan: EffectPlan, geo: Geometry, table: MaterialTable, s,
         plan.add("subsurface", False, f"{names} shaded as {stand_in}: the scene keeps its "
                  "instances as placements, in which no walk runs yet")
     else:
+        later = ("photons and final-gather rays that reach them" if s.uses_photon_maps
+                 else "rays that reach them after a bounce")
         plan.add("subsurface", True, f"camera paths walk beneath {names} as Cycles' Random "
-                 "Walk does (light enters and leaves at different points); photons and "
-                 f"final-gather rays that reach them see {stand_in}")
+                 f"Walk does (light enters and leaves at different points); {later} see "
+                 f"{stand_in}")
+
 
 def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, settings,
             probe_clamp: bool = True) -> EffectPlan:

@@ -382,7 +382,8 @@ class GatherChains:
             bits |= carried_at(tri, prim).astype(np.int64) << j
         return bits
 
-    def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None, depth=0):
+    def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None, depth=0,
+               used=None):
         """At chain hits y (the rows that continue: their hit rows rows_idx (M,), ray
         throughputs tp (M,3)): blur y's lobes by the chains' min_pdf (y.prm raised in
         place after the closures' set-up, the albedos kept), add light sampling through
@@ -396,7 +397,10 @@ class GatherChains:
         depth: the chain's vertex number (0: the gather rays' own
         hits), where a next-event pane or lamp shade's refraction leaves its lights to
         panelight / shadelight (self.carried, depth 0) and window glass its passage's
-        to every light's shadow rays (self.window, depths 0 and 1)."""
+        to every light's shadow rays (self.window, depths 0 and 1).
+        used: (M,) int64 the transparent passes the hits' paths crossed (camera path and
+        chain; None: none): their shadow rays cross only the rest of Light Paths > Max
+        Bounces > Transparent, as every shadow ray of a path (transparent48)."""
         from . import integrator as it
         from .bsdf import closures
         from .glasslight import rough_transmission_rows, transmitted_light
@@ -429,6 +433,8 @@ class GatherChains:
         if not len(blurred):
             return choice
         counts = np.ascontiguousarray(counts[blurred])
+        if used is not None:
+            used = np.ascontiguousarray(np.take(np.asarray(used, np.int64), blurred))
         sub = y if len(blurred) == len(mp) else y.take(blurred)
         if sub is not y:
             sub.prm = np.ascontiguousarray(prm[blurred])
@@ -438,7 +444,8 @@ class GatherChains:
         # heuristic).
         no_sel = np.zeros((n, choice[0].shape[1]))
         L = it.direct_irradiance(ctx, sub, rng, counters, bsdf=(np.zeros((n, 3)), sub.prm,
-                                                               no_sel), counts=counts)
+                                                               no_sel), counts=counts,
+                                      used=used)
         # ... and by their rough refraction (engine/glasslight.py), in full as well.
         # At a first vertex that is a next-event pane or shade, its carried lights take
         # no sample (their modes MODE_CONTINUATION: light_sample_list skips them), by
@@ -460,7 +467,8 @@ class GatherChains:
             samples = it.light_sample_list(ctx, len(rows), rng, modes=modes)
             L[rows] += transmitted_light(ctx, sub, rows, sub.prm, no_sel, np.ones(n),
                                          modes, samples, counters,
-                                         counts=np.ascontiguousarray(counts[rows]))
+                                         counts=np.ascontiguousarray(counts[rows]),
+                                         used=None if used is None else used[rows])
         add = np.take(np.asarray(tp, np.float64), blurred, axis=0) * (math.pi / G) * L
         np.add.at(E, rows_idx[blurred], add)
         return choice

@@ -1024,7 +1024,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     E_chain = E if caustic is None else caustic
     # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
     # nothing to count), the limit and the volume-only surfaces (their pass is none).
-    t_limit, t_h, t_vol = _gather_pass_counts(ctx, n, passes, glow_only)
+    t_limit, t_h, t_vol = _gather_pass_counts(ctx, n, passes)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -1285,7 +1285,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                        counters, counts=None if cnt is None else
                                        chaincounts.camera_counts(cnt[idx[rows_f]],
                                                                  chains.D_BOUNCE),
-                                       depth=depth)
+                                       depth=depth,
+                                       used=None if t_h is None else t_h[idx[rows_f]])
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d
@@ -1341,7 +1342,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     return E
 
 
-def _gather_pass_counts(ctx, n, passes, glow_only=False):
+def _gather_pass_counts(ctx, n, passes):
     """(t_limit, t_h, t_vol) for gather_indirect's chains: Light Paths > Max Bounces >
     Transparent (at least 1, as the camera chain's), t_h (n,) int64 each hit row's
     transparent bounces (filled per gather step from passes) or None where no chain can

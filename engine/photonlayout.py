@@ -23,8 +23,8 @@ expressions as before (its films are unchanged with COMPACT off). Decoding is pe
 read, in the kernels: decoding whole arrays back to float32 would not save the memory.
 
 COMPACT: PhotonMap stores its photons in this layout (True) or keeps the float32
-arrays (False, the default). Off: a render's own estimates replayed took 1.4-2.1x the
-CPU with the decode in the kernels' inner loops (Figure 6, docs/performance.md
+arrays (False, the default). Off by default because, on, a render's own estimates
+replayed took 1.4-2.1x the CPU with the decode in the kernels' inner loops (Figure 6, docs/performance.md
 "compact49"), beyond issue 13's budget for the 24 B a held photon it saves.
 """
 from __future__ import annotations

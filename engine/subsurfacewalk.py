@@ -354,7 +354,9 @@ def walk(meshes: ObjectMeshes, obj, p, n, ng, wi, offset, sp: list, rng, stats=N
     or (M,3) in [0, 1] each walk's own (a textured Base Color at its entry); radius:
     None (sp.radius) or (M,3) each walk's Radius x Scale (metres). n_entry: None (n), or
     (M,3) the unit normals the entry refracts about (Cycles' bssrdf->N: bssrdf_normals);
-    n stays the walk's own (Cycles' sd->N: its guided directions)."""
+    n stays the walk's guiding normal (the hit's shading normal; Cycles guides about
+    bssrdf->N too, which differs from n only where bssrdf_normals turned it: sampling
+    alone, since the MIS pdfs take the same n, so the mean is the same)."""
     m = len(p)
     albedo = (np.array([s.color for s in sp], np.float64).reshape(m, 3) if albedo is None
               else np.asarray(albedo, np.float64).reshape(m, 3))

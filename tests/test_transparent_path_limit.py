@@ -293,3 +293,59 @@ def test_pane_light_crosses_only_the_passes_left():
     lit = _floor_under_pane_and_cards(4)
     assert lit.mean() > 0.0
     np.testing.assert_array_equal(lit, _floor_under_pane_and_cards(8))
+
+
+def _floor_under_a_card_and_a_metal_ceiling():
+    """A grey floor seen straight down through one clear card (z 0.1); over it a rough
+    metal ceiling (z 1, roughness 0.2: a blurred glossy vertex of the Filter Glossy
+    split's gather chains), and a point lamp at z 0.7 under two small clear cards (z 0.75,
+    0.8): a ceiling point's shadow ray to the lamp crosses both small cards, and the
+    gather chain that reaches it has crossed the floor's card twice (down and up)."""
+    s = PaperScene(8, 8)
+    s.add_material(Material("grey", (0.5,) * 3))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "grey", name="floor")
+    s.add_material(Material("metal", (0.9,) * 3, metallic=1.0, roughness=0.2))
+    s.add_plane((0, 0, 1.0), (0, 0, -1), 8.0, "metal", name="ceiling")
+    s.add_material(Material("card", (0.0, 0.0, 0.0), alpha=0.0))
+    s.add_plane((0, 0, 0.1), (0, 0, 1), 8.0, "card", name="card0")
+    for i in range(2):
+        s.add_plane((0, 0, 0.75 + 0.05 * i), (0, 0, 1), 0.6, "card", name=f"top{i}")
+    s.add_point_light((0, 0, 0.7), power=100.0)
+    s.camera = Camera(position=(0, 0, 0.5), rotation=np.eye(3), kind="ORTHO", ortho_scale=0.5)
+    return s
+
+
+def test_glossy_chain_vertices_cross_only_the_passes_left(monkeypatch):
+    """The Filter Glossy split's chain vertices (glossysplit.GatherChains.vertex) sample
+    lights with shadow rays that cross only the transparent passes their path left
+    (review49: they crossed the full limit): at T = 3 the ceiling's shadow rays have 1
+    pass left and the lamp's two cards block them where they lie between, at T = 8 they
+    cross; the same ceiling rows either way."""
+    import sys
+
+    from engine import integrator
+    calls = []
+    real = integrator.direct_irradiance
+
+    def spy(ctx, hit, *a, **kw):
+        out = real(ctx, hit, *a, **kw)
+        if sys._getframe(1).f_code.co_filename.endswith("glossysplit.py"):
+            calls.append((len(out), float(np.asarray(out).sum()), kw.get("used")))
+        return out
+
+    monkeypatch.setattr(integrator, "direct_irradiance", spy)
+    light = {}
+    for t in (3, 8):
+        calls.clear()
+        render(_floor_under_a_card_and_a_metal_ceiling(),
+               RenderSettings(spp=4, workers=1, seed=1, transparent_max_bounces=t,
+                              photons=20_000, caustic_photons=2_000,
+                              cycles_filter_glossy=1.0))
+        # The gather rays' first hits are the floor's card (crossed once, by the camera
+        # ray), the next the ceiling (crossed twice: down and up).
+        assert calls and all(used is not None for _, _, used in calls)
+        ceiling = [(n, v) for n, v, used in calls if np.all(np.asarray(used) == 2)]
+        assert ceiling, "the ceiling is no chain vertex"
+        light[t] = ceiling[0]  # the first sample pass's ceiling vertices
+    assert light[3][0] == light[8][0]
+    assert light[3][1] < 0.5 * light[8][1], light
