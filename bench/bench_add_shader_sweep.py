@@ -160,9 +160,11 @@ def build(bpy, scene_kind, pair, res):
     return scene
 
 
-def render(bpy, scene, engine, spp, path, bounces, photon_mapping=True):
+def render(bpy, scene, engine, spp, path, bounces, photon_mapping=True, photons=50_000,
+           caustic_photons=20_000):
     """(3,) the image mean of scene rendered by engine at spp samples, Light Paths
-    `bounces` of every kind (Transparent 8), Cycles plain with a 1 px box filter."""
+    `bounces` of every kind (Transparent 8), Cycles plain with a 1 px box filter; ours
+    with `photons` global and `caustic_photons` caustic photons."""
     from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
     c = cycles_plain(scene, spp, bounces)
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
@@ -171,7 +173,7 @@ def render(bpy, scene, engine, spp, path, bounces, photon_mapping=True):
     c.pixel_filter_type, c.filter_width = "BOX", 1.0
     scene.render.engine = engine
     if engine == "PHOTONMAP":
-        cheap(scene, spp=spp, photons=50_000, caustic_photons=20_000)
+        cheap(scene, spp=spp, photons=photons, caustic_photons=caustic_photons)
         scene.photonmap.photon_mapping = photon_mapping
     return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].reshape(-1, 3).mean(axis=0)
 
