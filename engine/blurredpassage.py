@@ -38,6 +38,7 @@ import os
 
 import numpy as np
 
+from .closures import tables
 from .jit import kernel, register_warm_up
 
 # Emulate Cycles' blurred window glass at Filter Glossy > 0 (False: shadow rays and
@@ -173,24 +174,11 @@ def passage_factor(tab, ior_grid, cos_in, alpha, ior):
     trilinear at |cos_in|, alpha and ior; 1.0 where alpha <= 0 (no blur)."""
     if not alpha > 0.0:
         return 1.0
-    nc = tab.shape[1]
-    na = tab.shape[2]
-    c = min(abs(cos_in), 1.0) * (nc - 1)
-    j = min(int(c), nc - 2)
-    fj = c - j
-    a = min(alpha, 0.5) / 0.5 * (na - 1)
-    k = min(int(a), na - 2)
-    fk = a - k
+    # (The IOR axis is not uniform: its cell is found here; the closures' trilinear
+    # lookup takes it as given.)
     i, fi = _cell(ior_grid, ior)
-    out = 0.0
-    for di in range(2):
-        wi = fi if di else 1.0 - fi
-        for dj in range(2):
-            wj = fj if dj else 1.0 - fj
-            for dk in range(2):
-                wk = fk if dk else 1.0 - fk
-                out += wi * wj * wk * tab[i + di, j + dj, k + dk]
-    return out
+    k, fk = tables._coord(min(alpha, 0.5) / 0.5, tab.shape[2])
+    return tables.lookup3_at(tab, i, fi, min(abs(cos_in), 1.0), k, fk)
 
 
 @kernel

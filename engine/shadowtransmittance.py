@@ -400,9 +400,10 @@ class CameraPassages:
         return o, t
 
 
-def _blur_passages(trans, slots, blur, entered, d, e1, e2, tri_material, mat_ior):
+def _blur_passages(trans, slots, blur, entered, d, ng, tri_material, mat_ior):
     """trans[slots] (rays just out of a flat passage entered through triangles `entered`
-    along d (K,3)) *= blurredpassage.factor_lookup at the ray's cosine to the entry face,
+    along d (K,3)) *= blurredpassage.factor_lookup at the ray's cosine to the entry face
+    (ng: the geometry's unit face normals, geometry.Geometry.ng),
     its blur alpha blur[slots] and the glass's IOR (mat_ior (M,) of tri_material (T,)):
     Cycles' blurred slab
     at Filter Glossy (docs/compatibility.md "fgslab49")."""
@@ -411,10 +412,9 @@ def _blur_passages(trans, slots, blur, entered, d, e1, e2, tri_material, mat_ior
     if len(on) == 0:
         return
     g = entered[on]
-    n = np.cross(np.take(e1, g, axis=0), np.take(e2, g, axis=0))
+    n = ng[g]
     dd = d[on]
-    c = np.abs((n * dd).sum(axis=1)) / np.maximum(
-        np.linalg.norm(n, axis=1) * np.linalg.norm(dd, axis=1), 1e-300)
+    c = np.abs((n * dd).sum(axis=1)) / np.maximum(np.linalg.norm(dd, axis=1), 1e-300)
     f = factor_lookup(np.minimum(c, 1.0), a[on], np.take(mat_ior, np.take(tri_material, g)))
     trans[slots[on]] *= f[:, None]
 
@@ -681,7 +681,7 @@ class ShadowTransmittance:
                 out = np.flatnonzero(inside & (state == GOING))
                 if ray_blur is not None:
                     _blur_passages(trans, slot[out], ray_blur, entered[out], d[out],
-                                   geo.e1, geo.e2, self.tri_material, self.mat_ior)
+                                   geo.ng, self.tri_material, self.mat_ior)
             if cap is not None and inside is not None and inside.any():
                 crossed[slot[out]] += 1
                 over = out[crossed[slot[out]] > cap[slot[out]]]
