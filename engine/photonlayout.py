@@ -192,17 +192,25 @@ def round_trip(photons):
 
 
 @kernel
-def oct_decode(u, v):
-    """The unit vector (x, y, z) float32 of octahedral code (u, v) (int16 each): the
-    square's point, the lower half unfolded without a branch (x -= copysign(max(-z, 0),
-    x)), normalised."""
+def oct_unfold(u, v):
+    """(x, y, z, w) float32 of octahedral code (u, v) (int16 each): the octahedron's
+    point, the lower half unfolded without a branch (x -= copysign(max(-z, 0), x)), not
+    normalised, and w = x^2 + y^2 + z^2 (its squared length, in [1/3, 1])."""
     x = np.float32(u) * np.float32(1.0 / OCT_SCALE)
     y = np.float32(v) * np.float32(1.0 / OCT_SCALE)
     z = np.float32(1.0) - abs(x) - abs(y)
     t = max(-z, np.float32(0.0))
     x = x - t if x >= np.float32(0.0) else x + t
     y = y - t if y >= np.float32(0.0) else y + t
-    inv = np.float32(1.0) / np.sqrt(x * x + y * y + z * z)
+    return x, y, z, x * x + y * y + z * z
+
+
+@kernel
+def oct_decode(u, v):
+    """The unit vector (x, y, z) float32 of octahedral code (u, v) (int16 each):
+    oct_unfold's point, normalised."""
+    x, y, z, w = oct_unfold(u, v)
+    inv = np.float32(1.0) / np.sqrt(w)
     return x * inv, y * inv, z * inv
 
 
@@ -213,7 +221,7 @@ def rgbe_decode(code, j):
     return np.float64(code[j, 0]) * f, np.float64(code[j, 1]) * f, np.float64(code[j, 2]) * f
 
 
-# The next four are numba overloads in the kernels (chosen by the array's dtype at
+# The next ones are numba overloads in the kernels (chosen by the array's dtype at
 # compile time, below); their Python bodies give the same values where a kernel runs as
 # its Python function (py_func: tests/test_photon_lookup.py).
 def read_vector(a, j):
@@ -232,10 +240,33 @@ def read_power(a, j):
     return np.float64(a[j, 0]), np.float64(a[j, 1]), np.float64(a[j, 2])
 
 
-def cos_scratch(a, n):
-    """An (n,) array for cosines against a direction array a: a's dtype for a float
-    array, float32 for the octahedral code (its decoded precision)."""
-    return np.empty(n, np.float32 if a.dtype == np.int16 else a.dtype)
+def read_axis(a, j):
+    """Row j of a direction or normal array as (x, y, z, w): a vector along it and w
+    its squared length, for the kernels that only compare cosines (cos_below,
+    cos_at_most) or read signs: a float (N,3) array's own elements and w = 1, an int16
+    (N,2) array's octahedral point unnormalised (oct_unfold). The octahedral decode's
+    float32 sqrt and divide cost the k-NN rows' photon tests most of compact49's 1.4-2.1x
+    (docs/performance.md "compact50"): a cosine's threshold test needs neither."""
+    if a.dtype == np.int16:
+        return oct_unfold.py_func(a[j, 0], a[j, 1])
+    return a[j, 0], a[j, 1], a[j, 2], 1.0
+
+
+def cos_below(a, g, w, t):
+    """Whether the cosine g / sqrt(w) is below t, for g the dot product of a unit vector
+    with (x, y, z) and w read by read_axis from a: a float array's g < t (the cosine
+    itself, exactly as before), the octahedral code's g |g| < t |t| w (x |x| is
+    increasing: no sqrt, no divide)."""
+    if a.dtype == np.int16:
+        return g * abs(g) < t * abs(t) * w
+    return g < t
+
+
+def cos_at_most(a, g, w, t):
+    """cos_below with <=: whether the cosine g / sqrt(w) is at most t."""
+    if a.dtype == np.int16:
+        return g * abs(g) <= t * abs(t) * w
+    return g <= t
 
 
 @overload(read_vector)
@@ -260,14 +291,36 @@ def _read_power(a, j):
     return impl
 
 
-@overload(cos_scratch)
-def _cos_scratch(a, n):
+@overload(read_axis)
+def _read_axis(a, j):
     if isinstance(a.dtype, types.Integer):
-        def impl(a, n):
-            return np.empty(n, np.float32)
+        def impl(a, j):
+            return oct_unfold(a[j, 0], a[j, 1])
     else:
-        def impl(a, n):
-            return np.empty(n, a.dtype)
+        def impl(a, j):
+            return a[j, 0], a[j, 1], a[j, 2], 1.0
+    return impl
+
+
+@overload(cos_below)
+def _cos_below(a, g, w, t):
+    if isinstance(a.dtype, types.Integer):
+        def impl(a, g, w, t):
+            return g * abs(g) < t * abs(t) * w
+    else:
+        def impl(a, g, w, t):
+            return g < t
+    return impl
+
+
+@overload(cos_at_most)
+def _cos_at_most(a, g, w, t):
+    if isinstance(a.dtype, types.Integer):
+        def impl(a, g, w, t):
+            return g * abs(g) <= t * abs(t) * w
+    else:
+        def impl(a, g, w, t):
+            return g <= t
     return impl
 
 

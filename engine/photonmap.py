@@ -26,7 +26,7 @@ from . import photonkernels as pk
 from .jit import kernel, register_warm_up
 from .mortontree import morton_order  # noqa: F401 (query order; tests, benches)
 from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
-from .photonlayout import cos_scratch, read_power, read_vector
+from .photonlayout import cos_at_most, cos_below, read_axis, read_power, read_vector
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
 from .samesurface import (COPLANAR_COS, NO_SURFACE, off_plane, query_surfaces, same_surface,
@@ -411,23 +411,50 @@ def _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets):
 
 @kernel
 def _accepted(direction, normal, surface, pos, j, nx, ny, nz, qs, qx, qy, qz):
-    """(accepted, other_surface, cos_in) for photon j at a query at (qx, qy, qz) with
-    float32 normal (nx, ny, nz) on surface qs (object id, < 0: unknown): it arrived from
-    the front (d.N < 0) and lies on a surface facing the same way, the query's own or one
+    """(accepted, other_surface) for photon j at a query at (qx, qy, qz) with float32
+    normal (nx, ny, nz) on surface qs (object id, < 0: unknown): it arrived from the front
+    (d.N < 0) and lies on a surface facing the same way, the query's own or one
     continuing its plane (samesurface.same_surface's rule). surface: (P,) int32, -1 where
-    unknown (PhotonMap.surface_ids: never empty)."""
-    d0, d1, d2 = read_vector(direction, j)  # (photonlayout: float32 or octahedral)
-    m0, m1, m2 = read_vector(normal, j)
-    cos_in = -(d0 * nx + d1 * ny + d2 * nz)
+    unknown (PhotonMap.surface_ids: never empty). The photon's vectors are read along
+    their axes (photonlayout.read_axis: a compact map's octahedral code unnormalised) and
+    the cosines compared as such (cos_below, cos_at_most): a float32 map's tests are the
+    same expressions as before (docs/performance.md "compact50")."""
+    d0, d1, d2, _ = read_axis(direction, j)  # (photonlayout: float32 or octahedral)
+    m0, m1, m2, mw = read_axis(normal, j)
+    cos_in = -(d0 * nx + d1 * ny + d2 * nz)  # (its sign: any positive scale keeps it)
     agree = m0 * nx + m1 * ny + m2 * nz
     # samesurface.same_surface without branches: the loops over a row's photons stay
     # vectorised (a branch calling continues_plane cost the k-NN rows 1.6x, even where
     # it was never taken).
     off = off_plane(pos, j, qx, qy, qz, nx, ny, nz)
     sj = surface[j]
-    foreign = (sj != qs) & (sj >= 0) & (qs >= 0) & ((agree < COPLANAR_COS) | off)
-    other = (agree <= NORMAL_AGREEMENT) | foreign
-    return (cos_in > 0) & (not other), other, cos_in
+    foreign = (sj != qs) & (sj >= 0) & (qs >= 0) & (
+        cos_below(normal, agree, mw, COPLANAR_COS) | off)
+    other = cos_at_most(normal, agree, mw, NORMAL_AGREEMENT) | foreign
+    return (cos_in > 0) & (not other), other
+
+
+@kernel
+def _cos_in(direction, j, nx, ny, nz):
+    """The cosine of photon j's incoming direction with the query's float32 normal (nx,
+    ny, nz): the classic estimator's weight (_accepted tests only its sign)."""
+    d0, d1, d2 = read_vector(direction, j)  # (photonlayout: float32 or octahedral)
+    return -(d0 * nx + d1 * ny + d2 * nz)
+
+
+@kernel
+def _fill_accepted(direction, normal, surface, pos, idx, lo, hi, nx, ny, nz, qs, qx, qy,
+                   qz, row_ok, row_other):
+    """_accepted of photons idx[lo:hi] into row_ok / row_other[lo:hi]; returns how many
+    of idx[:hi] are accepted (row_ok[:lo] already filled). A k-NN row tests its photons
+    once, for its widening test and its sums alike."""
+    for j in range(lo, hi):
+        row_ok[j], row_other[j] = _accepted(direction, normal, surface, pos, idx[j], nx, ny,
+                                            nz, qs, qx, qy, qz)
+    acc = 0
+    for j in range(hi):
+        acc += row_ok[j]
+    return acc
 
 
 @kernel
@@ -442,11 +469,12 @@ def _back_face(normal, pos, j, nx, ny, nz, qx, qy, qz):
     docs/performance.md). A photon on the back of a zero-thickness sheet lies on the
     plane, not behind it, and still counts; a ball smaller than the disc still has
     photons of other directions that flag it."""
-    m0, m1, m2 = read_vector(normal, j)
+    m0, m1, m2, mw = read_axis(normal, j)  # (photonlayout: _accepted's reading)
     agree = m0 * nx + m1 * ny + m2 * nz
     h = ((np.float64(pos[j, 0]) - qx) * nx + (np.float64(pos[j, 1]) - qy) * ny
          + (np.float64(pos[j, 2]) - qz) * nz)
-    return agree < -COPLANAR_COS and h < 0.0 and off_plane(pos, j, qx, qy, qz, nx, ny, nz)
+    return cos_below(normal, agree, mw, -COPLANAR_COS) and h < 0.0 and \
+        off_plane(pos, j, qx, qy, qz, nx, ny, nz)
 
 
 @kernel
@@ -675,11 +703,11 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
     # estimate over its whole sphere sums only these: below).
     acc_d2 = np.empty(list_cap, np.float64)
     acc_idx = np.empty(list_cap, np.int64)
-    # The row's photons' _accepted answers (accepted, other surface, cos_in), computed once
-    # for the k-th accepted search and the sums (each read them: twice the work).
+    # The row's photons' _accepted answers (accepted, other surface), computed once for
+    # the widening test, the k-th accepted search and the sums (each read them: up to
+    # three times the work); `known`: how many of idx's are in (_fill_accepted).
     row_ok = np.empty(cap, np.bool_)
     row_other = np.empty(cap, np.bool_)
-    row_cos = cos_scratch(direction, cap)  # cos_in in the photons' precision
     # The current block's candidates (_block_candidates): rows before blk_end use them
     # where nc >= 0.
     use_cand = knn and kind == KDTREE
@@ -716,6 +744,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
         scale = 1.0
         r_simpson = radius  # the radius estimator's kernel support
         only_accepted = False  # d2 / idx hold the listed sphere's accepted photons alone
+        known = 0  # row_ok / row_other hold idx[:known]'s answers
         if knn:
             if use_cand and r >= blk_end:
                 blk_end, nc = _block_candidates(pos, nodes, p, rows, r, radius, CAND_SPAN,
@@ -772,10 +801,14 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                                          list_d2, list_idx, list_cap)
                 if kq <= got <= list_cap:
                     kdtree.nearest_first(list_d2, list_idx, got, kq, b2, d2, idx, hist)
-                    seeded = kdtree.unique_nearest(d2, got, kq) and (
-                        kq >= widest
-                        or _count_accepted(direction, normal, surface, pos, idx, kq, nx, ny,
-                                           nz, qs, qx, qy, qz) >= k // 2)
+                    if kdtree.unique_nearest(d2, got, kq):
+                        if kq >= widest:
+                            seeded = True
+                        else:
+                            seeded = _fill_accepted(direction, normal, surface, pos, idx, 0,
+                                                    kq, nx, ny, nz, qs, qx, qy, qz, row_ok,
+                                                    row_other) >= k // 2
+                            known = kq if seeded else 0
             if seeded:
                 cnt = kq
             else:
@@ -813,9 +846,13 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                     cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, bound, d2, idx,
                                buckets)
             prev_kth = d2[kq - 1] if cnt == kq else -1.0
-            if not seeded and cnt == kq and kq < widest and \
-                    _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs,
-                                    qx, qy, qz) < k // 2:
+            widen = False
+            if not seeded and cnt == kq and kq < widest:
+                known = cnt
+                widen = _fill_accepted(direction, normal, surface, pos, idx, 0, cnt, nx, ny,
+                                       nz, qs, qx, qy, qz, row_ok, row_other) < k // 2
+            if widen:
+                known = 0  # (d2 / idx change below)
                 # Widen (x4 up to MAX_WIDEN_K) while fewer than k / 2 of the nearest are
                 # accepted (a crowded neighbour surface). First, a row whose sphere holds
                 # fewer than min_photons accepted photons has no estimate at any width
@@ -946,10 +983,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
         full = cnt == kq and not only_accepted  # stopped at kq photons: more may lie beyond
         rk = radius
         floored = False
-        for j in range(cnt):
-            row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, surface, pos,
-                                                            idx[j], nx, ny, nz, qs, qx, qy,
-                                                            qz)
+        _fill_accepted(direction, normal, surface, pos, idx, known, cnt, nx, ny, nz, qs, qx,
+                       qy, qz, row_ok, row_other)
         if code >= KNN_SIMPSON:
             # rk: distance to the k-th accepted photon; with fewer accepted (acc of them, at
             # least SPARSE_MIN_ACCEPTED), to the last accepted one: the k-NN estimate with
@@ -992,7 +1027,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
         for j in range(cnt):
             pj = idx[j]
             d = math.sqrt(d2[j])
-            ok, other, cos_in = row_ok[j], row_other[j], row_cos[j]
+            ok, other = row_ok[j], row_other[j]
             inside = d <= rk
             if inside:
                 fetched += 1
@@ -1011,7 +1046,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                         hi = mid
                 seen = not (lo < h_hi and hid_photon[lo] == pj)
             if code == CLASSIC:
-                w = cos_in / (math.pi * radius * radius)
+                w = _cos_in(direction, pj, nx, ny, nz) / (math.pi * radius * radius)
             elif code == RADIUS:
                 x = min(max(1.0 - (d / r_simpson) ** 2, 0.0), 1.0)
                 w = 3.0 / (math.pi * r_simpson * r_simpson) * x * x

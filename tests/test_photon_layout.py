@@ -9,6 +9,8 @@
 - a real scene's estimates from the compact maps agree with the float32 maps' within
   0.2 % (the same shot, both layouts).
 """
+import math
+
 import numba
 import numpy as np
 import pytest
@@ -213,3 +215,80 @@ def test_compact_estimates_match_the_float32_maps(_both_layouts):
             np.testing.assert_allclose(Ea.sum(), Eb.sum(), rtol=2e-3)
             rel = np.abs(Ea - Eb).sum(axis=1)[lit] / Eb.sum(axis=1)[lit]
             assert np.median(rel) < 2e-3 and np.quantile(rel, 0.99) < 2e-2, est
+
+
+@numba.njit
+def _kernel_axes(a, nq, out, t):
+    """Per row j of a: read_axis's (x, y, z, w), the cosine g with nq, cos_below(g, t) and
+    cos_at_most(g, t)."""
+    for j in range(a.shape[0]):
+        x, y, z, w = L.read_axis(a, j)
+        g = x * nq[0] + y * nq[1] + z * nq[2]
+        out[j, 0], out[j, 1], out[j, 2], out[j, 3] = x, y, z, w
+        out[j, 4] = L.cos_below(a, g, w, t)
+        out[j, 5] = L.cos_at_most(a, g, w, t)
+
+
+def test_axis_reads_compare_cosines_as_the_decoded_unit_vectors():
+    """compact50: the k-NN rows' photon tests read the octahedral point unnormalised
+    (read_axis) and compare g |g| with t |t| w (cos_below, cos_at_most): the decisions of
+    the decoded unit vectors' cosines except within float32 rounding of the threshold;
+    a float32 array reads as itself and compares its cosine as before."""
+    rng = np.random.default_rng(6)
+    nq = np.float32([0.36, -0.48, 0.8])
+    e1 = np.float64([0.8, 0.6, 0.0])  # e1, e2, nq: an orthonormal frame
+    e2 = np.cross(nq.astype(np.float64), e1)
+    out = np.empty((200_000 + 14, 6), np.float64)
+    for t in (0.5, math.cos(math.radians(1.0)), -math.cos(math.radians(1.0))):
+        # Random vectors and vectors whose cosine with nq lies within 1e-3 of t.
+        c = np.clip(t + rng.uniform(-1e-3, 1e-3, 100_000), -1.0, 1.0)
+        phi = rng.uniform(0.0, 2.0 * np.pi, len(c))
+        s = np.sqrt(1.0 - c * c)[:, None]
+        ring = c[:, None] * nq + s * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+        v = np.concatenate([_unit(100_000, rng), ring.astype(np.float32)])
+        code = L.encode_vectors(v)
+        back = L.decode_vectors(code).astype(np.float64)
+        cos_d = back @ nq.astype(np.float64)
+        _kernel_axes(code, nq, out, t)
+        # The octahedron's point is along the decoded vector: oct_decode normalises it.
+        x, w = out[:, :3].astype(np.float32), out[:, 3].astype(np.float32)
+        np.testing.assert_array_equal(x * (np.float32(1.0) / np.sqrt(w))[:, None],
+                                      L.decode_vectors(code))
+        near = np.abs(cos_d - t) < 1e-6
+        assert np.array_equal(out[~near, 4] == 1, (cos_d < t)[~near])
+        assert np.array_equal(out[~near, 5] == 1, (cos_d <= t)[~near])
+        assert near.mean() < 2e-3 and (out[:, 4] == 1).mean() > 0.1
+        _kernel_axes(v, nq, out, t)
+        np.testing.assert_array_equal(out[:, :3], v)
+        assert (out[:, 3] == 1.0).all()
+        g = v @ nq  # float32: the kernels' float32 sums, to rounding
+        far = np.abs(g.astype(np.float64) - t) > 1e-6
+        assert np.array_equal(out[far, 4] == 1, (g < t)[far])
+
+
+def test_compact_estimates_are_the_decoded_maps_bits(_both_layouts):
+    """compact50: a compact map's estimates (its photons tested along their octahedral
+    axes, each row's tests made once) are bit for bit those of a float32 map holding the
+    decoded values (round_trip's: the same photons, tree and order)."""
+    import copy
+    st, ctx = _both_layouts
+    rng = np.random.default_rng(7)
+    for field, radius in (("global_map", "global_radius"), ("caustic_map", "caustic_radius")):
+        a = getattr(ctx[True], field)
+        b = copy.copy(a)
+        b.photons = copy.copy(a.photons)
+        b.photons.direction = L.vectors(a.photons.direction, dtype=np.float32)
+        b.photons.normal = L.vectors(a.photons.normal, dtype=np.float32)
+        b.photons.power = L.powers(a.photons.power, dtype=np.float32)
+        sel = rng.choice(len(a), 1000, replace=False)
+        r = getattr(ctx[True], radius)
+        q = a.photons.position[sel].astype(np.float64) + rng.normal(size=(1000, 3)) * r * 0.1
+        nq = b.photons.normal[sel].astype(np.float64)
+        for est in ("knn_simpson", "knn_cone", "classic", "radius"):
+            Ea, Ba = a.irradiance(q, nq, r, st.k_nearest, st.min_photons, est,
+                                  return_boundary=True)
+            Eb, Bb = b.irradiance(q, nq, r, st.k_nearest, st.min_photons, est,
+                                  return_boundary=True)
+            assert (Eb.sum(axis=1) > 0).sum() > 500
+            np.testing.assert_array_equal(Ea, Eb, err_msg=est)
+            np.testing.assert_array_equal(Ba, Bb, err_msg=est)

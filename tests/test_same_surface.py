@@ -88,7 +88,7 @@ def test_the_estimates_branchless_test_is_the_rule():
         q = (0.01, -0.02, 0.0)
         nq = np.float32(0.0), np.float32(0.0), np.float32(1.0)
         for j in range(n):
-            ok, other, _ = _accepted(d, nrm, surf, pos, j, *nq, qs, *q)
+            ok, other = _accepted(d, nrm, surf, pos, j, *nq, qs, *q)
             facing = float(nrm[j] @ np.float32([0, 0, 1])) > NORMAL_AGREEMENT
             same = samesurface.same_surface(surf, pos, nrm, j, qs, *q, *map(float, nq))
             assert other == (not facing or not same), (qs, j)
