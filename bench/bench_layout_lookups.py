@@ -7,6 +7,14 @@ alternating, best of 3 CPU seconds each. Prints us per estimate row per map and 
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_layout_lookups.py \
         /tmp/bench_kernels/figure6_box-160x120.calls
+
+--capture NAME OUT [SETTINGS] (compact50) captures such a file without a base version:
+example blend NAME (exported under $TMPDIR/film_hashes, tools/film_hashes.py's) rendered
+at 160 x 120 by one worker with RenderSettings(workers=1, **SETTINGS) (a Python dict
+literal, e.g. "dict(photons=2_000_000, caustic_photons=1_000_000)"), its calls into OUT:
+
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_layout_lookups.py --capture \
+        figure8_caustic /tmp/compact50/fig8.calls
 """
 import os
 import pickle
@@ -74,5 +82,23 @@ def main(path):
           f"{tot[True] / tot[False]:.3f} |")
 
 
+def capture(name, out, settings="{}"):
+    """bench_lookup.py's CAPTURE of example blend `name`'s render into `out`."""
+    import ast
+    import tempfile
+    sys.path.insert(0, os.path.join(ROOT, "bench"))
+    import bench_kernels as bk
+    import bench_lookup as bl
+    kw = eval(settings, {"dict": dict}) if settings.startswith("dict(") else \
+        ast.literal_eval(settings)
+    pkl = bk.exported(name, os.path.join(tempfile.gettempdir(), "film_hashes"))
+    code = bl.CAPTURE.replace("RenderSettings(workers=1)",
+                              f"RenderSettings(workers=1, **{kw!r})")
+    print(bk.child(code, ROOT=ROOT, PICKLE=pkl, W=160, H=120, OUT=out))
+
+
 if __name__ == "__main__":
-    main(sys.argv[1])
+    if sys.argv[1] == "--capture":
+        capture(*sys.argv[2:])
+    else:
+        main(sys.argv[1])
