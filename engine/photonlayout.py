@@ -22,10 +22,15 @@ kernel source serves both layouts, and the float32 layout's arithmetic is the sa
 expressions as before (its films are unchanged with COMPACT off). Decoding is per photon
 read, in the kernels: decoding whole arrays back to float32 would not save the memory.
 
-COMPACT: PhotonMap stores its photons in this layout (True) or keeps the float32
-arrays (False, the default). Off by default because, on, a render's own estimates
-replayed took 1.4-2.1x the CPU with the decode in the kernels' inner loops (Figure 6, docs/performance.md
-"compact49"), beyond issue 13's budget for the 24 B a held photon it saves.
+The k-NN rows' photon tests (photonmap._accepted, _back_face) read a vector through
+read_axis instead: the octahedral point unnormalised and its squared length, compared as
+cosines by cos_below / cos_at_most without the decode's float32 sqrt and divide, which
+cost compact49's rows most of their 1.4-2.1x (docs/performance.md "compact50").
+
+COMPACT: PhotonMap stores its photons in this layout (True, the default since s50) or
+keeps the float32 arrays (False). A render's own estimates replayed take 1.01 / 1.04x
+the float32 maps' CPU (Figures 6 / 8; 1.62 / 1.79x in compact49) for the 24 B a held
+photon it saves (docs/performance.md "compact49", "compact50").
 """
 from __future__ import annotations
 
@@ -37,7 +42,7 @@ from numba.extending import overload
 
 from .jit import kernel
 
-COMPACT = False
+COMPACT = True
 
 OCT_SCALE = 32767.0
 # The round-trip's largest angle between a unit vector and its decoded value (rad):
