@@ -10,7 +10,7 @@ import pytest
 
 from engine import shadernodes as sn
 from engine.bsdf import surface_hit
-from engine.bump import Bump, ViewFootprint, camera_differential, make_orthonormals
+from engine.bump import DEEPER, Bump, ViewFootprint, camera_differential, make_orthonormals
 from engine.geometry import prepare
 from engine.scene import Camera, Material, Mesh, Scene
 
@@ -107,7 +107,7 @@ def test_camera_differential_is_cycles_per_pixel_direction_difference():
 
 def test_hits_without_a_footprint_take_the_cameras_at_their_distance():
     """surface_hit without footprints: the geometry's ViewFootprint, the camera's
-    differential towards the hit times its distance (set by prepare)."""
+    differential towards the hit times DEEPER times its distance (set by prepare)."""
     h = sn.Math("GREATER_THAN", sn.SeparateChannel(sn.UVCoord(), 0), 0.5)
     cam = Camera.look_at((0.5, 0.5, 2.0), (0.5, 0.5, 0.0), fov_degrees=40.0)
     geo, table = _quad(Bump(h, distance=0.05), camera=cam)
@@ -116,7 +116,7 @@ def test_hits_without_a_footprint_take_the_cameras_at_their_distance():
     r = geo.view_footprint.at(p)
     d = (p + geo.offset) - cam.position
     dist = np.linalg.norm(d)
-    assert r[0] == pytest.approx(camera_differential(cam, 64, 64, d / dist)[0] * dist)
+    assert r[0] == pytest.approx(camera_differential(cam, 64, 64, d / dist)[0] * dist * DEEPER)
     xy = [[0.49, 0.3], [0.495, 0.7]]
     hp = np.array([[0.49, 0.3, 0.0], [0.495, 0.7, 0.0]]) - geo.offset
     np.testing.assert_allclose(_normals(geo, table, xy),
