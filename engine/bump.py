@@ -23,7 +23,7 @@ from .sampling import dot, normalize
 # multiple of the camera's differential times the hit's distance from it
 # (ViewFootprint.deeper): in a room a camera path's second vertex has travelled about
 # twice that distance, deeper ones more (docs/accuracy.md "### bump50": the closed box
-# reads 0.991 / 0.995 / 0.995 of Cycles at 1 / 2 / 3).
+# reads 0.991 / 0.995 / 0.999 of Cycles at 1 / 2 / 6).
 DEEPER = 2.0
 
 
