@@ -21,10 +21,11 @@ from .sampling import dot, normalize
 
 # The footprint of hits not followed from the camera (gather rays, photons), as a
 # multiple of the camera's differential times the hit's distance from it
-# (ViewFootprint.deeper): in a room a camera path's second vertex has travelled about
-# twice that distance, deeper ones more (docs/accuracy.md "### bump50": the closed box
-# reads 0.991 / 0.995 / 0.999 of Cycles at 1 / 2 / 6).
-DEEPER = 2.0
+# (ViewFootprint.deeper). Cycles' vertex past the second has travelled the whole path:
+# in a room 3-6 x its camera distance, and ours' photons stand for those vertices.
+# Measured (docs/accuracy.md "### bump50"): the closed box reads 0.991 / 0.995 / 0.999
+# of Cycles at 1 / 2 / 6, the bathroom 0.994 / 1.000 at 2 / 6.
+DEEPER = 6.0
 
 
 class Bump:
