@@ -1957,9 +1957,12 @@ class MaterialConverter:
         if not hasattr(height, "evaluate"):
             return None  # a constant height: no bump
         try:
+            # Filter Width (Blender 4.5+; 0.1 where the node has none): the
+            # share of the ray's footprint the height's differences span (engine/bump.py).
             return self.pm.Bump(height, strength=self._float(n, "Strength", 1.0),
                                 distance=self._float(n, "Distance", 1.0),
-                                invert=bool(getattr(n, "invert", False)))
+                                invert=bool(getattr(n, "invert", False)),
+                                filter_width=self._float(n, "Filter Width", 0.1))
         except ValueError as exc:
             self._warn(f"material '{self._mat.name}': Bump '{n.name}': {exc}")
             return None

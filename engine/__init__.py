@@ -36,7 +36,8 @@ from .resources import ResourceError  # noqa: E402
 from .scene import (Camera, Light, LightPortal, Material, Mesh, Prototype, Scene,  # noqa: E402
                     SceneError, WorldMedium)
 from .settings import RenderSettings  # noqa: E402
-from .normalmap import Bump, NormalMap  # noqa: E402
+from .bump import Bump  # noqa: E402
+from .normalmap import NormalMap  # noqa: E402
 from .textures import ColorAttribute, ImageTexture, TextureError  # noqa: E402
 
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes", "ies",

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .anisotropy import set_hit_tangents
+from .bump import Bump
 from .camerakernels import face_shading_normals, hit_closures, hit_geometry, surface_lobes
 from .filterglossy import NO_BLUR
 from .closures import principled as pr
@@ -163,7 +164,7 @@ def _offset_floor(geo: Geometry, prim, p, ng, offset):
 
 
 def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
-                material=None, unguarded=None) -> SurfaceHit:
+                material=None, unguarded=None, footprint=None) -> SurfaceHit:
     """Surface data at N ray hits: triangles prim (N,), barycentrics u, v (N,) of corners
     1 and 2, ray directions d (N,3). Positions, normals, material, base colour and the
     ray-origin offset come from one compiled pass (camerakernels.hit_geometry); normal
@@ -171,7 +172,10 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
     material (N,): each hit's material row where it is not its triangle's (the ray
     class's Light Path variant: engine/raymaterials.path_materials); None: the triangles'.
     unguarded (N,) bool: rows whose shading normal is kept where it puts the viewer below
-    the surface (no guard; engine/turnedlight.py: smooth glass Cycles turns); None: none."""
+    the surface (no guard; engine/turnedlight.py: smooth glass Cycles turns); None: none.
+    footprint (N,) m: each ray's footprint at its hit (Cycles' compact sd->dP), which Bump
+    nodes take their differences over; None: the geometry's view_footprint
+    (engine/bump.py)."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
     p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
@@ -188,13 +192,13 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
             # The displacement's bump sets Cycles' sd->N itself: the smooth normal the
             # view-dependent nodes and the bump shadowing term read.
             # Kept where the viewer is below it, as a bumped normal (bent).
-            ns[sel] = nmap.bump.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
+            ns[sel] = _perturb(nmap.bump, geo, prim, u, v, ns, sel, footprint)
             n_smooth[sel] = ns[sel]
             bent[sel] = True
             nmap = nmap.then
             if nmap is None:
                 continue
-        ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
+        ns[sel] = _perturb(nmap, geo, prim, u, v, ns, sel, footprint)
         bent[sel] = True
     # Shading normals turned to the ray's side; the geometric normal where they would put
     # the viewer below the surface, except normals a Normal Map / Bump node bent: Cycles
@@ -227,6 +231,14 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
                       n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v),
                       emission=(hit_emission(table, sg, mat, prim, u, v)
                                 if table.emission.any() else np.broadcast_to(_NO_LIGHT, (n, 3))))
+
+
+def _perturb(nmap, geo, prim, u, v, ns, sel, footprint):
+    """The shading normals nmap (a NormalMap, Bump, Bevel) gives the rows sel; a Bump
+    over the rays' footprints where they are known."""
+    if footprint is not None and isinstance(nmap, Bump):
+        return nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel], footprint=footprint[sel])
+    return nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
 
 
 # Emission rows where no material emits: one zero row seen N times (nothing to gather).

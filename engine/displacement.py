@@ -34,7 +34,7 @@ import numpy as np
 from .sampling import dot, normalize
 
 SPACES = ("OBJECT", "WORLD")
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # linear Rec. 709, as normalmap.Bump
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # linear Rec. 709, as bump.Bump
 
 
 def _object_linear(geo, prim) -> np.ndarray:
@@ -136,7 +136,7 @@ class DisplacementHeight:
 
 class DisplacedNormals:
     """A material's normal with Cycles' bump from its displacement: `bump` (an
-    engine.normalmap.Bump of a DisplacementHeight) sets sd->N, the normal every closure
+    engine.bump.Bump of a DisplacementHeight) sets sd->N, the normal every closure
     and every view-dependent node reads; `then` (the BSDF's own Bump node, or None) bumps
     that normal again. engine.bsdf.surface_hit reads the two apart (the bump shadowing
     term compares a closure's normal with sd->N, so a displacement alone adds none);

@@ -384,6 +384,7 @@ class Geometry:
                               # and frame (Texture Coordinate Camera / Window); None reads
                               # zeros. Set by prepare and again when a view moves
                               # (set_camera_view)
+    view_footprint: "object | None" = None  # bump.ViewFootprint of the camera (set_camera_view)
     tracer: "object | None" = None  # the render's BVH, answering on the calling thread,
                               # for shader nodes that trace rays (Ambient Occlusion:
                               # ambientocclusion.attach_tracer); None before it is built
@@ -774,10 +775,14 @@ def _object_attributes(meshes) -> dict | None:
 
 def set_camera_view(geo: Geometry, scene: Scene) -> None:
     """geo.camera_view for the scene's camera and image size (None without a camera):
-    what the Texture Coordinate node's Camera and Window outputs read."""
+    what the Texture Coordinate node's Camera and Window outputs read; and
+    geo.view_footprint, the ray footprint Bump nodes take their differences over where
+    a hit's own is not passed (engine/bump.py)."""
+    from .bump import attach_view
     from .shadernodes import CameraView
     cam = scene.camera
     geo.camera_view = None if cam is None else CameraView(cam, scene.width, scene.height)
+    attach_view(geo, scene)
 
 
 def _instances(meshes, offset):

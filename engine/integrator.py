@@ -32,6 +32,7 @@ from . import (adaptive, aopass, chaincounts, datapasses, heterogeneous, lightpa
                photonvisibility, raymaterials, sampleclamp, shadelight, subsurfacewalk,
                volumeemission,
                vectorpass, volumescatter, volumewalk, worldmedium)
+from .bump import camera_differential
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, _hit_alpha, closures, lobe_weights,
                    plain_surfaces, surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -2979,6 +2980,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # each path left: the world's MIS pdf, the light tree's choice; the chain's bounces),
     # from the thread's buffers; replaced, never written in place (paths_start).
     travelled, org_ns, org_p, chain = buffers.paths_start(len(o))
+    # Each path's camera ray differential (Cycles keeps the camera's dD through every
+    # bounce): Bump nodes take their differences over dD x travelled (engine/bump.py).
+    cam_dd = camera_differential(cam, ctx.scene.width, ctx.scene.height, d)
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
     modes = light_modes(ctx)
@@ -3345,6 +3349,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
                 keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
                                pdf_b))
+            cam_dd = np.take(cam_dd, kept)
             if passages is not None:
                 passages.compact(kept)
             if lpass is not None:
@@ -3460,7 +3465,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                         bufs, material=cls_mat, blur=blur)
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat,
-                              unguarded=unguarded)
+                              unguarded=unguarded,
+                              footprint=cam_dd if ortho else cam_dd * travelled)
             per_hit = hit.params is not None
             nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
                              hit.params if per_hit else ctx.table.closure_params, per_hit,
@@ -3817,6 +3823,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         world_share = None if share is None else np.take(share, keep)
         sample_id = sample_id[keep]
         travelled = travelled[keep]
+        cam_dd = cam_dd[keep]
         if feat is not None:
             feat, ftp = feat[keep], ftp[keep]
         single, first = single[keep], first[keep]

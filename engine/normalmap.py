@@ -1,4 +1,4 @@
-"""Shading-normal perturbation from textures: Cycles' Normal Map and Bump nodes, and the
+"""Shading-normal perturbation from textures: Cycles' Normal Map node, and the
 bump shadowing term Cycles applies to closures whose normal they bent.
 
 A `NormalMap` turns a texture's colour c (read as stored, normally Non-Color) into a
@@ -12,13 +12,7 @@ direction 2c - 1 and that into the shading normal:
            Strength s scales x and y and blends z from 1: (s x, s y, 1 + (z - 1) min(s, 1));
   WORLD    n' = normalize(2c - 1) (world-space directions); strength s != 1 blends the
            normals: n'' = normalize(N + s (n' - N)).
-A `Bump` takes a height h (any engine.textures / engine.shadernodes node; colours read as
-their luminance) and tilts the normal against h's gradient along the surface:
-  n' = normalize(N - distance grad_s h),   n'' = normalize(s n' + (1 - s) N)
-(Cycles svm_node_set_bump: its screen-space differences dH/dx, dH/dy over the dual basis
-of dP/dx, dP/dy are, for small filter widths, this surface gradient). The gradient is taken
-by central differences of h in the triangle's barycentric coordinates, mapped to the
-surface through the dual basis of the triangle's edges, so any height node works.
+The Bump node is engine/bump.py's `Bump` (its perturb has the same signature).
 `bump_shadowing_term` is Cycles 5.0's factor on such closures (docs/textures.md, "Bump
 shadowing"): engine/directlight.py applies it per light sample, engine/integrator.py to
 gather rays and engine/photons.py to the photons' diffuse storage and bounce.
@@ -238,52 +232,3 @@ def _interpolated_normals(geo, prim, u, v) -> np.ndarray:
     cn = np.take(geo.corner_normals, prim, axis=0).astype(np.float64)
     w = (1.0 - u - v)[:, None]
     return w * cn[:, 0] + u[:, None] * cn[:, 1] + v[:, None] * cn[:, 2]
-
-
-class Bump:
-    """height    an object with evaluate(geo, prim, u, v) -> (N,) or (N,3)
-    strength     0..1 blend towards the bumped normal (Cycles' Strength)
-    distance     height scale in scene units (Cycles' Distance), negated by invert"""
-
-    STEP = 1e-4  # barycentric step of the central differences (relative to the triangle)
-
-    def __init__(self, height, strength: float = 1.0, distance: float = 1.0,
-                 invert: bool = False):
-        if height is None or not hasattr(height, "evaluate"):
-            raise NormalMapError("bump: height must be an engine texture or shader node, got "
-                                 f"{type(height).__name__}")
-        vals = [float(strength), float(distance)]
-        if not np.all(np.isfinite(vals)):
-            raise NormalMapError(f"bump strength / distance: must be finite, got {vals}")
-        self.height = height
-        self.strength = min(max(vals[0], 0.0), 1.0)
-        self.distance = -vals[1] if invert else vals[1]
-
-    def _h(self, geo, prim, u, v):
-        h = np.asarray(self.height.evaluate(geo, prim, u, v), np.float64)
-        return h @ np.array([0.2126, 0.7152, 0.0722]) if h.ndim == 2 else h
-
-    def perturb(self, geo, prim, u, v, n: np.ndarray) -> np.ndarray:
-        """(N,3) unit shading normals at hits; n (N,3) the unperturbed ones (winding side).
-        Seen from a back face the bumped normal is turned over with the rest
-        (engine.bsdf.surface_hit), which is what Cycles renders: the bands of a bumped
-        plane seen from below under a sun from below read as Cycles' (column profiles
-        correlate 0.99; a tilt mirrored instead would read -0.99:
-        tests/blender/test_bump_back_face_cycles.py)."""
-        e = self.STEP
-        dh_du = (self._h(geo, prim, u + e, v) - self._h(geo, prim, u - e, v)) / (2 * e)
-        dh_dv = (self._h(geo, prim, u, v + e) - self._h(geo, prim, u, v - e)) / (2 * e)
-        e1 = np.take(geo.e1, prim, axis=0)
-        e2 = np.take(geo.e2, prim, axis=0)
-        ng = np.take(geo.ng, prim, axis=0)
-        # Dual basis of (e1, e2) in the triangle's plane: g1.e1 = 1, g1.e2 = 0, ...
-        c2 = np.cross(e2, ng)
-        c1 = np.cross(ng, e1)
-        g1 = c2 / dot(e1, c2)[:, None]
-        g2 = c1 / dot(e2, c1)[:, None]
-        grad = dh_du[:, None] * g1 + dh_dv[:, None] * g2
-        bumped = normalize(n - self.distance * grad)
-        out = normalize(self.strength * bumped + (1.0 - self.strength) * n)
-        bad = ~np.isfinite(out).all(axis=1) | (np.linalg.norm(out, axis=1) < 0.5)
-        out[bad] = n[bad]
-        return out

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .displacement import METHODS as DISPLACEMENT_METHODS, DisplacedNormals
-from .normalmap import Bump, NormalMap
+from .bump import Bump
+from .normalmap import NormalMap
 from .panorama import Panorama
 from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
 

@@ -8,7 +8,7 @@ import pytest
 from engine import displacement as dp
 from engine.bsdf import surface_hit
 from engine.geometry import prepare
-from engine.normalmap import Bump
+from engine.bump import Bump
 from engine.scene import Material, Mesh, Scene, SceneError
 
 

@@ -270,7 +270,7 @@ def test_shader_nodes_mix_invert_ramp_math_checker_mapping():
 
 def test_bump_tilts_against_the_height_gradient():
     from engine import shadernodes as sn
-    from engine.normalmap import Bump
+    from engine.bump import Bump
     # h = 0.5 u on a unit quad with uv = xy: grad h = (0.5, 0, 0); distance 0.8 ->
     # n' = normalize((0, 0, 1) - 0.8 (0.5, 0, 0)) = normalize(-0.4, 0, 1).
     h = sn.Math("MULTIPLY", sn.SeparateChannel(sn.UVCoord(), 0), 0.5)
@@ -290,7 +290,7 @@ def test_bump_seen_from_the_back_is_the_front_bumped_normal_turned_over():
     -normalize(n - d grad h), as Cycles renders it (tests/blender/
     test_bump_back_face_cycles.py: the tilt mirrored instead reads against Cycles')."""
     from engine import shadernodes as sn
-    from engine.normalmap import Bump
+    from engine.bump import Bump
     h = sn.Math("MULTIPLY", sn.SeparateChannel(sn.UVCoord(), 0), 0.5)  # grad h = (0.5, 0, 0)
     want = np.array([0.4, 0, -1]) / np.hypot(0.4, 1)
     for prim_uv in ([0.3, 0.2], [0.2, 0.6]):

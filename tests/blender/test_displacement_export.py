@@ -47,7 +47,7 @@ def _displaced(bpy, name, method="BUMP", normal=None, height="noise"):
 
 def test_bump_only_bumps_the_normal_without_a_warning(fresh_scene, bpy_addon):
     from engine import displacement as dp
-    from engine.normalmap import Bump
+    from engine.bump import Bump
     mat = _convert(_displaced(bpy_addon, "BumpOnly"))
     assert not mat.warnings, mat.warnings
     assert isinstance(mat.normal_map, dp.DisplacedNormals)
@@ -62,7 +62,8 @@ def test_bump_only_bumps_the_normal_without_a_warning(fresh_scene, bpy_addon):
 def test_bump_and_bevel_nodes_go_under_the_displacement_a_normal_map_replaces_it(
         fresh_scene, bpy_addon):
     from engine import displacement as dp
-    from engine.normalmap import Bump, NormalMap
+    from engine.bump import Bump
+    from engine.normalmap import NormalMap
     chained = _convert(_displaced(bpy_addon, "Chained", normal="bump"))
     assert isinstance(chained.normal_map, dp.DisplacedNormals)
     assert isinstance(chained.normal_map.then, Bump)
