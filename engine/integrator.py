@@ -1073,6 +1073,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
+        cnt_in = cnt
         # The point (None: the gathering hits', p[idx]) and triangle each ray left, and
         # whether any may meet a touching surface there or be inside glass (the
         # coincident probe's).
@@ -1138,14 +1139,18 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if per_ray:
                     ray_cls = cls[:m]
             if esc is not None:
-                # (the rays missing from the compacted hits escaped; a turned reflection
-                # was bent, so cnt holds their chains' counts: those past a Light Paths
-                # limit see nothing, as their lookups would read nothing)
+                # (the rays missing from the compacted hits escaped into the sun: a
+                # light hit by the ray of the path's last scatter, which Cycles counts
+                # if the vertex it left was within every Light Paths limit (the kernel
+                # limit is the setting + 1, docs/design.md, Bounce limits): the chain's
+                # counts before its last continuation, cnt_in, plus the gather's own
+                # diffuse bounce. cnt, after it, held one bounce too many: a glass of
+                # water seen through 4 refractions lost light at Max Bounces 10-16)
                 missed = np.flatnonzero(~np.isin(esc[0], idx))
                 if len(missed):
                     rows = esc[0][missed]
-                    bent = cnt[rows] if cnt is not None else np.zeros((len(rows), 4),
-                                                                      np.int64)
+                    bent = (cnt_in[rows] if cnt_in is not None
+                            else np.zeros((len(rows), 4), np.int64))
                     within = chaincounts.within(chaincounts.camera_counts(
                         bent, (level + 1, level + 1, 0, 0)), lim)
                     rows, missed = rows[within], missed[within]
@@ -1336,6 +1341,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
                 t_h[idx[keep]] += passed_k
             idx = idx[keep]
+            if turned_refl is not None and turned_refl.escapes:
+                # (the counts before this continuation: an escape's, above)
+                cnt_in = None if cnt is None else cnt.copy()
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
