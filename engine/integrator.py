@@ -1074,6 +1074,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
+        cnt_in = cnt
         # The point (None: the gathering hits', p[idx]) and triangle each ray left, and
         # whether any may meet a touching surface there or be inside glass (the
         # coincident probe's).
@@ -1139,14 +1140,18 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if per_ray:
                     ray_cls = cls[:m]
             if esc is not None:
-                # (the rays missing from the compacted hits escaped; a turned reflection
-                # was bent, so cnt holds their chains' counts: those past a Light Paths
-                # limit see nothing, as their lookups would read nothing)
+                # (the rays missing from the compacted hits escaped into the sun: a
+                # light hit by the ray of the path's last scatter, which Cycles counts
+                # if the vertex it left was within every Light Paths limit (the kernel
+                # limit is the setting + 1, docs/design.md, Bounce limits): the chain's
+                # counts before its last continuation, cnt_in, plus the gather's own
+                # diffuse bounce. cnt, after it, held one bounce too many: a glass of
+                # water seen through 4 refractions lost light at Max Bounces 10-16)
                 missed = np.flatnonzero(~np.isin(esc[0], idx))
                 if len(missed):
                     rows = esc[0][missed]
-                    bent = cnt[rows] if cnt is not None else np.zeros((len(rows), 4),
-                                                                      np.int64)
+                    bent = (cnt_in[rows] if cnt_in is not None
+                            else np.zeros((len(rows), 4), np.int64))
                     within = chaincounts.within(chaincounts.camera_counts(
                         bent, (level + 1, level + 1, 0, 0)), lim)
                     rows, missed = rows[within], missed[within]
@@ -1293,8 +1298,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             d_in = d
             pdf = None
             if yf is y:
-                keep, o, d, tp, ray_cls, *pdf = continue_specular(
-                    ctx, y, tp, rng, ray_cls, choice=choice, want_pdf=chains is not None)
+                keep, o, d, tp, ray_cls, *pdf, pass_lobe = continue_specular(
+                    ctx, y, tp, rng, ray_cls, choice=choice, want_pdf=chains is not None,
+                    want_pass=True)
                 keep_f = keep
             else:
                 # Lean hits never continue (no lobe but the diffuse one); the survival
@@ -1302,9 +1308,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 go_u = rng.random(m)
                 if not n_full:
                     break
-                keep, o, d, tp, ray_cls, *pdf = continue_specular(
+                keep, o, d, tp, ray_cls, *pdf, pass_lobe = continue_specular(
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
-                    go_u=go_u[full], choice=choice, want_pdf=chains is not None)
+                    go_u=go_u[full], choice=choice, want_pdf=chains is not None,
+                    want_pass=True)
                 keep_f = keep
                 keep = full[keep]
             if passed is not None:
@@ -1328,15 +1335,16 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 medium_h[idx[keep]] = media.after_continuation(
                     ctx.geo, sigma, prim, d_in, keep, d, medium_h[idx], outside=world_row)
             if t_h is not None and len(keep):
-                # The unbent continuations are transparent passes (a volume-only
+                # The pass lobe's continuations are transparent passes (a volume-only
                 # surface's aside), as the camera chain counts them.
-                dk = np.take(d_in, keep, axis=0)
-                passed_k = ((d[:, 0] == dk[:, 0]) & (d[:, 1] == dk[:, 1])
-                            & (d[:, 2] == dk[:, 2]))
+                passed_k = pass_lobe.copy()
                 if t_vol is not None:
                     passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
                 t_h[idx[keep]] += passed_k
             idx = idx[keep]
+            if turned_refl is not None and turned_refl.escapes:
+                # (the counts before this continuation: an escape's, above)
+                cnt_in = None if cnt is None else cnt.copy()
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
@@ -1915,7 +1923,7 @@ def passes_past_limit(table, hit, over, d, tp, ray_cls):
 
 
 def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
-                      uv=None, go_u=None, split=None):
+                      uv=None, go_u=None, split=None, want_pass=False):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -1938,6 +1946,9 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     index may then appear twice, and two last elements are returned, (K,) bool, the rays a
     split made, and (K,) float64, the probability with which Cycles' glass sampling would
     have chosen each such ray's half (camerakernels.glass_both_share; 1 on the others).
+    want_pass: one more last element, (K,) bool, the rays the transparent pass lobe made
+    (a transparent bounce to Cycles; every other lobe's ray is a bounce of its kind, an
+    IOR 1 refraction too, which goes on unbent).
     The same uniform numbers are drawn either way."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit, ctx.geo)[1], tp))
@@ -1948,7 +1959,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
         empty = np.zeros((0, 3))
         out = (idx, empty, empty, empty, np.zeros(0, np.int64))
         out = out + (np.zeros(0),) if want_pdf else out
-        return out if split is None else out + (np.zeros(0, bool), np.zeros(0))
+        out = out if split is None else out + (np.zeros(0, bool), np.zeros(0))
+        return out + (np.zeros(0, bool),) if want_pass else out
     r = rng.random(m)
     lobe = np.empty(m, np.int64)
     prob = np.empty(m)
@@ -1991,7 +2003,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
                        split_p)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
     out = out + (pdf[:k],) if want_pdf else out
-    return out if split is None else out + (split_out[:k], split_p[:k])
+    out = out if split is None else out + (split_out[:k], split_p[:k])
+    return out + (np.take(lobe, rows[:k]) == PASS_LOBE,) if want_pass else out
 
 
 # Camera paths sample the lights through rough glass (engine/glasslight.py; False: the
@@ -3700,8 +3713,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         d_in, pdf_in = d, pdf_b
         tp_in, cls_in = tp, ray_cls
         cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,
-                                 uv=uv, split=None if may_split is None else may_split > 0)
+                                 uv=uv, split=None if may_split is None else may_split > 0,
+                                 want_pass=True)
         keep, o, d, tp, ray_cls, pdf_b = cont[:6]
+        pass_lobe = cont[-1]  # (the transparent passes among them)
         share = None
         if probe_world is not None and bounce == 0:
             # The world's light through the reflective lobes where it escapes: from the
@@ -3726,8 +3741,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if over is not None:
             # Past a limit: no bounce from here (the numbers drawn as for every path).
             go = ~over[keep]
-            keep, o, d, tp, ray_cls, pdf_b = (a[go] for a in (keep, o, d, tp, ray_cls,
-                                                              pdf_b))
+            keep, o, d, tp, ray_cls, pdf_b, pass_lobe = (
+                a[go] for a in (keep, o, d, tp, ray_cls, pdf_b, pass_lobe))
             if may_split is not None:
                 cont = cont[:6] + (cont[6][go], cont[7][go])
             # But it passes a transparent share, unbent (Cycles' TERMINATE_AFTER_TRANSPARENT).
@@ -3737,6 +3752,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 keep, o, d, tp, ray_cls, pdf_b = (
                     np.concatenate((a, b)) for a, b in zip((keep, o, d, tp, ray_cls, pdf_b),
                                                            extra))
+                pass_lobe = np.concatenate((pass_lobe, np.ones(len(extra[0]), bool)))
                 if may_split is not None:
                     cont = cont[:6] + (np.concatenate((cont[6],
                                                        np.zeros(len(extra[0]), bool))),
@@ -3760,13 +3776,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     cscale = cscale[keep]
                 if cont[6].any():
                     cscale = cont[7] if cscale is None else cscale * cont[7]
-        # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
-        # unbent) is none; else glossy or transmission by the continued ray's class.
+        # The bounce's kind (Cycles' path_state_next): a transparent pass (the pass lobe:
+        # the ray goes on unbent) is none; else glossy or transmission by the continued
+        # ray's class, an IOR 1 refraction's unbent ray too (Blender 5.0.1: a transmission
+        # bounce, not a transparent one; docs/compatibility.md "### translimit49").
         chain = np.take(chain, keep, axis=0)
-        # (Component by component: np.any(d != d_in[keep], axis=1)'s booleans, NaN
-        # included, without numpy's slow reduction over a short last axis.)
-        dk = np.take(d_in, keep, axis=0)
-        bent = (d[:, 0] != dk[:, 0]) | (d[:, 1] != dk[:, 1]) | (d[:, 2] != dk[:, 2])
+        bent = ~pass_lobe
         chain[:, 0] += bent
         if lpass is not None:
             lpass.take(keep)
@@ -3777,10 +3792,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 ray_cls))
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
-        # The transparent passes (the unbent continuations, a volume-only surface's
+        # The transparent passes (the pass lobe's continuations, a volume-only surface's
         # aside) count against Max Bounces > Transparent.
         t_count = np.take(t_count, keep)
-        passed = ~bent
+        passed = pass_lobe
         if volume_only is not None:
             passed &= ~np.take(volume_only, np.take(hit.mat, keep))
         t_count += passed

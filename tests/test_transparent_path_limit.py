@@ -317,3 +317,35 @@ def test_glossy_chain_vertices_cross_only_the_passes_left(monkeypatch):
         light[t] = ceiling[0]  # the first sample pass's ceiling vertices
     assert light[3][0] == light[8][0]
     assert light[3][1] < 0.5 * light[8][1], light
+
+
+def _emitter_under_ior1_panes(k, transparent, transmission):
+    s = PaperScene(8, 8)
+    s.add_material(Material("floor", (0.0, 0.0, 0.0), emission=(LE, LE, LE)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 20.0, "floor", name="floor")
+    s.add_material(Material("pane", (1.0, 1.0, 1.0), transmission=1.0, roughness=0.0,
+                            ior=1.0, node="glass"))
+    for i in range(k):
+        s.add_plane((0, 0, 1.0 + 0.1 * i), (0, 0, 1), 20.0, "pane", name=f"pane{i}")
+    s.camera = Camera(position=(0, 0, 5), rotation=np.eye(3), kind="ORTHO",
+                      ortho_scale=1.0)
+    film = render(s, RenderSettings(spp=4, photon_mapping=False, workers=1, seed=1,
+                                    transparent_max_bounces=transparent,
+                                    transmission_bounces=transmission, max_bounces=12))
+    return film.combined[..., :3]
+
+
+@pytest.mark.parametrize("k,transparent,transmission,seen", [
+    (3, 2, 12, True), (10, 8, 12, True), (3, 2, 3, True)])
+def test_an_ior_1_refraction_is_a_transmission_bounce(k, transparent, transmission, seen):
+    """Smooth Glass / Refraction BSDFs of IOR 1 over an emitter (Blender 5.0.1, 8 x 8,
+    docs/compatibility.md "### translimit49"): seen through 3 panes at Transparent 2 or
+    Transmission 2 (the 3rd transmission bounce ends the path at the next surface, the
+    emitter), through 10 at Transparent 8 / Transmission 12, not through 10 at
+    Transmission 2 nor 3 at Max Bounces Transparent 0 / Transmission 0: the unbent
+    refraction is a transmission bounce, not a transparent pass. On main it counted as a
+    pass: 3 panes at Transparent 2 and 10 at 8 were black."""
+    img = _emitter_under_ior1_panes(k, transparent, transmission)
+    assert np.allclose(img, LE if seen else 0.0, rtol=1e-6, atol=0), img.mean()
+    assert np.all(_emitter_under_ior1_panes(10, 8, 2) == 0.0)
+    assert np.all(_emitter_under_ior1_panes(3, 0, 0) == 0.0)
