@@ -35,7 +35,7 @@ from . import glassadjoint as ga
 from .closures.fresnel import F0_from_ior, schlick_remap
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .blurredpassage import passage_factor
-from .filterglossy import blur_alpha
+from .filterglossy import blur_alpha, raise_alphas
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
 from .trig import sincos_turn
@@ -438,7 +438,7 @@ _PLAIN_ARG = 31
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
             may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur_slot=NO_BLUR_SLOT,
-            passage_blur=None):
+            passage_blur=None, gather_blur=0.0):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -458,7 +458,9 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     blurredpassage.table(), blurredpassage.IOR): a photon out of a flat passage keeps
     passage_factor of its power at the blur of cos / pi, cos its direction's to the
     glass's normal (Cycles blurs the slab after the diffuse bounce at the hit it lights;
-    docs/compatibility.md "fgslab49")."""
+    docs/compatibility.md "fgslab49"). gather_blur: Filter Glossy (0, the default: off)
+    with which the FULL hits of photons past a diffuse bounce scatter off blurred lobes
+    (_scatter's gather_fg; docs/accuracy.md "photonblur49")."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -470,10 +472,16 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     fg, ptab, pior = (0.0, _NO_PASSAGE_TAB, _NO_PASSAGE_IOR) if passage_blur is None \
         else passage_blur
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-                    GLASS_ADJOINT_MODE, bend_cos, blur_slot, float(fg), ptab, pior)
+                    GLASS_ADJOINT_MODE, bend_cos, blur_slot, float(fg), ptab, pior,
+                    float(gather_blur))
 
 
 _NO_PASSAGE_TAB, _NO_PASSAGE_IOR = np.ones((2, 2, 2)), np.array([1.0, 2.0])
+
+# Cycles' min_ray_pdf stand-in for a photon's scatter read past the camera's diffuse
+# bounce (_scatter's gather_fg): a cosine-sampled gather ray's mean pdf, E[cos] / pi =
+# (2/3) / pi; Filter Glossy 1 blurs to alpha 0.444 (0.41 .. 0.5 over the ray's cosines).
+GATHER_PDF = (2.0 / 3.0) / math.pi
 
 
 # How scatter sends photons at smooth glass with a bent shading normal.
@@ -769,7 +777,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface, st_blur,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-             adjoint_mode, bend_cos, blur_slot, passage_fg, passage_tab, passage_ior):
+             adjoint_mode, bend_cos, blur_slot, passage_fg, passage_tab, passage_ior,
+             gather_fg):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -817,6 +826,19 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     Each stored photon writes that minimum to st_blur (float32; inf for -1), each
     continued one the state after its scatter (a diffuse bounce: -1; a pass: unchanged).
     Empty blur_slot: no state, st_blur inf.
+
+    Filter Glossy on the gather map's light (gather_fg > 0: the render's Filter Glossy;
+    0: off, the same bits): a photon that has made a diffuse bounce (F_DIFFUSE) can only
+    be stored as INDIRECT or CAUSTIC_DIFFUSE, light the camera side reads past its own
+    first diffuse bounce (a final gather ray's end, or the secondary caustic read at a
+    camera hit D). Cycles' path meets this hit after that bounce, with min_ray_pdf at most
+    the gather ray's pdf, so it blurs the hit's lobes: at FULL hits of such photons the
+    microfacet alphas are raised (filterglossy.raise_alphas, after the set-up: weights,
+    layer albedos and energy compensation stay those of the material's roughness) to
+    blur_alpha(gather_fg, GATHER_PDF), GATHER_PDF the gather ray's pdf stand-in (2/3)/pi
+    (the mean of a cosine-sampled direction's cos / pi). Photons without a diffuse bounce
+    (L S+: their stores are the caustic map's, which the Filter Glossy split blurs from
+    the camera side) and PLAIN / SMOOTH_GLASS hits scatter as set up.
 
     Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
     what is left); the power is divided by that probability and multiplied by the sampled
@@ -879,6 +901,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     wj = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
     blur_on = blur_slot.shape[0] > 0
+    # The alpha to which a gather-bound photon's lobes are raised (0: none).
+    gather_alpha = blur_alpha(gather_fg, GATHER_PDF) if gather_fg > 0.0 else 0.0
     # reverse_pdf's lobe weights, one row per FULL hit of a block (bsdf_pdf reads row jc).
     rsel = np.zeros((_BLOCK, pr.N_LOBES))
     # A SMOOTH_GLASS hit's packed glass columns (smooth_glass; the others are not read).
@@ -958,6 +982,13 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                         b0w * aniso_tan[t, 0, 1] + b1 * aniso_tan[t, 1, 1] + b2 * aniso_tan[t, 2, 1],
                         b0w * aniso_tan[t, 0, 2] + b1 * aniso_tan[t, 1, 2] + b2 * aniso_tan[t, 2, 2],
                         params[mat_h[jc], pr.M_AROT])
+            if gather_alpha > 0.0:
+                # Filter Glossy past the camera's diffuse bounce (see the docstring):
+                # after the tangents, which set the anisotropic alphas.
+                for j in range(nb):
+                    jc = at[j]
+                    if jc >= 0 and flags[rows[b0 + j]] & F_DIFFUSE:
+                        raise_alphas(prm, jc, gather_alpha)
         for j in range(nb):
             i = rows[b0 + j]
             jc = at[j]

@@ -357,6 +357,9 @@ _NO_PASSAGES = (pk._NO_FLAT_MAT, pk._NO_FLAT_LIMIT)  # (flat_tables' "none")
 # Photons out of a flat passage keep blurredpassage's factor at Filter Glossy > 0 (with
 # blurredpassage.CYCLES_BLUR; False: the shadow rays' side alone).
 BLUR_PASSAGE_PHOTONS = True
+# Photons past a diffuse bounce scatter off lobes blurred by Filter Glossy
+# (photonkernels._scatter's gather_fg; docs/accuracy.md "photonblur49"). False: unblurred.
+BLUR_GATHER_PHOTONS = True
 
 
 def passages_carried(light) -> bool:
@@ -556,6 +559,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
                                 may_diffuse=may_diffuse, blur_slot=blur_slot,
                                 passage_blur=passage_blur,
+                                gather_blur=fg if BLUR_GATHER_PHOTONS else 0.0,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         if scattered is not None:
