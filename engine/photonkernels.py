@@ -35,7 +35,7 @@ from . import glassadjoint as ga
 from .closures.fresnel import F0_from_ior, schlick_remap
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .blurredpassage import passage_factor
-from .filterglossy import blur_alpha
+from .filterglossy import blur_alpha, raise_alphas
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
 from .trig import sincos_turn
@@ -58,6 +58,13 @@ F_IN_GLASS = 16
 # direct: a transparent pass or a second crossing after it makes it caustic
 # (the pane's shadow rays cross neither).
 F_PANE = 32
+# The two copies of a photon split by Filter Glossy at its first non-diffuse scatter before
+# any diffuse bounce (_scatter's split_slots; docs/accuracy.md "photonblur50"): the
+# unblurred one keeps only its CAUSTIC stores (the caustic map's), the blurred one only
+# its others (read past the camera's diffuse bounce).
+F_UNBLURRED = 64
+F_BLURRED = 128
+F_SPLIT = F_UNBLURRED | F_BLURRED
 # pane_tri's codes of a next-event lamp shade's triangles (engine/shadelight.py): a lamp's
 # photon whose first scatter is the shade's translucent lobe (SHADE_TRANSLUCENT) or, on a
 # single-surface rough glass shade, its glass refraction (SHADE_GLASS) stays direct as
@@ -438,7 +445,7 @@ _PLAIN_ARG = 31
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
             may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur_slot=NO_BLUR_SLOT,
-            passage_blur=None):
+            passage_blur=None, gather_blur=0.0, split_slots=0):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -458,7 +465,12 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     blurredpassage.table(), blurredpassage.IOR): a photon out of a flat passage keeps
     passage_factor of its power at the blur of cos / pi, cos its direction's to the
     glass's normal (Cycles blurs the slab after the diffuse bounce at the hit it lights;
-    docs/compatibility.md "fgslab49")."""
+    docs/compatibility.md "fgslab49"). gather_blur: Filter Glossy (0, the default: off)
+    with which the FULL hits of photons past a diffuse bounce scatter off blurred lobes
+    (_scatter's gather_fg; docs/accuracy.md "photonblur49"). split_slots: with gather_blur
+    > 0, the slot offset of the blurred copies of photons split at their first
+    non-diffuse scatter (the chunk's slot count; nx_* then need room for one more copy
+    per hit, blur_slot 2 x split_slots rows); 0 (the default): no split (_scatter)."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -470,10 +482,16 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     fg, ptab, pior = (0.0, _NO_PASSAGE_TAB, _NO_PASSAGE_IOR) if passage_blur is None \
         else passage_blur
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-                    GLASS_ADJOINT_MODE, bend_cos, blur_slot, float(fg), ptab, pior)
+                    GLASS_ADJOINT_MODE, bend_cos, blur_slot, float(fg), ptab, pior,
+                    float(gather_blur), int(split_slots))
 
 
 _NO_PASSAGE_TAB, _NO_PASSAGE_IOR = np.ones((2, 2, 2)), np.array([1.0, 2.0])
+
+# Cycles' min_ray_pdf stand-in for a photon's scatter read past the camera's diffuse
+# bounce (_scatter's gather_fg): a cosine-sampled gather ray's mean pdf, E[cos] / pi =
+# (2/3) / pi; Filter Glossy 1 blurs to alpha 0.444 (0.41 .. 0.5 over the ray's cosines).
+GATHER_PDF = (2.0 / 3.0) / math.pi
 
 
 # How scatter sends photons at smooth glass with a bent shading normal.
@@ -769,7 +787,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface, st_blur,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-             adjoint_mode, bend_cos, blur_slot, passage_fg, passage_tab, passage_ior):
+             adjoint_mode, bend_cos, blur_slot, passage_fg, passage_tab, passage_ior,
+             gather_fg, split_slots):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -817,6 +836,32 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     Each stored photon writes that minimum to st_blur (float32; inf for -1), each
     continued one the state after its scatter (a diffuse bounce: -1; a pass: unchanged).
     Empty blur_slot: no state, st_blur inf.
+
+    Filter Glossy on the gather map's light (gather_fg > 0: the render's Filter Glossy;
+    0: off, the same bits): a photon that has made a diffuse bounce (F_DIFFUSE) can only
+    be stored as INDIRECT or CAUSTIC_DIFFUSE, light the camera side reads past its own
+    first diffuse bounce (a final gather ray's end, or the secondary caustic read at a
+    camera hit D). Cycles' path meets this hit after that bounce, with min_ray_pdf at most
+    the gather ray's pdf, so it blurs the hit's lobes: at FULL hits of such photons the
+    microfacet alphas are raised (filterglossy.raise_alphas, after the set-up: weights,
+    layer albedos and energy compensation stay those of the material's roughness) to
+    blur_alpha(gather_fg, GATHER_PDF), GATHER_PDF the gather ray's pdf stand-in (2/3)/pi
+    (the mean of a cosine-sampled direction's cos / pi). Photons without a diffuse bounce
+    (L S+: their stores are the caustic map's, which the Filter Glossy split blurs from
+    the camera side) and PLAIN / SMOOTH_GLASS hits scatter as set up.
+
+    The split (split_slots > 0 with gather_fg > 0, not caustic_only): a photon without a
+    diffuse bounce that takes a non-diffuse, non-pass lobe at a FULL hit (not a next-event
+    pane's or shade's triangle, not a flat-passage glass) goes on as two copies of the
+    same lobe choice, each with the whole weight of its own sample: the unblurred one
+    (slot, its numbers as without the split; flag F_UNBLURRED) stores only CAUSTIC
+    photons and ends at a diffuse choice, the blurred one (slot + split_slots, its own
+    numbers; flag F_BLURRED, blurred at every later FULL hit too) stores only the others.
+    Each map then holds an unbiased estimate of its own light: the caustic map's as
+    without the split, bit for bit, the gather map's with every scatter of its paths
+    blurred, as Cycles' paths past the camera's diffuse bounce are. Per-slot state of a
+    blurred copy (blur_slot) starts from its photon's; the caller copies its own
+    (media, coincident faces) from slot to slot + split_slots.
 
     Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
     what is left); the power is divided by that probability and multiplied by the sampled
@@ -879,6 +924,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     wj = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
     blur_on = blur_slot.shape[0] > 0
+    # The alpha to which a gather-bound photon's lobes are raised (0: none).
+    gather_alpha = blur_alpha(gather_fg, GATHER_PDF) if gather_fg > 0.0 else 0.0
+    split_on = split_slots > 0 and gather_alpha > 0.0 and not caustic_only
     # reverse_pdf's lobe weights, one row per FULL hit of a block (bsdf_pdf reads row jc).
     rsel = np.zeros((_BLOCK, pr.N_LOBES))
     # A SMOOTH_GLASS hit's packed glass columns (smooth_glass; the others are not read).
@@ -958,6 +1006,13 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                         b0w * aniso_tan[t, 0, 1] + b1 * aniso_tan[t, 1, 1] + b2 * aniso_tan[t, 2, 1],
                         b0w * aniso_tan[t, 0, 2] + b1 * aniso_tan[t, 1, 2] + b2 * aniso_tan[t, 2, 2],
                         params[mat_h[jc], pr.M_AROT])
+            if gather_alpha > 0.0:
+                # Filter Glossy past the camera's diffuse bounce (see the docstring):
+                # after the tangents, which set the anisotropic alphas.
+                for j in range(nb):
+                    jc = at[j]
+                    if jc >= 0 and flags[rows[b0 + j]] & (F_DIFFUSE | F_BLURRED):
+                        raise_alphas(prm, jc, gather_alpha)
         for j in range(nb):
             i = rows[b0 + j]
             jc = at[j]
@@ -999,6 +1054,10 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 store = True
             if caustic_only and kind != CAUSTIC:
                 store = False
+            if fl & F_SPLIT:
+                # A split photon's copy stores only its own map's photons (see above).
+                if (kind == CAUSTIC) != ((fl & F_UNBLURRED) != 0):
+                    store = False
             if first_hit_mode != 0 and kind == CAUSTIC:
                 if ((fl & F_FIRST_CASTER) != 0) != (first_hit_mode == 2):
                     store = False
@@ -1067,250 +1126,275 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     if xi < cdf:
                         lobe = l
                         break
-            if lobe == pr.N_LOBES or (caustic_only and lobe == pr.L_DIFFUSE):
+            if lobe == pr.N_LOBES or ((caustic_only or fl & F_UNBLURRED)
+                                      and lobe == pr.L_DIFFUSE):
                 continue
-            glass = lobe == pr.L_GLASS_R or lobe == pr.L_GLASS_T
-            p_sel = probs[pr.L_GLASS_R] + probs[pr.L_GLASS_T] if glass else probs[lobe]
-            p_sel = max(p_sel if norm == 1.0 else p_sel / norm, 1e-300)
-            dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
-            gx, gy, gz = ng_b[j, 0], ng_b[j, 1], ng_b[j, 2]
-            n0, n1, n2 = ns_b[j, 0], ns_b[j, 1], ns_b[j, 2]
-            transmitted = False
-            ix = iy = iz = lx = ly = lz = 0.0  # (set by the non-diffuse lobes' samples)
-            if lobe == pr.L_DIFFUSE:
-                u1 = uniform(key, slot[i], bounce, 1)
-                u2 = uniform(key, slot[i], bounce, 2)
-                r = math.sqrt(u1)
-                cp, sp = sincos_turn(u2)  # cos, sin of phi = 2 pi u2 (engine/trig.py)
-                ox, oy, oz = pr.frame_world(n0, n1, n2, r * cp, r * sp,
-                                            math.sqrt(max(0.0, 1.0 - u1)))
-                ok = ox * gx + oy * gy + oz * gz > 0.0
-                k0, k1, k2 = wj[0, 0], wj[0, 1], wj[0, 2]
-                if jc >= 0:
-                    # The layers' albedos above the base at the side the photon leaves
-                    # to (lobe_adjoint: the camera's view there), not where it arrived.
-                    a0, a1, a2 = lobe_adjoint(params, mat_b[j], base_b, j, front_b[j],
-                                              alpha_b[j], prm, w, jc, lobe,
-                                              math.sqrt(max(0.0, 1.0 - u1)), adj)
-                    k0, k1, k2 = k0 * a0, k1 * a1, k2 * a2
-                if bumped:
-                    k0, k1, k2 = k0 * bump[i], k1 * bump[i], k2 * bump[i]
-            elif lobe == pr.L_PASS:
-                ox, oy, oz = dx, dy, dz
-                transmitted = True
-                # (1 - alpha) x the Transparent BSDF's colour (principled.M_TTINT).
-                k0 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT]
-                k1 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT + 1]
-                k2 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT + 2]
-                ok = max(k0, max(k1, k2)) > 0.0
-            else:
-                lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
-                bent = turned = False
-                un0 = un1 = un2 = 0.0
-                if (jc == -SMOOTH_GLASS and corner_normals.shape[0] > 0
-                        and adjoint_mode != GLASS_ADJOINT_NEVER):
-                    t = tri[b0 + j]
-                    un0, un1, un2 = _glass_normal(corner_normals, t, np.float64(u[i]),
-                                                  np.float64(v[i]), front_b[j], gx, gy, gz,
-                                                  n0, n1, n2)
-                    # A bent shading normal: the adjoint of Cycles' glass there
-                    # (engine/glassadjoint.py), not a sample about n; its root search
-                    # only where Cycles could turn n for a direction sent to this arrival.
-                    bent = abs(un0 * gx + un1 * gy + un2 * gz) < bend_cos
-                    turned = bent and (adjoint_mode == GLASS_ADJOINT_EVERY_BENT
-                                       or ga.turn_possible(dx, dy, dz, un0, un1, un2, gx,
-                                                           gy, gz, gprm[0, pr.P_GLASS_ETA]))
-                if bent:
-                    gd[0], gd[1], gd[2] = dx, dy, dz
-                    gnn[0], gnn[1], gnn[2] = un0, un1, un2
-                    gng[0], gng[1], gng[2] = gx, gy, gz
-                    nw = ga.candidates(gprm, gd, gnn, gng, gcand, turned)
-                    okp, ox, oy, oz, k0, k1, k2, transmitted = ga.pick(
-                        gcand, nw, uniform(key, slot[i], bounce, 5))
-                    ix, iy, iz = pr.frame_local(n0, n1, n2, ox, oy, oz)
-                    if not okp:
-                        k0 = k1 = k2 = 0.0
-                elif jc == -SMOOTH_GLASS:
-                    # The glass lobe's own sampler; smooth, it reads only its third number
-                    # (reflect or refract): the first two are not drawn.
-                    ix, iy, iz, k0, k1, k2, transmitted = _smooth_glass_sample(
-                        gprm, lx, ly, lz, uniform(key, slot[i], bounce, 5), sg_mu, sg_remap)
-                else:
-                    ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
-                        prm, jc, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
-                        uniform(key, slot[i], bounce, 4), uniform(key, slot[i], bounce, 5))
-                    if glass:
-                        # Cycles' energy compensation at the side the photon leaves to
-                        # (glass_adjoint: the camera's view there), not where it arrived.
-                        g0, g1, g2 = glass_adjoint(params, mat_b[j], base_b, j,
-                                                   prm[jc, pr.P_GLASS_ETA], lz, abs(iz),
-                                                   transmitted)
-                        k0, k1, k2 = k0 * g0, k1 * g1, k2 * g2
-                    elif lobe != pr.L_SHEEN and lobe != pr.L_TRANSL:
-                        # The same for the metal, specular and coat lobes (lobe_adjoint).
+            # --- Filter Glossy's split of a pre-diffuse photon (photonblur50) ---
+            # At its first non-diffuse scatter before any diffuse bounce, a photon whose
+            # stores serve both maps goes on as two copies of its full power: copy 0
+            # unblurred (F_UNBLURRED: only its CAUSTIC stores, the caustic map's, which
+            # the Filter Glossy split blurs from the camera side), copy 1 off the lobes
+            # raised to gather_alpha (F_BLURRED: only its other stores, read past the
+            # camera's diffuse bounce, where Cycles blurs this hit) in slot
+            # slot + split_slots (its own random numbers and per-slot state).
+            n_cp = 1
+            if (split_on and jc >= 0 and lobe != pr.L_DIFFUSE and lobe != pr.L_PASS
+                    and (fl & (F_DIFFUSE | F_SPLIT)) == 0
+                    and not (pane_on and pane_tri[t] != -1)
+                    and not (flat_on and flat_mat[material[t]])):
+                n_cp = 2
+            lobe0 = lobe
+            old_blur = blur_slot[slot[i]] if blur_on else -1.0
+            for copy in range(n_cp):
+                lobe = lobe0
+                sl = slot[i]
+                if copy == 1:
+                    sl = slot[i] + split_slots
+                    raise_alphas(prm, jc, gather_alpha)
+                glass = lobe == pr.L_GLASS_R or lobe == pr.L_GLASS_T
+                p_sel = probs[pr.L_GLASS_R] + probs[pr.L_GLASS_T] if glass else probs[lobe]
+                p_sel = max(p_sel if norm == 1.0 else p_sel / norm, 1e-300)
+                dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+                gx, gy, gz = ng_b[j, 0], ng_b[j, 1], ng_b[j, 2]
+                n0, n1, n2 = ns_b[j, 0], ns_b[j, 1], ns_b[j, 2]
+                transmitted = False
+                ix = iy = iz = lx = ly = lz = 0.0  # (set by the non-diffuse lobes' samples)
+                if lobe == pr.L_DIFFUSE:
+                    u1 = uniform(key, sl, bounce, 1)
+                    u2 = uniform(key, sl, bounce, 2)
+                    r = math.sqrt(u1)
+                    cp, sp = sincos_turn(u2)  # cos, sin of phi = 2 pi u2 (engine/trig.py)
+                    ox, oy, oz = pr.frame_world(n0, n1, n2, r * cp, r * sp,
+                                                math.sqrt(max(0.0, 1.0 - u1)))
+                    ok = ox * gx + oy * gy + oz * gz > 0.0
+                    k0, k1, k2 = wj[0, 0], wj[0, 1], wj[0, 2]
+                    if jc >= 0:
+                        # The layers' albedos above the base at the side the photon leaves
+                        # to (lobe_adjoint: the camera's view there), not where it arrived.
                         a0, a1, a2 = lobe_adjoint(params, mat_b[j], base_b, j, front_b[j],
-                                                  alpha_b[j], prm, w, jc, lobe, abs(iz), adj)
+                                                  alpha_b[j], prm, w, jc, lobe,
+                                                  math.sqrt(max(0.0, 1.0 - u1)), adj)
                         k0, k1, k2 = k0 * a0, k1 * a1, k2 * a2
-                ox, oy, oz = pr.frame_world(n0, n1, n2, ix, iy, iz)
-                ln = math.sqrt(ox * ox + oy * oy + oz * oz)
-                if ln > 0.0:
-                    ox, oy, oz = ox / ln, oy / ln, oz / ln
-                side = ox * gx + oy * gy + oz * gz
-                ok = ((side < 0.0) if transmitted else (side > 0.0)) and math.isfinite(ln)
-                if ok and not transmitted and not glass and lobe != pr.L_TRANSL:
-                    # Shading normals are not symmetric: the camera side weighs light by
-                    # its cosine to the shading normal, while photons arrive and leave a
-                    # surface by its true (geometric) area, so a photon's reflection
-                    # takes f |wi.Ns| |wo.Ng| / (|wi.Ng| pdf) (Veach 1997, sec. 5.3, the
-                    # adjoint BSDF), not f |wo.Ns| / pdf. Without it the light off a
-                    # normal-mapped metal onto the floor beside it read 1.14x Cycles,
-                    # whose paths meet the metal from the floor (docs/accuracy.md, glow36).
-                    cs_in = -(dx * n0 + dy * n1 + dz * n2)
-                    cg_in = -(dx * gx + dy * gy + dz * gz)
-                    cs_out = ox * n0 + oy * n1 + oz * n2
-                    if cg_in > 0.0 and cs_out > 0.0:
-                        sh = (cs_in * side) / (cg_in * cs_out)
-                        k0, k1, k2 = k0 * sh, k1 * sh, k2 * sh
-                    else:
-                        ok = False
-                ok = ok and max(k0, max(k1, k2)) > 0.0
-                if glass:
-                    lobe = pr.L_GLASS_T if transmitted else pr.L_GLASS_R
-            if not ok:
-                continue
-            scale = 1.0 / p_sel
-            if glass and transmitted:
-                eta = 1.0 / mat_ior[mat_b[j]] if front_b[j] else mat_ior[mat_b[j]]
-                scale *= eta * eta
-            q0 = power[i, 0] * k0 * scale
-            q1 = power[i, 1] * k1 * scale
-            q2 = power[i, 2] * k2 * scale
-            if not (math.isfinite(q0 + q1 + q2) and max(q0, max(q1, q2)) > 0.0):
-                continue
-            # --- bounce counts (Cycles' path_state_next; a transparent pass is none) ---
-            bn = bnc[i]
-            if lobe != pr.L_PASS:
-                first_scatter = (bn & _B_MASK) == 0
-                bn = _count_bounce(bn, B_TOTAL)
-                if not first_scatter:
-                    # Cycles' path_state_next by the sampled label: any transmission (a
-                    # Translucent BSDF's too, LABEL_TRANSMIT | LABEL_DIFFUSE) is a
-                    # transmission bounce; a diffuse reflection (Diffuse, Sheen) a
-                    # diffuse one; the other reflections glossy.
-                    if transmitted:
-                        bn = _count_bounce(bn, B_TRANSMISSION)
-                    elif lobe == pr.L_DIFFUSE or lobe == pr.L_SHEEN:
-                        bn = _count_bounce(bn, B_DIFFUSE)
-                    else:
-                        bn = _count_bounce(bn, B_GLOSSY)
-                if not _counts_usable(bn, limits):
-                    continue
-            # --- ray kinds (visibility) ---
-            if vis_on:
-                if lobe == pr.L_DIFFUSE:
-                    use = SHADOW if kind == DIRECT else DIFFUSE
-                elif lobe == pr.L_TRANSL and kind == DIRECT:
-                    # The light's own segment is Cycles' light sample at the translucent
-                    # surface, which a diffuse closure takes: the light's diffuse
-                    # visibility (_surface_shader_exclude: CLOSURE_IS_BSDF_DIFFUSE spans
-                    # DIFFUSE..TRANSLUCENT); later segments are transmission rays.
-                    use = SHADOW
+                    if bumped:
+                        k0, k1, k2 = k0 * bump[i], k1 * bump[i], k2 * bump[i]
+                elif lobe == pr.L_PASS:
+                    ox, oy, oz = dx, dy, dz
+                    transmitted = True
+                    # (1 - alpha) x the Transparent BSDF's colour (principled.M_TTINT).
+                    k0 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT]
+                    k1 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT + 1]
+                    k2 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT + 2]
+                    ok = max(k0, max(k1, k2)) > 0.0
                 else:
-                    use = _LOBE_CLASS[lobe]
-                if lobe != pr.L_PASS and kin & use == 0:
+                    lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
+                    bent = turned = False
+                    un0 = un1 = un2 = 0.0
+                    if (jc == -SMOOTH_GLASS and corner_normals.shape[0] > 0
+                            and adjoint_mode != GLASS_ADJOINT_NEVER):
+                        t = tri[b0 + j]
+                        un0, un1, un2 = _glass_normal(corner_normals, t, np.float64(u[i]),
+                                                      np.float64(v[i]), front_b[j], gx, gy, gz,
+                                                      n0, n1, n2)
+                        # A bent shading normal: the adjoint of Cycles' glass there
+                        # (engine/glassadjoint.py), not a sample about n; its root search
+                        # only where Cycles could turn n for a direction sent to this arrival.
+                        bent = abs(un0 * gx + un1 * gy + un2 * gz) < bend_cos
+                        turned = bent and (adjoint_mode == GLASS_ADJOINT_EVERY_BENT
+                                           or ga.turn_possible(dx, dy, dz, un0, un1, un2, gx,
+                                                               gy, gz, gprm[0, pr.P_GLASS_ETA]))
+                    if bent:
+                        gd[0], gd[1], gd[2] = dx, dy, dz
+                        gnn[0], gnn[1], gnn[2] = un0, un1, un2
+                        gng[0], gng[1], gng[2] = gx, gy, gz
+                        nw = ga.candidates(gprm, gd, gnn, gng, gcand, turned)
+                        okp, ox, oy, oz, k0, k1, k2, transmitted = ga.pick(
+                            gcand, nw, uniform(key, sl, bounce, 5))
+                        ix, iy, iz = pr.frame_local(n0, n1, n2, ox, oy, oz)
+                        if not okp:
+                            k0 = k1 = k2 = 0.0
+                    elif jc == -SMOOTH_GLASS:
+                        # The glass lobe's own sampler; smooth, it reads only its third number
+                        # (reflect or refract): the first two are not drawn.
+                        ix, iy, iz, k0, k1, k2, transmitted = _smooth_glass_sample(
+                            gprm, lx, ly, lz, uniform(key, sl, bounce, 5), sg_mu, sg_remap)
+                    else:
+                        ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
+                            prm, jc, lobe, lx, ly, lz, uniform(key, sl, bounce, 3),
+                            uniform(key, sl, bounce, 4), uniform(key, sl, bounce, 5))
+                        if glass:
+                            # Cycles' energy compensation at the side the photon leaves to
+                            # (glass_adjoint: the camera's view there), not where it arrived.
+                            g0, g1, g2 = glass_adjoint(params, mat_b[j], base_b, j,
+                                                       prm[jc, pr.P_GLASS_ETA], lz, abs(iz),
+                                                       transmitted)
+                            k0, k1, k2 = k0 * g0, k1 * g1, k2 * g2
+                        elif lobe != pr.L_SHEEN and lobe != pr.L_TRANSL:
+                            # The same for the metal, specular and coat lobes (lobe_adjoint).
+                            a0, a1, a2 = lobe_adjoint(params, mat_b[j], base_b, j, front_b[j],
+                                                      alpha_b[j], prm, w, jc, lobe, abs(iz), adj)
+                            k0, k1, k2 = k0 * a0, k1 * a1, k2 * a2
+                    ox, oy, oz = pr.frame_world(n0, n1, n2, ix, iy, iz)
+                    ln = math.sqrt(ox * ox + oy * oy + oz * oz)
+                    if ln > 0.0:
+                        ox, oy, oz = ox / ln, oy / ln, oz / ln
+                    side = ox * gx + oy * gy + oz * gz
+                    ok = ((side < 0.0) if transmitted else (side > 0.0)) and math.isfinite(ln)
+                    if ok and not transmitted and not glass and lobe != pr.L_TRANSL:
+                        # Shading normals are not symmetric: the camera side weighs light by
+                        # its cosine to the shading normal, while photons arrive and leave a
+                        # surface by its true (geometric) area, so a photon's reflection
+                        # takes f |wi.Ns| |wo.Ng| / (|wi.Ng| pdf) (Veach 1997, sec. 5.3, the
+                        # adjoint BSDF), not f |wo.Ns| / pdf. Without it the light off a
+                        # normal-mapped metal onto the floor beside it read 1.14x Cycles,
+                        # whose paths meet the metal from the floor (docs/accuracy.md, glow36).
+                        cs_in = -(dx * n0 + dy * n1 + dz * n2)
+                        cg_in = -(dx * gx + dy * gy + dz * gz)
+                        cs_out = ox * n0 + oy * n1 + oz * n2
+                        if cg_in > 0.0 and cs_out > 0.0:
+                            sh = (cs_in * side) / (cg_in * cs_out)
+                            k0, k1, k2 = k0 * sh, k1 * sh, k2 * sh
+                        else:
+                            ok = False
+                    ok = ok and max(k0, max(k1, k2)) > 0.0
+                    if glass:
+                        lobe = pr.L_GLASS_T if transmitted else pr.L_GLASS_R
+                if not ok:
                     continue
-                new_kinds = (kin & hit_vis) if lobe == pr.L_PASS else (hit_vis & SEGMENT_KINDS)
-                if new_kinds == 0:
+                scale = 1.0 / p_sel
+                if glass and transmitted:
+                    eta = 1.0 / mat_ior[mat_b[j]] if front_b[j] else mat_ior[mat_b[j]]
+                    scale *= eta * eta
+                q0 = power[i, 0] * k0 * scale
+                q1 = power[i, 1] * k1 * scale
+                q2 = power[i, 2] * k2 * scale
+                if not (math.isfinite(q0 + q1 + q2) and max(q0, max(q1, q2)) > 0.0):
                     continue
-            else:
-                new_kinds = kin
-            # --- path flags ---
-            nf = fl & ~np.int64(F_IN_GLASS) & ((np.int64(1) << _PRE_SHIFT) - 1)
-            passage = fl & F_IN_GLASS
-            pane = fl & F_PANE
-            nf &= ~np.int64(F_PANE)
-            if lobe == pr.L_DIFFUSE:
-                # The first diffuse bounce after a caustic path starts L S+ D; any further
-                # diffuse bounce makes it ordinary indirect light.
-                if fl & F_DIFFUSE:
-                    nf &= ~F_CAUSTIC_DIFF
-                elif fl & F_SPECULAR:
-                    nf |= F_CAUSTIC_DIFF
-                nf |= F_DIFFUSE
-            elif lobe == pr.L_PASS:
-                if pane:
-                    # Past a pane, a transparent pass: the pane's shadow rays do not cross
-                    # it (engine/panelight.py), so this light is the caustic map's.
-                    nf |= F_SPECULAR
-            else:
-                # Every other lobe is continued by the camera side too (which reads no photon
-                # map at a glossy lobe), so light by way of it is caustic light however rough
-                # the lobe. A transparent pass leaves the kind as it was: shadow rays cross
-                # it, so light through it is direct light (docs/design.md, Transparent
-                # shadows).
-                if (flat_on and passage and glass and transmitted and flat_exit(
-                        v0, e1, e2, material, object_id, flat_mat, flat_limit,
-                        fl >> _TRI_SHIFT, t, dx, dy, dz, p_b[j, 0], p_b[j, 1], p_b[j, 2])):
-                    # Out of a flat passage: the path as it was before the glass.
-                    nf = (fl >> _PRE_SHIFT) & F_PATH
-                    if passage_fg > 0.0:
-                        # Cycles' blurred slab (blurredpassage): the factor at the blur
-                        # of the Lambert pdf along the photon's way.
-                        en = fl >> _TRI_SHIFT
-                        wx, wy, wz = winding_normal(e1, e2, en)
-                        ln = math.sqrt(wx * wx + wy * wy + wz * wz)
-                        lo = math.sqrt(ox * ox + oy * oy + oz * oz)
-                        cg = min(abs(ox * wx + oy * wy + oz * wz) / max(ln * lo, 1e-300), 1.0)
-                        fb = passage_factor(passage_tab, passage_ior, cg,
-                                            blur_alpha(passage_fg, cg / math.pi),
-                                            mat_ior[material[en]])
-                        q0 *= fb
-                        q1 *= fb
-                        q2 *= fb
-                elif (pane_on and not passage and not pane and (fl & _F_KIND) == 0
-                      and ((glass and transmitted
-                            and (pane_tri[t] >= 0 or pane_tri[t] == SHADE_GLASS))
-                           or (lobe == pr.L_TRANSL and pane_tri[t] == SHADE_TRANSLUCENT))):
-                    # A sun's light refracted straight through a next-event pane, or a
-                    # lamp's through its shade (translucent, or refracted by rough glass):
-                    # still direct (the pane's / the shade's shadow rays carry it;
-                    # engine/panelight.py, engine/shadelight.py).
-                    nf |= F_PANE
+                # --- bounce counts (Cycles' path_state_next; a transparent pass is none) ---
+                bn = bnc[i]
+                if lobe != pr.L_PASS:
+                    first_scatter = (bn & _B_MASK) == 0
+                    bn = _count_bounce(bn, B_TOTAL)
+                    if not first_scatter:
+                        # Cycles' path_state_next by the sampled label: any transmission (a
+                        # Translucent BSDF's too, LABEL_TRANSMIT | LABEL_DIFFUSE) is a
+                        # transmission bounce; a diffuse reflection (Diffuse, Sheen) a
+                        # diffuse one; the other reflections glossy.
+                        if transmitted:
+                            bn = _count_bounce(bn, B_TRANSMISSION)
+                        elif lobe == pr.L_DIFFUSE or lobe == pr.L_SHEEN:
+                            bn = _count_bounce(bn, B_DIFFUSE)
+                        else:
+                            bn = _count_bounce(bn, B_GLOSSY)
+                    if not _counts_usable(bn, limits):
+                        continue
+                # --- ray kinds (visibility) ---
+                if vis_on:
+                    if lobe == pr.L_DIFFUSE:
+                        use = SHADOW if kind == DIRECT else DIFFUSE
+                    elif lobe == pr.L_TRANSL and kind == DIRECT:
+                        # The light's own segment is Cycles' light sample at the translucent
+                        # surface, which a diffuse closure takes: the light's diffuse
+                        # visibility (_surface_shader_exclude: CLOSURE_IS_BSDF_DIFFUSE spans
+                        # DIFFUSE..TRANSLUCENT); later segments are transmission rays.
+                        use = SHADOW
+                    else:
+                        use = _LOBE_CLASS[lobe]
+                    if lobe != pr.L_PASS and kin & use == 0:
+                        continue
+                    new_kinds = (kin & hit_vis) if lobe == pr.L_PASS else (hit_vis & SEGMENT_KINDS)
+                    if new_kinds == 0:
+                        continue
                 else:
-                    pre = nf
-                    nf |= F_SPECULAR
-                    if (flat_on and glass and transmitted and not pane
-                            and flat_entry(e1, e2, material, flat_mat, t, dx, dy, dz)):
-                        nf |= F_IN_GLASS | (pre << _PRE_SHIFT) | (t << _TRI_SHIFT)
-            # --- Filter Glossy's reverse pdf state (glossysplit, "fgphoton46") ---
-            if blur_on:
-                old = blur_slot[slot[i]]
+                    new_kinds = kin
+                # --- path flags ---
+                nf = fl & ~np.int64(F_IN_GLASS) & ((np.int64(1) << _PRE_SHIFT) - 1)
+                passage = fl & F_IN_GLASS
+                pane = fl & F_PANE
+                nf &= ~np.int64(F_PANE)
                 if lobe == pr.L_DIFFUSE:
-                    blur_slot[slot[i]] = -1.0
-                elif lobe != pr.L_PASS:
-                    if old < 0.0:
-                        blur_slot[slot[i]] = np.inf  # S_1: its pdf blurs nothing after it
-                    elif jc >= 0 and pr.is_rough(prm, jc, lobe):
-                        rp = reverse_pdf(prm, rsel, jc, wj, probs, transmitted,
-                                         ix, iy, iz, lx, ly, lz)
-                        if rp < old:
-                            blur_slot[slot[i]] = rp
-            # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
-            off = off_b[j] if ox * gx + oy * gy + oz * gz >= 0.0 else -off_b[j]
-            nx_o[nn, 0] = p_b[j, 0] + off * gx
-            nx_o[nn, 1] = p_b[j, 1] + off * gy
-            nx_o[nn, 2] = p_b[j, 2] + off * gz
-            if keep_from:
-                nx_from[nn] = t
-                nx_off[nn, 0], nx_off[nn, 1], nx_off[nn, 2] = off * gx, off * gy, off * gz
-            nx_d32[nn, 0], nx_d32[nn, 1], nx_d32[nn, 2] = ox, oy, oz
-            nx_d[nn, 0], nx_d[nn, 1], nx_d[nn, 2] = ox, oy, oz
-            nx_power[nn, 0], nx_power[nn, 1], nx_power[nn, 2] = q0, q1, q2
-            nx_flags[nn] = nf
-            nx_kinds[nn] = new_kinds
-            nx_slot[nn] = slot[i]
-            nx_bnc[nn] = bn
-            nn += 1
+                    # The first diffuse bounce after a caustic path starts L S+ D; any further
+                    # diffuse bounce makes it ordinary indirect light.
+                    if fl & F_DIFFUSE:
+                        nf &= ~F_CAUSTIC_DIFF
+                    elif fl & F_SPECULAR:
+                        nf |= F_CAUSTIC_DIFF
+                    nf |= F_DIFFUSE
+                elif lobe == pr.L_PASS:
+                    if pane:
+                        # Past a pane, a transparent pass: the pane's shadow rays do not cross
+                        # it (engine/panelight.py), so this light is the caustic map's.
+                        nf |= F_SPECULAR
+                else:
+                    # Every other lobe is continued by the camera side too (which reads no photon
+                    # map at a glossy lobe), so light by way of it is caustic light however rough
+                    # the lobe. A transparent pass leaves the kind as it was: shadow rays cross
+                    # it, so light through it is direct light (docs/design.md, Transparent
+                    # shadows).
+                    if (flat_on and passage and glass and transmitted and flat_exit(
+                            v0, e1, e2, material, object_id, flat_mat, flat_limit,
+                            fl >> _TRI_SHIFT, t, dx, dy, dz, p_b[j, 0], p_b[j, 1], p_b[j, 2])):
+                        # Out of a flat passage: the path as it was before the glass.
+                        nf = ((fl >> _PRE_SHIFT) & F_PATH) | (fl & F_SPLIT)
+                        if passage_fg > 0.0:
+                            # Cycles' blurred slab (blurredpassage): the factor at the blur
+                            # of the Lambert pdf along the photon's way.
+                            en = fl >> _TRI_SHIFT
+                            wx, wy, wz = winding_normal(e1, e2, en)
+                            ln = math.sqrt(wx * wx + wy * wy + wz * wz)
+                            lo = math.sqrt(ox * ox + oy * oy + oz * oz)
+                            cg = min(abs(ox * wx + oy * wy + oz * wz) / max(ln * lo, 1e-300), 1.0)
+                            fb = passage_factor(passage_tab, passage_ior, cg,
+                                                blur_alpha(passage_fg, cg / math.pi),
+                                                mat_ior[material[en]])
+                            q0 *= fb
+                            q1 *= fb
+                            q2 *= fb
+                    elif (pane_on and not passage and not pane and (fl & _F_KIND) == 0
+                          and ((glass and transmitted
+                                and (pane_tri[t] >= 0 or pane_tri[t] == SHADE_GLASS))
+                               or (lobe == pr.L_TRANSL and pane_tri[t] == SHADE_TRANSLUCENT))):
+                        # A sun's light refracted straight through a next-event pane, or a
+                        # lamp's through its shade (translucent, or refracted by rough glass):
+                        # still direct (the pane's / the shade's shadow rays carry it;
+                        # engine/panelight.py, engine/shadelight.py).
+                        nf |= F_PANE
+                    else:
+                        pre = nf
+                        nf |= F_SPECULAR
+                        if (flat_on and glass and transmitted and not pane
+                                and flat_entry(e1, e2, material, flat_mat, t, dx, dy, dz)):
+                            nf |= F_IN_GLASS | (pre << _PRE_SHIFT) | (t << _TRI_SHIFT)
+                if n_cp == 2:
+                    nf |= F_UNBLURRED if copy == 0 else F_BLURRED
+                # --- Filter Glossy's reverse pdf state (glossysplit, "fgphoton46") ---
+                if blur_on:
+                    old = old_blur
+                    if lobe == pr.L_DIFFUSE:
+                        blur_slot[sl] = -1.0
+                    elif lobe != pr.L_PASS:
+                        if old < 0.0:
+                            blur_slot[sl] = np.inf  # S_1: its pdf blurs nothing after it
+                        elif jc >= 0 and pr.is_rough(prm, jc, lobe):
+                            rp = reverse_pdf(prm, rsel, jc, wj, probs, transmitted,
+                                             ix, iy, iz, lx, ly, lz)
+                            if rp < old:
+                                blur_slot[sl] = rp
+                # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
+                off = off_b[j] if ox * gx + oy * gy + oz * gz >= 0.0 else -off_b[j]
+                nx_o[nn, 0] = p_b[j, 0] + off * gx
+                nx_o[nn, 1] = p_b[j, 1] + off * gy
+                nx_o[nn, 2] = p_b[j, 2] + off * gz
+                if keep_from:
+                    nx_from[nn] = t
+                    nx_off[nn, 0], nx_off[nn, 1], nx_off[nn, 2] = off * gx, off * gy, off * gz
+                nx_d32[nn, 0], nx_d32[nn, 1], nx_d32[nn, 2] = ox, oy, oz
+                nx_d[nn, 0], nx_d[nn, 1], nx_d[nn, 2] = ox, oy, oz
+                nx_power[nn, 0], nx_power[nn, 1], nx_power[nn, 2] = q0, q1, q2
+                nx_flags[nn] = nf
+                nx_kinds[nn] = new_kinds
+                nx_slot[nn] = sl
+                nx_bnc[nn] = bn
+                nn += 1
     if vis_on:
         # The kinds that do not see this surface pass on behind it in a split-off copy
         # (same slot, so the same random numbers); the photon stopped here for the others.

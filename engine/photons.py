@@ -357,6 +357,17 @@ _NO_PASSAGES = (pk._NO_FLAT_MAT, pk._NO_FLAT_LIMIT)  # (flat_tables' "none")
 # Photons out of a flat passage keep blurredpassage's factor at Filter Glossy > 0 (with
 # blurredpassage.CYCLES_BLUR; False: the shadow rays' side alone).
 BLUR_PASSAGE_PHOTONS = True
+# Photons past a diffuse bounce scatter off lobes blurred by Filter Glossy
+# (photonkernels._scatter's gather_fg; docs/accuracy.md "photonblur49"). False: unblurred.
+BLUR_GATHER_PHOTONS = True
+# ... and a photon without a diffuse bounce is split at its first non-diffuse scatter into
+# an unblurred copy for the caustic map and a blurred one for the others
+# (photonkernels._scatter's split_slots; docs/accuracy.md "photonblur50"). False (the
+# default): that scatter stays unblurred for both. Off because on, the slow
+# tests/test_glossy_split.py::test_sharp_floor_against_cycles[0.3] reads its Filter Glossy
+# ratio 0.984 of Cycles' (tolerance 1.5 %; 0.988 off), while the glossy box reads
+# 1.003-1.009 of Cycles (1.010-1.022 off) and the bathroom 1.006 (1.021).
+SPLIT_GATHER_PHOTONS = False
 
 
 def passages_carried(light) -> bool:
@@ -405,11 +416,18 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     if flat is None:
         flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
+    # Filter Glossy's split of pre-diffuse photons (photonkernels._scatter's split_slots):
+    # the blurred copies take the slots after the chunk's own (their random numbers and
+    # per-slot state); 0: no split.
+    fg = float(getattr(settings, "cycles_filter_glossy", 0.0) or 0.0)
+    n_slots = int(slot.max()) + 1 if len(slot) else 0
+    split_slots = (n_slots if BLUR_GATHER_PHOTONS and SPLIT_GATHER_PHOTONS and fg > 0.0
+                   and not caustic_only else 0)
+    slots = n_slots + split_slots
     # Absorbing media inside objects (engine/media.py): each photon's medium by its slot
     # (None: no absorbing material, nothing done).
     sigma = media.absorption_table(table)
-    pmed = (media.PhotonMedia(sigma, int(slot.max()) + 1 if len(slot) else 0)
-            if sigma.shape[0] else None)
+    pmed = media.PhotonMedia(sigma, slots) if sigma.shape[0] else None
     if pmed is not None and start_medium >= 0:
         pmed.medium[:] = start_medium  # a lamp inside a fog cube: its photons start in it
     world_row = worldmedium.medium_row(ctx)
@@ -425,18 +443,18 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     limits = settings.bounce_limits
     # Cycles' Filter Glossy on the maps' paths (engine/glossysplit.py): each photon's
     # reverse-pdf state by slot (photonkernels._scatter's blur_slot; -1: none yet).
-    blur_slot = (np.full(int(slot.max()) + 1 if len(slot) else 0, -1.0)
+    blur_slot = (np.full(slots, -1.0)
                  if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR_SLOT)
     # Cycles' blurred window glass (engine/blurredpassage.py): photons out of a flat
     # passage keep its factor (None: off, Filter Glossy 0, or no passage crossed).
-    fg = float(getattr(settings, "cycles_filter_glossy", 0.0) or 0.0)
     passage_blur = ((fg, blurredpassage.table(), blurredpassage.IOR)
                     if blurredpassage.CYCLES_BLUR and BLUR_PASSAGE_PHOTONS and fg > 0.0
                     and len(flat[0]) else None)
     # Which photons' last hit was a touching glass face met from inside, by slot
     # (CoincidentSurfaces.meet_hits; None: no glass touches anything).
-    arrived = (np.zeros(int(slot.max()) + 1 if len(slot) else 0, bool)
-               if coincident is not None else None)
+    arrived = np.zeros(slots, bool) if coincident is not None else None
+    # The blurred copies born so far, by their photon's slot (split_slots > 0).
+    born = np.zeros(n_slots if split_slots else 0, bool)
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -540,7 +558,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             floor = geo.instance_offset_floor(prim, surf_m[0], surf_m[1])
             if floor is not None:  # shared instances: object-space rounding (Geometry)
                 np.maximum(surf_m[7], floor, out=surf_m[7])
-        need = 2 * m if vis_on else m
+        need = m * (1 + bool(vis_on) + bool(split_slots))
         k = bounce % 2
         if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
             if nxt_sets[k] is not None:
@@ -556,8 +574,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
                                 may_diffuse=may_diffuse, blur_slot=blur_slot,
                                 passage_blur=passage_blur,
+                                gather_blur=fg if BLUR_GATHER_PHOTONS else 0.0,
+                                split_slots=split_slots,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
+        if split_slots:
+            _inherit_split(nxt_sets[k][6][:n_nx], split_slots, born, pmed, vol, arrived)
         if scattered is not None:
             n_nx = photonmedium.continue_scattered(nxt_sets[k], n_nx, scattered, flags, kinds,
                                                    bnc, slot)
@@ -569,6 +591,28 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # refracted in or out of a medium; out of an object's medium into the world
             # volume's, if any (worldmedium.py)
             pmed.after_scatter(slot, d, outside=world_row)
+
+
+def _inherit_split(nx_slot, split_slots, born, pmed, vol, arrived):
+    """The per-slot state of the blurred copies the scatter just split off (slots >=
+    split_slots not in born; photonkernels._scatter's split): their photon's medium and
+    last hit (media.PhotonMedia), volume scatters (photonmedium.PhotonScattering) and
+    touching-glass record (coincident), as they were at the shared hit; born updated."""
+    parent = np.asarray(nx_slot)[np.asarray(nx_slot) >= split_slots] - split_slots
+    if not len(parent):
+        return
+    parent = np.unique(parent[~born[parent]])
+    if not len(parent):
+        return
+    born[parent] = True
+    child = parent + split_slots
+    if pmed is not None:
+        for a in (pmed.medium, pmed.hit_row, pmed.hit_d):
+            a[child] = a[parent]
+    if vol is not None:
+        vol.count[child] = vol.count[parent]
+    if arrived is not None:
+        arrived[child] = arrived[parent]
 
 
 class _Buffers:
