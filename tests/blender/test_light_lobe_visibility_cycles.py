@@ -48,12 +48,12 @@ def _scene(bpy, kind):
     return scene, lamp
 
 
-def _mean(bpy, scene, tmp_path, engine, tag):
+def _mean(bpy, scene, tmp_path, engine, tag, spp=64):
     scene.render.engine = engine
     if engine == "CYCLES":
         cycles_plain(scene, 256, 0)
     else:
-        cheap(scene, spp=64, photons=2_000, caustic_photons=0)
+        cheap(scene, spp=spp, photons=2_000, caustic_photons=0)
         scene.photonmap.photon_mapping = False
     img = read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"{tag}_{engine}.exr"))
     return float(img[..., :3].mean())
@@ -68,13 +68,22 @@ def test_a_lamps_diffuse_and_glossy_visibility_split_its_light_as_in_cycles(
     for case, diffuse, glossy in (("both", True, True), ("no_glossy", True, False),
                                   ("no_diffuse", False, True)):
         lamp.visible_diffuse, lamp.visible_glossy = diffuse, glossy
-        result[case] = {e: _mean(bpy, scene, tmp_path, e, f"{kind}_{case}")
+        # An area lamp with Diffuse off is found by the glossy continuation alone (no
+        # shadow rays: integrator.light_sample_list; Cycles samples it for the glossy
+        # lobes): over seeds 0-7 at 64 spp 0.964-1.061 of Cycles at 8192 spp (sd 0.035),
+        # at 1024 0.977-1.014 (seeds 0-5, sd 0.013: a heavy tail), at 2048 0.991-1.007
+        # (sd 0.0053, ~2.8 CPU s): 2048 here.
+        spp = 2048 if (kind, case) == ("AREA", "no_diffuse") else 64
+        result[case] = {e: _mean(bpy, scene, tmp_path, e, f"{kind}_{case}", spp)
                         for e in ("CYCLES", "PHOTONMAP")}
     c, o = ({k: v[e] for k, v in result.items()} for e in ("CYCLES", "PHOTONMAP"))
     print(kind, "Cycles", c, "ours", o)
     # The split is real: each part is a good share of the whole in Cycles.
     assert 0.1 < c["no_diffuse"] / c["both"] < 0.8, c
     assert c["no_glossy"] + c["no_diffuse"] == pytest.approx(c["both"], rel=0.02), c
+    # The other cases spread 0.01-0.06 % over seeds 0-7 (direct light by shadow rays),
+    # Cycles' 256 spp up to 0.2 % a seed: 3 % is over 5 sd for each (`pytest -s
+    # tests/blender/seed_sweeps.py -k lobe`; docs/accuracy.md, "flaky50").
     for case in result:
         assert o[case] == pytest.approx(c[case], rel=0.03), (case, o, c)
     assert np.isfinite(list(o.values())).all()
