@@ -25,6 +25,8 @@ REF_PATH = os.path.join(os.path.dirname(HERE), "references", "night_room_cycles.
 SIZE = (48, 36)
 CYCLES_SPP = 8192
 OUR_SPP = 16
+OUR_PHOTONS = 400_000  # (the default)
+OUR_SEEDS = 4
 
 
 def _scene(bpy):
@@ -38,7 +40,8 @@ def _scene(bpy):
         if o.type == "LIGHT" and o.data.type != "POINT":
             bpy.data.objects.remove(o, do_unlink=True)
     assert [o.name for o in bpy.data.objects if o.type == "LIGHT"] == ["Point"]
-    default_photonmap(scene).spp = OUR_SPP
+    pm = default_photonmap(scene)
+    pm.spp, pm.photons = OUR_SPP, OUR_PHOTONS
     return scene
 
 
@@ -56,15 +59,26 @@ def _cycles_means(bpy, tmp_path):
 
 
 def test_point_lamp_in_a_narrow_gap_matches_cycles(bpy_addon, tmp_path):
-    """Ours (16 spp, 400k photons, seed 0; ~4 CPU s) within 2 % of Cycles' stored mean.
-    The photons' spacing as the radius read 1.095 and 1.084 (seeds 0 and 1; at 80 x 60,
-    64 spp, 1.084 too: docs/accuracy.md "radius43")."""
+    """Ours (16 spp, 400k photons; seeds 0-3 averaged, ~20 CPU s) within 4 % of Cycles'
+    stored mean. The photons' spacing as the radius read 1.095 and 1.084 (seeds 0 and 1;
+    at 80 x 60, 64 spp, 1.084 too: docs/accuracy.md "radius43").
+
+    One render spreads over seeds 0-11 as 0.988-1.032, mean 1.006, sd 0.013 (the 2 %
+    bound of one seed before flaky50 was 1.1 sd past the mean); neither 64 spp (sd 0.010)
+    nor 1.6M photons (sd 0.014) narrows it much, so four seeds are averaged (sd ~0.007):
+    4 % is 5 sd past the mean and 1.084 is still 6 sd beyond it (`pytest -s
+    tests/blender/seed_sweeps.py -k night`; docs/accuracy.md, "flaky50")."""
     from blender_helpers import stored_cycles_means
-    ours = _mean(bpy_addon, _scene(bpy_addon), tmp_path / "ours.exr", "PHOTONMAP")
+    scene = _scene(bpy_addon)
+    each = []
+    for seed in range(OUR_SEEDS):
+        scene.photonmap.seed = seed
+        each.append(_mean(bpy_addon, scene, tmp_path / f"ours{seed}.exr", "PHOTONMAP"))
+    ours = sum(each) / len(each)
     cycles = stored_cycles_means(REF_PATH)["image"]
     print(f"night room, point lamp alone: ours {ours:.5f} / Cycles {cycles:.5f} = "
-          f"{ours / cycles:.4f}")
-    assert abs(ours / cycles - 1.0) < 0.02, (ours, cycles)
+          f"{ours / cycles:.4f} (per seed {', '.join(f'{m / cycles:.4f}' for m in each)})")
+    assert abs(ours / cycles - 1.0) < 0.04, (ours, cycles)
 
 
 @pytest.mark.slow
