@@ -1,0 +1,166 @@
+"""Seed sweeps behind the bounds of the stochastic Cycles comparisons (flaky50; not a test
+file: pytest collects it only when named). Each prints ours / Cycles over seeds 0..N-1
+(SWEEP_N, default 8) with its mean, standard deviation, range and CPU seconds a render,
+and where it matters Cycles' own spread over its seeds against a converged render:
+
+    PYTHONPATH=$PWD .venv/bin/python -m pytest -q -s tests/blender/seed_sweeps.py -k NAME
+
+NAME (-k matches substrings: "water" runs both water sweeps, "lobe" both lobe ones):
+test_water (tests/blender/test_glass_of_water_cycles.py; WATER_SPP, WATER_PHOTONS,
+WATER_CAUSTIC, WATER_SEEDS: the seeds averaged a draw), test_water_cycles (its stored
+means' convergence), test_night (test_night_room_cycles.py; NIGHT_SPP, NIGHT_PHOTONS),
+test_lobe (test_light_lobe_visibility_cycles.py), test_lobe_area (its area lamp with
+Diffuse off; LOBE_SPP, comma-separated), test_sss (test_subsurface_cycles.py).
+docs/accuracy.md "flaky50" lists what they read."""
+import os
+import sys
+import time
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+N = int(os.environ.get("SWEEP_N", "8"))
+
+
+def _report(name, r, cpu):
+    r = np.asarray(r)
+    ax = 0 if r.ndim > 1 else None
+    print(f"SWEEP {name}: {np.round(r, 4).tolist()} mean {np.round(r.mean(axis=ax), 4)} "
+          f"sd {np.round(r.std(axis=ax, ddof=1), 4)} min {np.round(r.min(axis=ax), 4)} "
+          f"max {np.round(r.max(axis=ax), 4)}; CPU s a draw {cpu:.2f}", flush=True)
+
+
+def test_water(bpy_addon, tmp_path):
+    """The glass of water's ratio (its test's _ratio) with draws of WATER_SEEDS seeds each
+    (draw i averages seeds i*WATER_SEEDS ..)."""
+    import test_glass_of_water_cycles as W
+    bpy = bpy_addon
+    spp = int(os.environ.get("WATER_SPP", W.OUR_SPP))
+    caustic = int(os.environ.get("WATER_CAUSTIC", W.OUR_CAUSTIC_PHOTONS))
+    per = int(os.environ.get("WATER_SEEDS", "1"))
+    photons = int(os.environ.get("WATER_PHOTONS", W.OUR_PHOTONS))
+    for shading in W.SHADINGS:
+        t0, r = time.process_time(), []
+        for i in range(N):
+            bpy.ops.wm.read_homefile(use_empty=True)
+            r.append(W._ratio(bpy, bpy.context.scene, tmp_path, shading, spp=spp,
+                              caustic_photons=caustic, seeds=range(i * per, (i + 1) * per),
+                              photons=photons))
+        _report(f"water {shading} {spp} spp, {photons} / {caustic} photons, {per} seed(s) a "
+                f"draw", r, (time.process_time() - t0) / N)
+
+
+def test_water_cycles(bpy_addon, tmp_path):
+    """Cycles' glass of water at 4096 spp (seeds 1, 2) and 32,768 (seed 0) against the
+    stored 4096-spp seed-0 means."""
+    import test_glass_of_water_cycles as W
+    from blender_helpers import cycles_plain
+    bpy = bpy_addon
+    for shading in W.SHADINGS:
+        want = W._stored_means()[shading]
+        for spp, seed in ((4096, 1), (4096, 2), (32768, 0)):
+            bpy.ops.wm.read_homefile(use_empty=True)
+            scene = bpy.context.scene
+            W._scene(bpy, scene, shading)
+            cycles_plain(scene, spp, 12).seed = seed
+            t0 = time.process_time()
+            m = W._mean(bpy, scene, tmp_path / "c.exr", "CYCLES")
+            print(f"SWEEP water Cycles {shading} {spp} spp seed {seed}: {m / want:.4f} of "
+                  f"the stored mean ({time.process_time() - t0:.0f} CPU s)", flush=True)
+
+
+def test_night(bpy_addon, tmp_path):
+    import test_night_room_cycles as T
+    from blender_helpers import stored_cycles_means
+    bpy = bpy_addon
+    cycles = stored_cycles_means(T.REF_PATH)["image"]
+    scene = T._scene(bpy)
+    spp = int(os.environ.get("NIGHT_SPP", T.OUR_SPP))
+    photons = int(os.environ.get("NIGHT_PHOTONS", T.OUR_PHOTONS))
+    scene.photonmap.spp, scene.photonmap.photons = spp, photons
+    t0, r = time.process_time(), []
+    for s in range(N):
+        scene.photonmap.seed = s
+        r.append(T._mean(bpy, scene, tmp_path / f"o{s}.exr", "PHOTONMAP") / cycles)
+    _report(f"night room {spp} spp, {photons} photons", r, (time.process_time() - t0) / N)
+
+
+def _lobe_ours(bpy, scene, tmp_path, spp, seed):
+    from blender_helpers import cheap, read_rgba, render_exr
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=spp, photons=2_000, caustic_photons=0)
+    scene.photonmap.photon_mapping = False
+    scene.photonmap.seed = seed
+    return float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / "o.exr"))[..., :3].mean())
+
+
+def _lobe_cycles(bpy, scene, tmp_path, spp, seed):
+    from blender_helpers import cycles_plain, read_rgba, render_exr
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, spp, 0).seed = seed
+    return float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3].mean())
+
+
+def test_lobe(bpy_addon, tmp_path):
+    """Every case at the test's 64 spp, and Cycles at 256 spp (seeds 0-3), against Cycles
+    at 8192."""
+    import test_light_lobe_visibility_cycles as L
+    bpy = bpy_addon
+    for kind in ("AREA", "POINT"):
+        scene, lamp = L._scene(bpy, kind)
+        for case, d, g in (("both", True, True), ("no_glossy", True, False),
+                           ("no_diffuse", False, True)):
+            lamp.visible_diffuse, lamp.visible_glossy = d, g
+            ref = _lobe_cycles(bpy, scene, tmp_path, 8192, 0)
+            c256 = [_lobe_cycles(bpy, scene, tmp_path, 256, s) / ref for s in range(4)]
+            print(f"SWEEP lobe {kind} {case}: Cycles 256 spp seeds 0-3 / 8192 spp "
+                  f"{np.round(c256, 4).tolist()}")
+            t0 = time.process_time()
+            r = [_lobe_ours(bpy, scene, tmp_path, 64, s) / ref for s in range(N)]
+            _report(f"lobe {kind} {case} ours 64 spp", r, (time.process_time() - t0) / N)
+
+
+def test_lobe_area(bpy_addon, tmp_path):
+    import test_light_lobe_visibility_cycles as L
+    bpy = bpy_addon
+    scene, lamp = L._scene(bpy, "AREA")
+    lamp.visible_diffuse, lamp.visible_glossy = False, True
+    ref = _lobe_cycles(bpy, scene, tmp_path, 8192, 0)
+    for spp in (int(x) for x in os.environ.get("LOBE_SPP", "2048").split(",")):
+        t0 = time.process_time()
+        r = [_lobe_ours(bpy, scene, tmp_path, spp, s) / ref for s in range(N)]
+        _report(f"lobe AREA no_diffuse ours {spp} spp", r,
+                (time.process_time() - t0) / N)
+
+
+@pytest.mark.parametrize("weight, walk, spp", [(1.0, False, 64), (0.5, False, 64),
+                                               (1.0, True, 1024)])
+def test_sss(fresh_scene, bpy_addon, tmp_path, weight, walk, spp):
+    """Per channel (R, G, B) against Cycles at 4096 spp; Cycles at 128 spp, seeds 0-2."""
+    import test_subsurface_cycles as S
+    from blender_helpers import cycles_plain, read_rgba, render_exr
+    bpy = bpy_addon
+    scene = fresh_scene
+    scene.photonmap.subsurface_walk = walk
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    scene.render.resolution_percentage = 100
+    S._ball(bpy, scene, (0.9, 0.6, 0.3), weight)
+    scene.render.engine = "CYCLES"
+    cyc = {}
+    for cspp, seed in ((128, 0), (128, 1), (128, 2), (4096, 0)):
+        cycles_plain(scene, cspp, 8).seed = seed
+        cyc[cspp, seed] = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[
+            ..., :3].reshape(-1, 3)
+    ball = cyc[128, 0].sum(axis=1) > 0
+    want = cyc[4096, 0][ball].mean(axis=0)
+    c128 = [cyc[128, s][ball].mean(axis=0) / want for s in range(3)]
+    print(f"SWEEP sss weight {weight} walk {walk}: Cycles 128 spp seeds 0-2 / 4096 spp "
+          f"{np.round(c128, 4).tolist()}")
+    t0, r = time.process_time(), []
+    for s in range(N):
+        scene.photonmap.seed = s
+        img = S._render(bpy, scene, tmp_path / "o.exr", "PHOTONMAP", spp)
+        r.append(img[ball].mean(axis=0) / want)
+    _report(f"sss weight {weight} walk {walk} ours {spp} spp", r,
+            (time.process_time() - t0) / N)
