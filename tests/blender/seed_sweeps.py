@@ -10,7 +10,8 @@ test_water (tests/blender/test_glass_of_water_cycles.py; WATER_SPP, WATER_PHOTON
 WATER_CAUSTIC, WATER_SEEDS: the seeds averaged a draw), test_water_cycles (its stored
 means' convergence), test_night (test_night_room_cycles.py; NIGHT_SPP, NIGHT_PHOTONS),
 test_lobe (test_light_lobe_visibility_cycles.py), test_lobe_area (its area lamp with
-Diffuse off; LOBE_SPP, comma-separated), test_sss (test_subsurface_cycles.py).
+Diffuse off; LOBE_SPP, comma-separated), test_sss (test_subsurface_cycles.py),
+test_vase (test_vase_aniso_cycles.py; VASE_SPP).
 docs/accuracy.md "flaky50" lists what they read."""
 import os
 import sys
@@ -164,3 +165,14 @@ def test_sss(fresh_scene, bpy_addon, tmp_path, weight, walk, spp):
         r.append(img[ball].mean(axis=0) / want)
     _report(f"sss weight {weight} walk {walk} ours {spp} spp", r,
             (time.process_time() - t0) / N)
+
+
+@pytest.mark.parametrize("key", ["aniso", "iso"])
+def test_vase(bpy_addon, tmp_path, key):
+    """The metal vase against its stored Cycles mean (1024 spp)."""
+    import test_vase_aniso_cycles as V
+    spp = int(os.environ.get("VASE_SPP", V.OUR_SPP))
+    want = V._stored_means()[key]
+    t0 = time.process_time()
+    r = [V._vase_mean(tmp_path, key, "PHOTONMAP", spp=spp, seed=s) / want for s in range(N)]
+    _report(f"vase {key} ours {spp} spp", r, (time.process_time() - t0) / N)
