@@ -11,7 +11,8 @@ WATER_CAUSTIC, WATER_SEEDS: the seeds averaged a draw), test_water_cycles (its s
 means' convergence), test_night (test_night_room_cycles.py; NIGHT_SPP, NIGHT_PHOTONS),
 test_lobe (test_light_lobe_visibility_cycles.py), test_lobe_area (its area lamp with
 Diffuse off; LOBE_SPP, comma-separated), test_sss (test_subsurface_cycles.py),
-test_vase (test_vase_aniso_cycles.py; VASE_SPP).
+test_vase (test_vase_aniso_cycles.py; VASE_SPP), test_sky (test_sky_cycles.py's
+ground), test_pane_sun (test_pane_sun_cycles.py; PANE_SPP).
 docs/accuracy.md "flaky50" lists what they read."""
 import os
 import sys
@@ -176,3 +177,51 @@ def test_vase(bpy_addon, tmp_path, key):
     t0 = time.process_time()
     r = [V._vase_mean(tmp_path, key, "PHOTONMAP", spp=spp, seed=s) / want for s in range(N)]
     _report(f"vase {key} ours {spp} spp", r, (time.process_time() - t0) / N)
+
+
+@pytest.mark.parametrize("sky_type, sun_disc", [("SINGLE_SCATTERING", True),
+                                                ("SINGLE_SCATTERING", False),
+                                                ("HOSEK_WILKIE", False)])
+def test_sky(fresh_scene, bpy_addon, tmp_path, sky_type, sun_disc):
+    """test_sky_cycles.py's ground (the sky pixels are the baked map: no noise) against
+    Cycles at 256 spp, seed 0 (its seeds move it 0.03 %)."""
+    import test_sky_cycles as K
+    from blender_helpers import ROOT, luminance
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    bpy = bpy_addon
+    scene = K._scene(bpy, sun_disc, sky_type)
+    ref = K._render(bpy, scene, tmp_path / "c.exr", "CYCLES")
+    _, ground = K._masks()
+    want = luminance(ref[ground]).mean()
+    t0, r = time.process_time(), []
+    for s in range(N):
+        scene.photonmap.seed = s
+        r.append(luminance(K._render(bpy, scene, tmp_path / "o.exr", "PHOTONMAP")[ground]).mean()
+                 / want)
+    _report(f"sky {sky_type} disc {sun_disc} ground, ours 16 spp", r,
+            (time.process_time() - t0) / N)
+
+
+def test_pane_sun(fresh_scene, bpy_addon, tmp_path):
+    """test_pane_sun_cycles.py: the floor's mean against Cycles (2048 spp) and the largest
+    8 x 8 block's distance from the blocks' mean, ours at 16 spp."""
+    import test_pane_sun_cycles as P
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    bpy = bpy_addon
+    scene = fresh_scene
+    P._scene(bpy, scene)
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, 2048, 12).blur_glossy = 1.0
+    want = float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3].mean())
+    scene.render.engine = "PHOTONMAP"
+    spp = int(os.environ.get("PANE_SPP", "16"))
+    cheap(scene, spp=spp, photons=100_000, caustic_photons=100_000)
+    t0, r = time.process_time(), []
+    for s in range(N):
+        scene.photonmap.seed = s
+        ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "o.exr"))[..., :3]
+        blocks = P._blocks(ours.mean(axis=2))
+        r.append([float(ours.mean()) / want, float(np.abs(blocks / blocks.mean() - 1).max())])
+    _report(f"pane sun ours {spp} spp: [mean / Cycles, max block |b / mean - 1|]", r,
+            (time.process_time() - t0) / N)
