@@ -12,7 +12,8 @@ means' convergence), test_night (test_night_room_cycles.py; NIGHT_SPP, NIGHT_PHO
 test_lobe (test_light_lobe_visibility_cycles.py), test_lobe_area (its area lamp with
 Diffuse off; LOBE_SPP, comma-separated), test_sss (test_subsurface_cycles.py),
 test_vase (test_vase_aniso_cycles.py; VASE_SPP), test_sky (test_sky_cycles.py's
-ground), test_pane_sun (test_pane_sun_cycles.py; PANE_SPP).
+ground), test_pane_sun (test_pane_sun_cycles.py; PANE_SPP), test_linking_fog
+(test_light_linking_cycles.py's world fog, the lamp unlinked; LINK_SPP).
 docs/accuracy.md "flaky50" lists what they read."""
 import os
 import sys
@@ -225,3 +226,40 @@ def test_pane_sun(fresh_scene, bpy_addon, tmp_path):
         r.append([float(ours.mean()) / want, float(np.abs(blocks / blocks.mean() - 1).max())])
     _report(f"pane sun ours {spp} spp: [mean / Cycles, max block |b / mean - 1|]", r,
             (time.process_time() - t0) / N)
+
+
+def test_linking_fog(bpy_addon, tmp_path):
+    """test_light_linking_cycles.py's world fog with the lamp unlinked (direct light, ours
+    32 spp): each region against Cycles at 256 spp seeds 0-3 and at 4096."""
+    import test_light_linking_cycles as K
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    bpy = bpy_addon
+    scene, key = K._scene(bpy)
+    bpy.data.objects["Fill"].data.energy = 0.0
+    nt = scene.world.node_tree
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    fog = nt.nodes.new("ShaderNodeVolumePrincipled")
+    fog.inputs["Density"].default_value = 0.15
+    nt.links.new(fog.outputs[0], out.inputs["Volume"])
+    scene.cycles.volume_bounces = 0
+    regions = K._regions()
+
+    def means(engine, spp, seed):
+        scene.render.engine = engine
+        if engine == "CYCLES":
+            cycles_plain(scene, spp, 0).seed = seed
+        else:
+            cheap(scene, spp=spp, photons=400_000, caustic_photons=0)
+            scene.photonmap.photon_mapping = False
+            scene.photonmap.seed = seed
+        img = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "i.exr"))[..., :3].mean(axis=2)
+        return np.array([img.mean()] + [img[m].mean() for m in regions.values()])
+
+    want = means("CYCLES", 4096, 0)
+    print("SWEEP linking fog regions: image,", ", ".join(regions))
+    c = [means("CYCLES", 256, s) / want for s in range(4)]
+    _report("linking fog Cycles 256 spp / 4096", c, 0.0)
+    spp = int(os.environ.get("LINK_SPP", "32"))
+    t0 = time.process_time()
+    r = [means("PHOTONMAP", spp, s) / want for s in range(N)]
+    _report(f"linking fog ours {spp} spp / Cycles 4096", r, (time.process_time() - t0) / N)
