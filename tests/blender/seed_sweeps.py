@@ -13,7 +13,8 @@ test_lobe (test_light_lobe_visibility_cycles.py), test_lobe_area (its area lamp 
 Diffuse off; LOBE_SPP, comma-separated), test_sss (test_subsurface_cycles.py),
 test_vase (test_vase_aniso_cycles.py; VASE_SPP), test_sky (test_sky_cycles.py's
 ground), test_pane_sun (test_pane_sun_cycles.py; PANE_SPP), test_linking_fog
-(test_light_linking_cycles.py's world fog, the lamp unlinked; LINK_SPP).
+(test_light_linking_cycles.py's world fog, the lamp unlinked; LINK_SPP),
+test_linking_bar (its glowing bar; LINK_SPP).
 docs/accuracy.md "flaky50" lists what they read."""
 import os
 import sys
@@ -228,20 +229,11 @@ def test_pane_sun(fresh_scene, bpy_addon, tmp_path):
             (time.process_time() - t0) / N)
 
 
-def test_linking_fog(bpy_addon, tmp_path):
-    """test_light_linking_cycles.py's world fog with the lamp unlinked (direct light, ours
-    32 spp): each region against Cycles at 256 spp seeds 0-3 and at 4096."""
+def _linking_sweep(bpy, scene, tmp_path, name, spp):
+    """Each region of test_light_linking_cycles.py against Cycles at 4096 spp: Cycles at
+    256 spp seeds 0-3, ours at spp seeds 0..N-1 (direct light)."""
     import test_light_linking_cycles as K
     from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
-    bpy = bpy_addon
-    scene, key = K._scene(bpy)
-    bpy.data.objects["Fill"].data.energy = 0.0
-    nt = scene.world.node_tree
-    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
-    fog = nt.nodes.new("ShaderNodeVolumePrincipled")
-    fog.inputs["Density"].default_value = 0.15
-    nt.links.new(fog.outputs[0], out.inputs["Volume"])
-    scene.cycles.volume_bounces = 0
     regions = K._regions()
 
     def means(engine, spp, seed):
@@ -256,10 +248,46 @@ def test_linking_fog(bpy_addon, tmp_path):
         return np.array([img.mean()] + [img[m].mean() for m in regions.values()])
 
     want = means("CYCLES", 4096, 0)
-    print("SWEEP linking fog regions: image,", ", ".join(regions))
+    print(f"SWEEP {name} regions: image,", ", ".join(regions))
     c = [means("CYCLES", 256, s) / want for s in range(4)]
-    _report("linking fog Cycles 256 spp / 4096", c, 0.0)
-    spp = int(os.environ.get("LINK_SPP", "32"))
+    _report(f"{name} Cycles 256 spp / 4096", c, 0.0)
     t0 = time.process_time()
     r = [means("PHOTONMAP", spp, s) / want for s in range(N)]
-    _report(f"linking fog ours {spp} spp / Cycles 4096", r, (time.process_time() - t0) / N)
+    _report(f"{name} ours {spp} spp / Cycles 4096", r, (time.process_time() - t0) / N)
+
+
+def test_linking_fog(bpy_addon, tmp_path):
+    """test_light_linking_cycles.py's world fog with the lamp unlinked."""
+    import test_light_linking_cycles as K
+    bpy = bpy_addon
+    scene, key = K._scene(bpy)
+    bpy.data.objects["Fill"].data.energy = 0.0
+    nt = scene.world.node_tree
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    fog = nt.nodes.new("ShaderNodeVolumePrincipled")
+    fog.inputs["Density"].default_value = 0.15
+    nt.links.new(fog.outputs[0], out.inputs["Volume"])
+    scene.cycles.volume_bounces = 0
+    _linking_sweep(bpy, scene, tmp_path, "linking fog", int(os.environ.get("LINK_SPP", "32")))
+
+
+def test_linking_bar(bpy_addon, tmp_path):
+    """test_light_linking_cycles.py's glowing bar linked to the middle cube."""
+    import test_light_linking_cycles as K
+    from blender_helpers import glass_or_diffuse_material
+    bpy = bpy_addon
+    scene, key = K._scene(bpy)
+    key.data.energy = 0.0
+    glow = glass_or_diffuse_material(bpy, "GlowMat", "diffuse", (0.0, 0.0, 0.0))
+    nt = glow.node_tree
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 20.0
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.0, -1.2, 0.2), scale=(0.8, 0.2, 0.2))
+    bar = bpy.context.active_object
+    bar.data.materials.append(glow)
+    coll = bpy.data.collections.new("BarLinks")
+    coll.objects.link(bpy.data.objects["CubeB"])
+    bar.light_linking.receiver_collection = coll
+    _linking_sweep(bpy, scene, tmp_path, "linking bar", int(os.environ.get("LINK_SPP", "32")))
