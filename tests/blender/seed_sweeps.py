@@ -283,20 +283,6 @@ def test_linking_fog(bpy_addon, tmp_path):
 def test_linking_bar(bpy_addon, tmp_path):
     """test_light_linking_cycles.py's glowing bar linked to the middle cube."""
     import test_light_linking_cycles as K
-    from blender_helpers import glass_or_diffuse_material
     bpy = bpy_addon
-    scene, key = K._scene(bpy)
-    key.data.energy = 0.0
-    glow = glass_or_diffuse_material(bpy, "GlowMat", "diffuse", (0.0, 0.0, 0.0))
-    nt = glow.node_tree
-    em = nt.nodes.new("ShaderNodeEmission")
-    em.inputs["Strength"].default_value = 20.0
-    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
-    nt.links.new(em.outputs[0], out.inputs["Surface"])
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.0, -1.2, 0.2), scale=(0.8, 0.2, 0.2))
-    bar = bpy.context.active_object
-    bar.data.materials.append(glow)
-    coll = bpy.data.collections.new("BarLinks")
-    coll.objects.link(bpy.data.objects["CubeB"])
-    bar.light_linking.receiver_collection = coll
+    scene, _ = K.glowing_bar_scene(bpy)
     _linking_sweep(bpy, scene, tmp_path, "linking bar", int(os.environ.get("LINK_SPP", "32")))

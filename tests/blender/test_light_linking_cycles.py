@@ -152,22 +152,7 @@ def test_an_emitting_objects_light_linking_as_in_cycles(bpy_addon, tmp_path):
     within 3 % of Cycles (the floor round the bar takes none of its light, the cube
     does). Its Shadow Linking is not rendered: warned, naming object and collection."""
     bpy = bpy_addon
-    scene, key = _scene(bpy)
-    key.data.energy = 0.0
-    glow = glass_or_diffuse_material(bpy, "GlowMat", "diffuse", (0.0, 0.0, 0.0))
-    nt = glow.node_tree
-    em = nt.nodes.new("ShaderNodeEmission")
-    em.inputs["Strength"].default_value = 20.0
-    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
-    nt.links.new(em.outputs[0], out.inputs["Surface"])
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.0, -1.2, 0.2),
-                                    scale=(0.8, 0.2, 0.2))
-    bar = bpy.context.active_object
-    bar.name = "Bar"
-    bar.data.materials.append(glow)
-    coll = bpy.data.collections.new("BarLinks")
-    coll.objects.link(bpy.data.objects["CubeB"])
-    bar.light_linking.receiver_collection = coll
+    scene, bar = glowing_bar_scene(bpy)
     assert not [w for w in export_warnings(bpy) if "Linking" in w]
     c = _render(bpy, scene, tmp_path, "CYCLES", "bar", 0)
     # Ours at 256 spp: the floor by cube B (the bar's own bright pixels in it) read 1.006-
@@ -186,6 +171,28 @@ def test_an_emitting_objects_light_linking_as_in_cycles(bpy_addon, tmp_path):
     warnings = [w for w in export_warnings(bpy) if "Linking" in w]
     assert warnings == ["object 'Bar': Shadow Linking (collection 'BarBlockers') is not "
                         "supported; every object casts its shadows"], warnings
+
+
+def glowing_bar_scene(bpy):
+    """(scene, bar): _scene with the key lamp off and a glowing bar (Emission 20) beside
+    the middle cube, its Light Linking receivers a collection of that cube alone."""
+    scene, key = _scene(bpy)
+    key.data.energy = 0.0
+    glow = glass_or_diffuse_material(bpy, "GlowMat", "diffuse", (0.0, 0.0, 0.0))
+    nt = glow.node_tree
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 20.0
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.0, -1.2, 0.2),
+                                    scale=(0.8, 0.2, 0.2))
+    bar = bpy.context.active_object
+    bar.name = "Bar"
+    bar.data.materials.append(glow)
+    coll = bpy.data.collections.new("BarLinks")
+    coll.objects.link(bpy.data.objects["CubeB"])
+    bar.light_linking.receiver_collection = coll
+    return scene, bar
 
 
 def test_collections_resolve_to_engine_receivers(bpy_addon):
