@@ -433,19 +433,28 @@ CYCLES_MEANS = {
     ("glossy_floor", "Wall"): (0.6878, 0.65665),
     ("figure6_box", "Floor"): (0.57278, 0.50634),
 }
-# Ours against them: the level at Filter Glossy 1 and the ratio 1 / 0. figure6_box's
-# floor keeps light the split leaves unblurred (the secondary caustic, L S+ X D, and the
-# regathers' chains: ~1.5 % on its walls), so its level is held to 3 %.
-LEVEL_TOLERANCE = {"glossy_floor": 0.02, "figure6_box": 0.03}
-RATIO_TOLERANCE = 0.015
+# Ours against them: the level at Filter Glossy 1 and the ratio 1 / 0, ours the mean over
+# SEEDS. figure6_box's floor keeps light the split leaves unblurred (the secondary
+# caustic, L S+ X D, and the regathers' chains: ~1.5 % on its walls): a bias, not noise
+# (split50: seeds 0-6 at 64 spp, level 1.0228, sd 0.0035, 1.0169-1.0264; ratio 1.0145,
+# sd 0.0035, 1.0080-1.0177; the same bits with photonblur49's BLUR_GATHER_PHOTONS off and
+# with the split's SPLIT_GATHER_PHOTONS off, figure6_box having no microfacet lobe a
+# photon blurs). Its bounds are that bias plus 4 s.d. of two seeds' mean (0.0025).
+SEEDS = {"glossy_floor": (0,), "figure6_box": (0, 1)}
+LEVEL_TOLERANCE = {"glossy_floor": 0.02, "figure6_box": 0.035}
+RATIO_TOLERANCE = {"glossy_floor": 0.015, "figure6_box": 0.025}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("scene,region", sorted(CYCLES_MEANS))
 def test_ours_at_filter_glossy_1_against_cycles(scene, region):
-    """Ours (the add-on's export, 64 spp) at Filter Glossy 1 against Cycles at 1, and
-    its Filter Glossy 1 / 0 ratio against Cycles' (glossy_floor's Wall 0.955, figure6_box's
-    Floor 0.884: docs/compatibility.md, "filterglossy45")."""
+    """Ours (the add-on's export, 64 spp, the mean over SEEDS) at Filter Glossy 1
+    against Cycles at 1, and its Filter Glossy 1 / 0 ratio against Cycles'
+    (glossy_floor's Wall 0.955, figure6_box's Floor 0.884: docs/compatibility.md,
+    "filterglossy45"). figure6_box's Floor reads 1.0245 / 1.0164 (seeds 0 and 1); the
+    maps kept whole at Filter Glossy 1 (no split) would read its ratio 1 / 0.884 = 1.131.
+    Spread: docs/accuracy.md "split50", `PYTHONPATH=$PWD .venv/bin/python
+    bench/bench_glossy_split.py --only figure6_box --seed S`."""
     pytest.importorskip("bpy")
     import os
     import sys
@@ -455,13 +464,17 @@ def test_ours_at_filter_glossy_1_against_cycles(scene, region):
     pm_scene, kwargs = bfg.acc.export_ours(scene)
     got = {}
     for fg in (0.0, 1.0):
-        film = render(pm_scene, RenderSettings(**dict(kwargs, seed=0, spp=64,
-                                                      cycles_filter_glossy=fg)))
-        lum = np.asarray(film.combined, np.float64) @ bfg.LUM
-        got[fg] = float(lum[bfg.regions(scene, lum.shape)[region]].mean())
+        means = []
+        for seed in SEEDS[scene]:
+            film = render(pm_scene, RenderSettings(**dict(kwargs, seed=seed, spp=64,
+                                                          cycles_filter_glossy=fg)))
+            lum = np.asarray(film.combined, np.float64) @ bfg.LUM
+            means.append(float(lum[bfg.regions(scene, lum.shape)[region]].mean()))
+        got[fg] = float(np.mean(means))
     c0, c1 = CYCLES_MEANS[(scene, region)]
     assert got[1.0] / c1 == pytest.approx(1.0, abs=LEVEL_TOLERANCE[scene])
-    assert (got[1.0] / got[0.0]) / (c1 / c0) == pytest.approx(1.0, abs=RATIO_TOLERANCE)
+    assert (got[1.0] / got[0.0]) / (c1 / c0) == pytest.approx(1.0,
+                                                               abs=RATIO_TOLERANCE[scene])
 
 
 # Cycles 5.0.1 on bench/bench_glossy_split.py's sharp_floor (a Principled floor of
@@ -472,29 +485,55 @@ def test_ours_at_filter_glossy_1_against_cycles(scene, region):
 SHARP_FLOOR_CYCLES = {0.0: 0.039511, 0.3: 0.037204, 1.0: 0.035756}
 
 
+# The sharp floor's seeds and bounds (split50): one seed's floor spreads far more than
+# the Filter Glossy effects the test compares (bench_glossy_split.ours at 64 spp, seeds
+# 0-7, the split on; ours / Cycles):
+#   FG 0.3: level 0.980, sd 0.026 (0.948-1.030); ratio 1.006, sd 0.019 (0.984-1.049)
+#   FG 1:   level 0.990, sd 0.022 (0.958-1.022); ratio 1.016, sd 0.029 (0.988-1.055)
+# (at 256 spp seeds 0 / 1 read as far apart: the spread is the seed's photon maps, not
+# the camera's samples). Bounds: the bias plus 4 s.d. of the mean of SHARP_FLOOR_SEEDS.
+SHARP_FLOOR_SEEDS = (0, 1, 2, 3)
+SHARP_FLOOR_TOLERANCE = {0.3: (0.075, 0.045), 1.0: (0.055, 0.075)}  # (level, ratio)
+_sharp_floor_means = {}
+
+
+def _sharp_floor_mean(fg):
+    """The sharp floor's mean luminance over SHARP_FLOOR_SEEDS at Filter Glossy fg (64 spp
+    each; Filter Glossy 0's shared by both cases)."""
+    if fg not in _sharp_floor_means:
+        import os
+        import sys
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        sys.path.insert(0, os.path.join(root, "bench"))
+        import bench_glossy_split as bgs  # (registers sharp_floor)
+        bfg = bgs.bfg
+        means = []
+        for seed in SHARP_FLOOR_SEEDS:
+            film, _ = bgs.ours("sharp_floor", fg, 64, seed)
+            lum = np.asarray(film.combined, np.float64)[..., :3] @ bfg.LUM
+            means.append(float(lum[bfg.regions("sharp_floor", lum.shape)["Floor"]].mean()))
+        _sharp_floor_means[fg] = float(np.mean(means))
+    return _sharp_floor_means[fg]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("fg", [0.3, 1.0])
 def test_sharp_floor_against_cycles(fg):
     """Photons arriving near the sharp floor's mirror direction of the view keep pdf_D
-    above Filter Glossy (Cycles does not blur them): ours at 0.3 and 1 within 2 % of
-    Cycles' level and 1.5 % of its ratio to Filter Glossy 0 (measured 0.998 / 0.992 at
-    0.3, 1.008 / 1.002 at 1; D's Lambert lobe alone read the floor 1.055 / 1.029 of
-    Cycles)."""
+    above Filter Glossy (Cycles does not blur them): ours at 0.3 and 1 (the mean of
+    seeds 0-3) against Cycles' level and its ratio to Filter Glossy 0, within the seeds'
+    spread (SHARP_FLOOR_TOLERANCE). Seeds 0-3 read level / ratio 0.987 / 1.011 at 0.3,
+    1.008 / 1.032 at 1 (the split off: 0.991 / 1.015, 1.016 / 1.040); seed 0 alone had
+    read 0.998 / 0.992 at 0.3 and D's Lambert lobe alone 1.055 / 1.029, a difference
+    within one seed's spread. What these bounds still catch: the maps keeping every
+    photon at D (no split: ratio 1 / 0.942 = 1.062 at 0.3, 1 / 0.905 = 1.105 at 1).
+    Spread: docs/accuracy.md "split50"."""
     pytest.importorskip("bpy")
-    import os
-    import sys
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    sys.path.insert(0, os.path.join(root, "bench"))
-    import bench_glossy_split as bgs  # (registers sharp_floor)
-    bfg = bgs.bfg
-    got = {}
-    for f in (0.0, fg):
-        film, _ = bgs.ours("sharp_floor", f, 64, 0)
-        lum = np.asarray(film.combined, np.float64)[..., :3] @ bfg.LUM
-        got[f] = float(lum[bfg.regions("sharp_floor", lum.shape)["Floor"]].mean())
+    got = {f: _sharp_floor_mean(f) for f in (0.0, fg)}
     c0, c1 = SHARP_FLOOR_CYCLES[0.0], SHARP_FLOOR_CYCLES[fg]
-    assert got[fg] / c1 == pytest.approx(1.0, abs=0.02)
-    assert (got[fg] / got[0.0]) / (c1 / c0) == pytest.approx(1.0, abs=RATIO_TOLERANCE)
+    level_tol, ratio_tol = SHARP_FLOOR_TOLERANCE[fg]
+    assert got[fg] / c1 == pytest.approx(1.0, abs=level_tol)
+    assert (got[fg] / got[0.0]) / (c1 / c0) == pytest.approx(1.0, abs=ratio_tol)
 
 
 def _floor_under_pane(sun=True, slab=False):

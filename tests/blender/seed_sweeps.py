@@ -14,7 +14,8 @@ Diffuse off; LOBE_SPP, comma-separated), test_sss (test_subsurface_cycles.py),
 test_vase (test_vase_aniso_cycles.py; VASE_SPP), test_sky (test_sky_cycles.py's
 ground), test_pane_sun (test_pane_sun_cycles.py; PANE_SPP), test_linking_fog
 (test_light_linking_cycles.py's world fog, the lamp unlinked; LINK_SPP),
-test_linking_bar (its glowing bar; LINK_SPP).
+test_linking_bar (its glowing bar; LINK_SPP), test_glossy_split (test_glossy_split.py's
+sharp floor and figure6_box floor; SPLIT_SPP, SPLIT_GATHER, BLUR_GATHER).
 docs/accuracy.md "flaky50" lists what they read."""
 import os
 import sys
@@ -286,3 +287,37 @@ def test_linking_bar(bpy_addon, tmp_path):
     bpy = bpy_addon
     scene, _ = K.glowing_bar_scene(bpy)
     _linking_sweep(bpy, scene, tmp_path, "linking bar", int(os.environ.get("LINK_SPP", "32")))
+
+
+@pytest.mark.parametrize("scene, fg", [("sharp_floor", 0.3), ("sharp_floor", 1.0),
+                                       ("figure6_box", 1.0)])
+def test_glossy_split(scene, fg):
+    """tests/test_glossy_split.py's Cycles comparisons (split50): the floor's level
+    (ours / Cycles at Filter Glossy fg) and ratio ((ours fg / ours 0) / Cycles'), one
+    seed a draw at SPLIT_SPP (64); SPLIT_GATHER=0 / 1 sets photons.SPLIT_GATHER_PHOTONS,
+    BLUR_GATHER=0 / 1 photons.BLUR_GATHER_PHOTONS (unset: the defaults)."""
+    from engine import photons
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    sys.path.insert(0, os.path.join(root, "bench"))
+    sys.path.insert(0, os.path.join(root, "tests"))
+    import bench_glossy_split as bgs
+    import test_glossy_split as T
+    for var, name in (("SPLIT_GATHER", "SPLIT_GATHER_PHOTONS"),
+                      ("BLUR_GATHER", "BLUR_GATHER_PHOTONS")):
+        if var in os.environ:
+            setattr(photons, name, os.environ[var] == "1")
+    spp = int(os.environ.get("SPLIT_SPP", "64"))
+    cyc = (T.SHARP_FLOOR_CYCLES if scene == "sharp_floor"
+           else dict(zip((0.0, 1.0), T.CYCLES_MEANS[(scene, "Floor")])))
+    t0, level, ratio = time.process_time(), [], []
+    for s in range(N):
+        m = {}
+        for f in (0.0, fg):
+            film, _ = bgs.ours(scene, f, spp, s)
+            lum = np.asarray(film.combined, np.float64)[..., :3] @ bgs.LUM
+            m[f] = float(lum[bgs.bfg.regions(scene, lum.shape)["Floor"]].mean())
+        level.append(m[fg] / cyc[fg])
+        ratio.append((m[fg] / m[0.0]) / (cyc[fg] / cyc[0.0]))
+    cpu = (time.process_time() - t0) / N
+    _report(f"{scene} Floor FG {fg} level, ours {spp} spp", level, cpu)
+    _report(f"{scene} Floor FG {fg} ratio", ratio, cpu)
