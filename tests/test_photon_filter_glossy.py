@@ -135,7 +135,7 @@ def test_pre_diffuse_scatter_blurs_for_the_gather_map_alone(monkeypatch):
     stay bit for bit those without it."""
     expect = (_ggx_albedo_at_normal_view(pk.blur_alpha(1.0, pk.GATHER_PDF))
               / _ggx_albedo_at_normal_view(0.01))
-    monkeypatch.setattr(photons_module, "SPLIT_GATHER_PHOTONS", True)  # (off by default)
+    monkeypatch.setattr(photons_module, "SPLIT_GATHER_PHOTONS", True)  # (the default)
     r0, _ = _metal_patch_ratio(0.0)
     r1, split = _metal_patch_ratio(1.0)
     assert abs(r1 / r0 - expect) < 0.012, (r1 / r0, expect)
