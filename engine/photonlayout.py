@@ -27,10 +27,14 @@ read_axis instead: the octahedral point unnormalised and its squared length, com
 cosines by cos_below / cos_at_most without the decode's float32 sqrt and divide, which
 cost compact49's rows most of their 1.4-2.1x (docs/performance.md "compact50").
 
-COMPACT: PhotonMap stores its photons in this layout (True, the default since s50) or
-keeps the float32 arrays (False). A render's own estimates replayed take 1.01 / 1.04x
-the float32 maps' CPU (Figures 6 / 8; 1.62 / 1.79x in compact49) for the 24 B a held
-photon it saves (docs/performance.md "compact49", "compact50").
+COMPACT: PhotonMap stores its photons in this layout (True) or keeps the float32 arrays
+(False, the default: switched on, s50's clean-clone CI failed four tests: three read a
+map's raw photon arrays (RGBE bytes where they sum float32 power), and a billion-watt
+light's image differed from a 100 W one's scaled by up to 0.24 % (RGBE's 8-bit mantissa);
+every reader of map.photons outside the lookups is to be audited before it goes on
+again). A render's own estimates replayed take 1.01 / 1.04x the float32 maps' CPU
+(Figures 6 / 8; 1.62 / 1.79x in compact49) for the 24 B a held photon it saves
+(docs/performance.md "compact49", "compact50").
 """
 from __future__ import annotations
 
@@ -42,7 +46,7 @@ from numba.extending import overload
 
 from .jit import kernel
 
-COMPACT = True
+COMPACT = False
 
 OCT_SCALE = 32767.0
 # The round-trip's largest angle between a unit vector and its decoded value (rad):

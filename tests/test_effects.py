@@ -7,6 +7,7 @@ import pytest
 
 from engine import RenderSettings
 from engine.api import PaperScene, cornell_box
+from engine.photonlayout import powers, vectors
 from engine.scene import Material
 from test_scenes import caustic_scene
 
@@ -217,8 +218,9 @@ def _caustic_map_power(scene, **kw):
         if pmap is None:
             continue
         ph = pmap.photons
-        power = ph.power[:stored].astype(np.float64).mean(axis=1)
-        wall = ph.normal[:stored, 1] < -0.9  # the wall faces -y; floor photons face +z
+        # (photonlayout.powers / vectors: a compact map's RGBE and octahedral codes too)
+        power = powers(ph.power[:stored]).mean(axis=1)
+        wall = vectors(ph.normal[:stored])[:, 1] < -0.9  # the wall faces -y; floor +z
         total, wall_total = total + power.sum(), wall_total + power[wall].sum()
     return total, wall_total, ctx.plan
 
