@@ -7,8 +7,8 @@ Interleaved, best of 3 by thread CPU time (time.thread_time: one worker).
 
 Mode `ab`: a whole render's CPU seconds (getrusage after jit.ensure_compiled, one worker,
 16 spp) of two checkouts, each run in its own process, interleaved, best of REPS; the scenes
-are pickles of exported blends (/tmp/pk/NAME.pkl, as /work/briefs/filmsha.py writes them);
-SETTINGS a JSON dict of RenderSettings (e.g. '{"glossy_bounces": 1}'):
+are pickles of exported blends ($TMPDIR/film_hashes/NAME.pkl, as tools/film_hashes.py
+writes them); SETTINGS a JSON dict of RenderSettings (e.g. '{"glossy_bounces": 1}'):
 
     .venv/bin/python bench/bench_bounce_limits.py ab ROOT_A ROOT_B NAME[,NAME] REPS [WxH] [SETTINGS]
 """
@@ -16,6 +16,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
@@ -54,7 +55,7 @@ from engine.jit import ensure_compiled
 from engine.render import render
 from engine.settings import RenderSettings
 ensure_compiled()
-scene = pickle.load(open(f"/tmp/pk/{sys.argv[1]}.pkl", "rb"))
+scene = pickle.load(open(sys.argv[1], "rb"))
 scene.width, scene.height = map(int, sys.argv[2].split("x"))
 r0 = resource.getrusage(resource.RUSAGE_SELF)
 render(scene, RenderSettings(workers=1, spp=16, **json.loads(sys.argv[3])))
@@ -65,11 +66,16 @@ print(r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
 
 def ab(root_a, root_b, names, reps, size="160x120", settings="{}"):
     cpu = {}
+    pickles = {name: os.path.join(tempfile.gettempdir(), "film_hashes", f"{name}.pkl")
+               for name in names.split(",")}
+    for name, path in pickles.items():
+        if not os.path.isfile(path):
+            sys.exit(f"{path} missing: run tools/film_hashes.py --blends {name} first")
     print(f"load before: {os.getloadavg()}")
     for _ in range(int(reps)):
         for name in names.split(","):
             for root in (root_a, root_b):
-                out = subprocess.run([sys.executable, "-c", _CHILD, name, size, settings],
+                out = subprocess.run([sys.executable, "-c", _CHILD, pickles[name], size, settings],
                                      capture_output=True, text=True, check=True,
                                      env=dict(os.environ, PYTHONPATH=root))
                 cpu.setdefault((name, root), []).append(float(out.stdout.split()[-1]))

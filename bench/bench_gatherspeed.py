@@ -4,11 +4,12 @@ each film's hash (the same bits expected), then, per version, the CPU s of
 photonvisibility.visible_irradiance and its parts (the masked second search
 _reestimate on the base, the read-list sums _visible_sums here) in one profiled render.
 
-    .venv/bin/python bench/bench_gatherspeed.py [--base-root /work/main]
+    .venv/bin/python bench/bench_gatherspeed.py --base-root BASE
         [--blends figure7_blocker,figure3_sphere] [--repeat 3]
 
---base-root: a checkout of the base (its warm kernel cache saves a compile); blends are
-exported as bench_kernels.py exports them (bpy), into --work."""
+--base-root: a checkout of the base, e.g. `git worktree add /tmp/base main` (its warm
+kernel cache saves a compile); blends are exported as bench_kernels.py exports them (bpy),
+into --work."""
 import argparse
 import os
 import sys
@@ -55,7 +56,7 @@ print(json.dumps(t))
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--base-root", default="/work/main")
+    ap.add_argument("--base-root", required=True, help="a checkout of the base commit")
     ap.add_argument("--blends", default="figure7_blocker,figure3_sphere")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--width", type=int, default=320)

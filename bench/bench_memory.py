@@ -25,8 +25,11 @@ kinds; since, its chosen dots).
 
     .venv/bin/python bench/bench_memory.py [--quick] [--only HDRI]
     .venv/bin/python bench/bench_memory.py --triangles [--sizes 1000000 5000000] [--smooth]
-    .venv/bin/python bench/bench_memory.py --photon-bytes --roots /work/main . \
+    .venv/bin/python bench/bench_memory.py --photon-bytes --roots BASE . \
         --pickles $TMPDIR/film_hashes/figure6_box.pkl ...
+
+(BASE: another checkout, e.g. `git worktree add /tmp/base main`; the pickles are the ones
+tools/film_hashes.py writes.)
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ Blender): a 4 x 3 x 2.6 m box room, a 1.2 x 1.0 m single-plane glass pane in one
 by a white world (color), its 64 x 32 sky with a bright patch (hdri) or a 3-degree sun at
 40 degrees elevation (sun).
 
-    PYTHONPATH=$PWD /work/main/.venv/bin/python bench/bench_pane_irradiance.py \
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_pane_irradiance.py \
         [--worlds color hdri sun] [--res 80 60] [--spp 32] [--repeat 1] [--engine DIR]
 
 --engine: the checkout whose engine/ is timed (default this one; e.g. the base's worktree

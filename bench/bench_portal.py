@@ -11,8 +11,8 @@ photon pass' wall seconds (its stats' time_photons) and the CPU seconds of the r
 
 Default: tests/test_portal.py's 4 x 4 x 2 m room with a 1 x 1 m glass pane in its roof
 (uniform sky). --blend: a .blend rendered through the add-on's export (objects hidden for
-render left out), e.g. the new user's day room (/tmp/newuser32/scene.py builds it:
-box -2.5,-2,0,2.5,2,2.6).
+render left out), e.g. the new user's day room (built by /tmp/newuser32/scene.py, a one-off
+script: box -2.5,-2,0,2.5,2,2.6).
 """
 from __future__ import annotations
 

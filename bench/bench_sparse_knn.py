@@ -2,7 +2,7 @@
 where fewer than k accepted photons lie within the cap, the estimate's radius is the last
 accepted photon's distance when there are at least n0 of them, else the cap.
 
-    /work/main/.venv/bin/python bench/bench_sparse_knn.py
+    .venv/bin/python bench/bench_sparse_knn.py
 
 Prints, per n0 (and the cap alone, as before caustic31): the mean estimate / truth over
 queries uniform on the lit half of a sunlit sphere alone (no floor; photons Poisson with

@@ -2,7 +2,7 @@
 window pane (issue 14, pane31 and paneworld32: engine/panelight.py), before / after
 next-event estimation through the pane, against live Cycles.
 
-    PYTHONPATH=$PWD /work/main/.venv/bin/python bench/bench_window_pane.py \
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_window_pane.py \
         [--res 160 120] [--cycles-spp 1024] [--spp 128] [--sun-angle 3] [--out DIR] \
         [--world none|color|hdri]
 
