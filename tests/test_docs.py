@@ -62,3 +62,51 @@ def test_design_md_citations_name_existing_sections():
                 unknown.append(f"{os.path.relpath(path, ROOT)}: '{after[:30]}...'")
     assert cited >= 10  # the engine's design citations are found by the pattern
     assert not unknown, "citations of missing docs/design.md sections:\n" + "\n".join(unknown)
+
+
+# The team's machine: the folder that holds its checkouts, worktrees and notes. Built from
+# parts so this file does not match itself.
+TEAM_PATH = re.compile(r"(?<![\w~.$])" + "/wo" + r"rk/")
+# A script under /tmp/ exists only where someone wrote it; /tmp/ as a scratch folder that a
+# command writes (outputs, caches, TMPDIR) is fine. Such a script may be named only where
+# the text says it was a one-off (its paragraph), or in a file whose reading note says so.
+TMP_SCRIPT = re.compile(r"/tmp/[\w./{},-]*\.(?:py|sh|tar\.gz)\b")
+ONE_OFF = re.compile(r"one-off", re.IGNORECASE)
+# ... or where the same paragraph writes it (`git show COMMIT:FILE > /tmp/x.py`).
+WRITTEN = re.compile(r">\s*(/tmp/[\w./{},-]*\.(?:py|sh|tar\.gz))\b")
+READING_NOTE = "a script named under /tmp/ was a one-off script, not kept"
+
+
+def _paragraphs(text):
+    """(first line number, paragraph) for each block of lines between blank lines."""
+    start, lines = 1, []
+    for i, line in enumerate(text.splitlines() + [""], 1):
+        if line.strip():
+            if not lines:
+                start = i
+            lines.append(line)
+        elif lines:
+            yield start, "\n".join(lines)
+            lines = []
+
+
+def test_no_shipped_file_names_the_team_machines_paths():
+    """A reader has a clone and nothing else: commands run from the repository root, a base
+    checkout is a placeholder the text defines (BASE), and scripts that were not kept are
+    said to be one-off (docs/performance.md, "Reading the commands")."""
+    offenders = []
+    for path in shipped_text_files():
+        rel = os.path.relpath(path, ROOT)
+        with open(path, encoding="utf-8", errors="replace") as f:
+            text = f.read()
+        noted = READING_NOTE in " ".join(text.split()).lower()
+        for start, para in _paragraphs(text):
+            for k, line in enumerate(para.splitlines()):
+                if TEAM_PATH.search(line):
+                    offenders.append(f"{rel}:{start + k}: {line.strip()}")
+                elif (not noted and not ONE_OFF.search(para)
+                      and set(TMP_SCRIPT.findall(line)) - set(WRITTEN.findall(para))):
+                    offenders.append(f"{rel}:{start + k}: {line.strip()}")
+    assert not offenders, ("paths that exist only on the team's machine (write the repository "
+                           "root, BASE, or say 'a one-off script, not kept'):\n"
+                           + "\n".join(offenders))

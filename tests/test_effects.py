@@ -255,7 +255,7 @@ def test_specular_kind_calls_only_a_mirror_smooth_metal_a_mirror():
     assert kinds == {"m0": "mirror", "m2": "polished metal", "m5": "metal"}
 
 
-# --- The report's words (issue 14, a new user's trial: /work/notes/closing14.md) ---------
+# --- The report's words (issue 14, a new user's trial; its notes are not shipped) ----------
 
 def _room(floor, wall="white_diffuse", extra=()):
     """A floor and a back wall under an area light, seen from the front; extra: (kind,

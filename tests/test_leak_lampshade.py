@@ -43,7 +43,7 @@ def cone_mesh(center, r1, r2, depth, n=32):
 
 
 def lamp_scene(width=80, height=60):
-    """issue 14's repro (/tmp/newuser23/repro_leak.py) without its sun: floor, a 10 cm
+    """issue 14's repro (/tmp/newuser23/repro_leak.py, a one-off script) without its sun: floor, a 10 cm
     back wall (front face y = 2), a closed glossy metal shade piercing it, a 60 W Point
     light of radius 5 cm inside, the camera in front."""
     s = PaperScene(width=width, height=height)

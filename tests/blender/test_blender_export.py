@@ -369,7 +369,8 @@ def _bulb_colour(bpy, setup):
 def test_light_node_blackbody_is_the_light_temperature(fresh_scene, bpy_addon):
     """A bulb coloured by a Blackbody node (2700 K) in its light node tree gets the colour
     Blender's own light Temperature (2700 K) gives it - Cycles renders both alike
-    (measured: floor R/B 8.11 both ways, /tmp/newuser23/repro_light_blackbody.py) - and
+    (measured: floor R/B 8.11 both ways, /tmp/newuser23/repro_light_blackbody.py, a one-off
+    script, not kept) - and
     an Emission's constant Color and Strength scale it; no 'not supported' warning."""
     bpy = bpy_addon
 

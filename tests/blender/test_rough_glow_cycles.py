@@ -15,7 +15,8 @@ patches' 4-seed means within 0.087 before, 0.030 now (docs/performance.md, rough
 
 Cycles: 1024 spp, no clamp (direct or indirect), reflective caustics on, Filter Glossy 0,
 seeds 1 and 2 averaged (they differ by 0.04 % on the wall, at most 0.7 % in a patch):
-/tmp/roughglint/mini2.py (s23 roughglint's scripts) `cycles 1024 0 SEED nocar`."""
+/tmp/roughglint/mini2.py (s23 roughglint's one-off scripts, not kept) `cycles 1024 0 SEED
+nocar`."""
 import math
 
 import numpy as np
