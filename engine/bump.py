@@ -195,6 +195,18 @@ class ViewFootprint:
         return dd * dist * self.deeper
 
 
+def transfer_footprint(footprint, spread, t) -> np.ndarray:
+    """(N,) m the ray footprint at the ends of rays of length t (N,) m that leave points
+    of footprint (N,) m with compact ray dD spread (N,) rad: Cycles'
+    differential_transfer_compact (kernel/util/differential.h), dP + t dD. A bounce
+    leaves both as they are (Blender 4.2-5.1, kernel/integrator/shade_surface.h: the
+    new ray's dP is the hit's sd->dP, its dD the path's, diffuse or glossy alike), so a
+    gather ray's end from a camera hit has dD x (camera distance + gather length); an
+    orthographic camera's dD is 0 and every vertex keeps its pixel's width."""
+    return (np.asarray(footprint, np.float64)
+            + np.asarray(t, np.float64) * np.asarray(spread, np.float64))
+
+
 def attach_view(geo, scene, deeper: float = DEEPER) -> None:
     """Give Geometry geo the ViewFootprint of scene's camera (None without one): what
     Bump.perturb reads where no footprint is passed."""
