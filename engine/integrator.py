@@ -1033,7 +1033,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     fp_start = getattr(hit, "footprint", None)
     if fp_start is not None:
         fp_start = c(fp_start, np.float64)
-        spread_h = c(hit.spread, np.float64)
+        spread_h = (np.zeros(n) if getattr(hit, "spread", None) is None
+                    else c(hit.spread, np.float64))  # (none known: no spread)
         fp_h = np.empty(n)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
