@@ -97,6 +97,13 @@ class SurfaceHit:
                           # set by the camera paths: the split's pdf at D is at most it
                           # (glossysplit.DiffusePdf: the maps' per-photon test and the
                           # gather chains' start); None: inf (a camera ray's first hit)
+    footprint: np.ndarray | None = None  # (N,) m the path's ray footprint at this hit
+                          # (Cycles' compact sd->dP), set by the camera paths and the
+                          # gather rays from them: the gather rays' ends take it on
+                          # (bump.transfer_footprint); None: not known (their ends take
+                          # the geometry's view_footprint)
+    spread: np.ndarray | None = None  # (N,) rad the path's compact ray dD (the camera's:
+                          # Cycles 4.2-5.1 keep it through every bounce; orthographic 0)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle

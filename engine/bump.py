@@ -6,7 +6,8 @@ their luminance) and tilts the normal N:
   n' = normalize(N - distance grad h),   n'' = normalize(s n' + (1 - s) N)
 with grad h Cycles' one-sided differences of h over filter_width x the ray's footprint
 (svm_node_set_bump), the footprint Cycles' compact ray differential: a camera pixel's
-angle times the distance its path travelled (`ViewFootprint`). The differences are taken
+angle times the distance its path travelled (transfer_footprint; `ViewFootprint` where
+no camera path reaches the hit). The differences are taken
 in the triangle's barycentric coordinates, mapped to the surface through the dual basis
 of the triangle's edges, so any height node works. engine/normalmap.py holds the Normal
 Map node and the bump shadowing term, which applies to both.
@@ -19,12 +20,16 @@ from .normalmap import NormalMapError
 from .sampling import dot, normalize
 
 
-# The footprint of hits not followed from the camera (gather rays, photons), as a
-# multiple of the camera's differential times the hit's distance from it
-# (ViewFootprint.deeper). Cycles' vertex past the second has travelled the whole path:
-# in a room 3-6 x its camera distance, and ours' photons stand for those vertices.
-# Measured (docs/accuracy.md "### bump50"): the closed box reads 0.991 / 0.995 / 0.999
-# of Cycles at 1 / 2 / 6, the bathroom 0.994 / 1.000 at 2 / 6.
+# The footprint of hits no camera path is followed to (photons, Bevel's probes, a
+# subsurface walk's exits), as a multiple of the camera's differential times the hit's
+# distance from it (ViewFootprint.deeper). The gather rays' ends take their path's own
+# (transfer_footprint). A photon's hit stands for Cycles' vertices at and past the one
+# that reads it (a gather ray's end, dD x (camera distance + gather length): in
+# roomglossy49's box 4.0 x its camera distance at the median, 1.2 / 29 at the 10th /
+# 90th percentile) and its bounce for the one past that, longer still; which reader, and
+# so which footprint, is not known when the photon is traced. Measured (docs/accuracy.md
+# "### footprint51"): the box's bumped / unbumped 0.9924 / 0.9984 / 0.9999 at 2 / 6 / 0
+# (unbent) against Cycles' 0.9980.
 DEEPER = 6.0
 
 
@@ -168,8 +173,9 @@ def camera_differential(camera, width: int, height: int, d: np.ndarray) -> np.nd
 
 class ViewFootprint:
     """Cycles' ray footprint (the compact differential sd->dP, m) at points the camera's
-    rays reach, for hits whose path is not followed from the camera (gather rays,
-    photons, nodes' own rays): the camera differential towards the point
+    rays reach, for hits whose path is not followed from the camera (photons, nodes' own
+    rays; the gather rays' ends take their path's, transfer_footprint): the camera
+    differential towards the point
     (camera_differential) times its distance from the camera times `deeper` (>= 1; an
     orthographic camera: its pixel's width). Cycles (5.0) carries a camera path's dD
     through every bounce unchanged, so a deeper vertex's footprint is dD times the whole
@@ -193,6 +199,18 @@ class ViewFootprint:
         if self.camera.kind == "ORTHO":
             return dd
         return dd * dist * self.deeper
+
+
+def transfer_footprint(footprint, spread, t) -> np.ndarray:
+    """(N,) m the ray footprint at the ends of rays of length t (N,) m that leave points
+    of footprint (N,) m with compact ray dD spread (N,) rad: Cycles'
+    differential_transfer_compact (kernel/util/differential.h), dP + t dD. A bounce
+    leaves both as they are (Blender 4.2-5.1, kernel/integrator/shade_surface.h: the
+    new ray's dP is the hit's sd->dP, its dD the path's, diffuse or glossy alike), so a
+    gather ray's end from a camera hit has dD x (camera distance + gather length); an
+    orthographic camera's dD is 0 and every vertex keeps its pixel's width."""
+    return (np.asarray(footprint, np.float64)
+            + np.asarray(t, np.float64) * np.asarray(spread, np.float64))
 
 
 def attach_view(geo, scene, deeper: float = DEEPER) -> None:

@@ -32,7 +32,7 @@ from . import (adaptive, aopass, chaincounts, datapasses, heterogeneous, lightpa
                photonvisibility, raymaterials, sampleclamp, shadelight, subsurfacewalk,
                volumeemission,
                vectorpass, volumescatter, volumewalk, worldmedium)
-from .bump import camera_differential
+from .bump import camera_differential, transfer_footprint
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, _hit_alpha, closures, lobe_weights,
                    plain_surfaces, surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -938,8 +938,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # corner's subset map of no photon still flagged its boundaries, and Diffuse 1
         # regathered twice: direct light after two diffuse bounces).
         return E
-    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d, extra, secondary),
-    # per step
+    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d, extra, secondary,
+    # passes, footprint, spread), per step
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
@@ -1026,8 +1026,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
     # nothing to count), the limit and the volume-only surfaces (their pass is none).
     t_limit, t_h, t_vol = _gather_pass_counts(ctx, n, passes)
+    # The path's ray footprint at each ray's origin, by hit row (Cycles' dP: the hits', then
+    # their chains' last vertex's), and its dD (the hits' spread): the ends' footprint for
+    # Bump nodes (bump.transfer_footprint). None: the hits' is not known (the ends take the
+    # geometry's view_footprint).
+    fp_start = getattr(hit, "footprint", None)
+    if fp_start is not None:
+        fp_start = c(fp_start, np.float64)
+        spread_h = (np.zeros(n) if getattr(hit, "spread", None) is None
+                    else c(hit.spread, np.float64))  # (none known: no spread)
+        fp_h = np.empty(n)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
+        if fp_start is not None:
+            fp_h[:] = fp_start
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
         # Scrambled cells: the direction and the pixel jitter enter one product (what the
         # ray sees from where the pixel's sample landed: edges, seams), and with the
@@ -1193,8 +1205,15 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                                g_uv)
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
+            fp_y = (None if fp_start is None
+                    else transfer_footprint(fp_h[idx], spread_h[idx], t))
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d, unguarded=(
-                None if turned_refl is None else turned_refl.unguarded(ctx.geo, prim, u, v)))
+                None if turned_refl is None else turned_refl.unguarded(ctx.geo, prim, u, v)),
+                footprint=fp_y)
+            if fp_y is not None:
+                # (the regathers, the glow's second bounce and the chain's next rays go on
+                # from these ends)
+                y.footprint, y.spread = fp_y, spread_h[idx]
             if level > 0 and depth == 0 and not glow_only:
                 Le = _linked_emission(ctx, y.emission, prim, hit.prim, idx)
                 if np.any(Le > 0):
@@ -1266,7 +1285,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                     None if cnt is None else cnt[idx[rows]],
                                     None if sec_E is None else
                                     _point_secondary(sec_E, got[2][again[:n_again]]),
-                                    None if t_h is None else t_h[idx[rows]]))
+                                    None if t_h is None else t_h[idx[rows]],
+                                    None if fp_start is None else np.take(y.footprint, rows),
+                                    None if fp_start is None else np.take(y.spread, rows)))
             if ends is not None and len(ends):
                 # The glow that lights the ends (one ray each: their irradiance from the
                 # emitting media, Eg), reflected by their diffuse lobe towards the
@@ -1341,6 +1362,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if t_vol is not None:
                     passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
                 t_h[idx[keep]] += passed_k
+            if fp_start is not None:
+                fp_h[idx[keep]] = np.take(y.footprint, keep)
             idx = idx[keep]
             if turned_refl is not None and turned_refl.escapes:
                 # (the counts before this continuation: an escape's, above)
@@ -1621,7 +1644,9 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     prim (K,), u, v (K,), d (K,3), extra (K,4) or None, secondary (K,3) or None: the
     secondary caustic of the lookups' points, NaN rows none: _point_secondary) of the
     ends, then passes (K,) int64 or None: the ends' chains' transparent bounces (their
-    shadow rays cross the passes left, their gather goes on counting from there). The
+    shadow rays cross the passes left, their gather goes on counting from there), then
+    footprint (K,) m and spread (K,) rad or None: the ends' ray footprint and dD
+    (SurfaceHit.footprint, spread; bump.transfer_footprint). The
     surface data are recomputed from the rays' hits (surface_hit is row by row:
     the same values the step had). Random numbers:
     a stream spawned from rng (_spawn, which draws nothing from rng), so the same for any
@@ -1642,6 +1667,10 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     else:
         passes = np.concatenate([np.zeros(len(p[0]), np.int64) if p[9] is None else p[9]
                                  for p in pending])
+    # (the ends' footprints and dD, if every step had them: bump.transfer_footprint)
+    foot = None
+    if all(p[10] is not None for p in pending):
+        foot = tuple(np.concatenate([p[k] for p in pending]) for k in (10, 11))
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
                                      for a in zip(*(p[:7] for p in pending)))
     rng = _spawn(rng)
@@ -1653,7 +1682,8 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
                         d[a:b], G, rng, counters, level, should_cancel, lean,
                         None if extra is None else extra[a:b],
                         None if known is None else known[a:b],
-                        None if passes is None else passes[a:b])
+                        None if passes is None else passes[a:b],
+                        None if foot is None else (foot[0][a:b], foot[1][a:b]))
 
 
 # Ends a regather batch holds at most (its surface data, direct-light buffers and the next
@@ -1663,14 +1693,18 @@ REGATHER_BATCH = 1 << 15
 
 
 def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, level,
-                    should_cancel, lean, extra=None, known=None, passes=None):
+                    should_cancel, lean, extra=None, known=None, passes=None, foot=None):
     """_regather for one slice of its ends (rng: the batch's spawned stream); extra: the
     ends' bounces beyond their level's (gather_indirect's; None: none); known: (K,3) the
     ends' secondary caustic from their lookups' points, NaN rows none (None: none);
-    passes: (K,) int64 the ends' transparent bounces (None: 0)."""
+    passes: (K,) int64 the ends' transparent bounces (None: 0); foot: ((K,) m, (K,) rad)
+    the ends' ray footprint and dD (SurfaceHit.footprint, spread; None: not known)."""
     if passes is not None and not passes.any():
         passes = None
-    y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+    y = surface_hit(ctx.geo, ctx.table, prim, u, v, d,
+                    footprint=None if foot is None else foot[0])
+    if foot is not None:
+        y.footprint, y.spread = foot
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
     # light here.
@@ -2994,8 +3028,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # from the thread's buffers; replaced, never written in place (paths_start).
     travelled, org_ns, org_p, chain = buffers.paths_start(len(o))
     # Each path's camera ray differential (Cycles keeps the camera's dD through every
-    # bounce): Bump nodes take their differences over dD x travelled (engine/bump.py).
+    # bounce): Bump nodes take their differences over dD x travelled (engine/bump.py),
+    # plus the footprint at the ray's origin: Cycles starts a camera ray at its clip
+    # start with dP = nearclip x dD (kernel/camera/camera.h; 0.1 m from a 16 mm lens in
+    # a 2 m room is 10 % of the first hit's footprint).
     cam_dd = camera_differential(cam, ctx.scene.width, ctx.scene.height, d)
+    cam_dp0 = (None if ortho else
+               cam_dd * np.linalg.norm(o - np.asarray(cam_pos, np.float64), axis=1))
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
     modes = light_modes(ctx)
@@ -3363,6 +3402,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
                                pdf_b))
             cam_dd = np.take(cam_dd, kept)
+            if cam_dp0 is not None:
+                cam_dp0 = np.take(cam_dp0, kept)
             if passages is not None:
                 passages.compact(kept)
             if lpass is not None:
@@ -3473,13 +3514,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if fgblur is not None and bounce > 0:
             blur = fgblur.blur()
             blur = blur if len(blur) else None
+        # The path's ray footprint at its hits (Cycles' sd->dP: the camera's dD x the
+        # distance from the camera; orthographic, the pixel's width), for Bump nodes.
+        cam_fp = cam_dd if ortho else cam_dp0 + cam_dd * travelled
         if plain and unguarded is None:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
                                         bufs, material=cls_mat, blur=blur)
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat,
-                              unguarded=unguarded,
-                              footprint=cam_dd if ortho else cam_dd * travelled)
+                              unguarded=unguarded, footprint=cam_fp)
             per_hit = hit.params is not None
             nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
                              hit.params if per_hit else ctx.table.closure_params, per_hit,
@@ -3504,6 +3547,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # The medium each hit point is in: its shadow and gather rays start there
             # (directlight.direct_light's medium_sigma, gather_indirect).
             hit.medium = medium
+        # The path's ray differential at the hit (Cycles' sd->dP and dD): the gather rays'
+        # ends take it on over their length (bump.transfer_footprint), for Bump nodes.
+        hit.footprint = cam_fp
+        hit.spread = np.zeros(n) if ortho else cam_dd
         if aniso_on:  # the anisotropic lobes' tangents (engine/anisotropy.py)
             set_hit_tangents(ctx.geo, hit.params if hit.params is not None
                              else ctx.table.closure_params, hit, prm, u, v)
@@ -3839,6 +3886,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         sample_id = sample_id[keep]
         travelled = travelled[keep]
         cam_dd = cam_dd[keep]
+        if cam_dp0 is not None:
+            cam_dp0 = cam_dp0[keep]
         if feat is not None:
             feat, ftp = feat[keep], ftp[keep]
         single, first = single[keep], first[keep]

@@ -122,3 +122,103 @@ def test_hits_without_a_footprint_take_the_cameras_at_their_distance():
     np.testing.assert_allclose(_normals(geo, table, xy),
                                _normals(geo, table, xy, geo.view_footprint.at(hp)),
                                atol=1e-12)
+
+
+def _bumped_room():
+    """A diffuse floor and back wall with a Bump (a linear height in x) under an area
+    lamp, a camera in front: the gather rays from the floor end on the floor's far side
+    and on the wall."""
+    from engine.api import PaperScene
+    h = sn.Math("MULTIPLY", sn.SeparateChannel(sn.ObjectSpacePosition(np.eye(4)), 0), 0.5)
+    s = PaperScene(width=16, height=12, background=(0.0, 0.0, 0.0))
+    s.add_material(Material("white", (0.8, 0.8, 0.8), specular=0.0,
+                            normal_map=Bump(h, distance=0.1)))
+    s.add_plane((0, 0, 0), size=4.0, material="white", name="Floor")
+    s.add_plane((0, 2.0, 2.0), normal=(0, -1, 0), size=4.0, material="white", name="Wall")
+    s.add_rect_area_light((0.0, 0.0, 2.5), size=(0.5, 0.5), power=300.0)
+    s.set_camera((0.0, -3.0, 2.6), (0.0, 1.0, 0.8), view_angle=40)
+    return s
+
+
+@pytest.mark.parametrize("spread", [2e-3, 0.0])
+def test_gather_ends_take_the_hits_footprint_transferred_over_the_ray(monkeypatch, spread):
+    """Cycles' differential_transfer_compact: a gather ray's end has the footprint of the
+    hit it left plus its length x the path's dD (the camera's, kept through the diffuse
+    bounce; 0 for an orthographic camera, whose footprint stays the pixel's width):
+    r0 + t dD, by hand from the end's distance to the gathering point. The Bump at each
+    end takes exactly that (not the view footprint)."""
+    from engine import RenderSettings, integrator
+    from engine.bump import transfer_footprint
+    from engine.integrator import Counters, gather_indirect
+    from engine.render import _photon_pass, prepare_context
+    monkeypatch.setattr(integrator, "MAX_GATHER_LEVEL", 0)  # level 0's ends alone
+    ctx = prepare_context(_bumped_room(), RenderSettings(workers=1, photons=3_000,
+                                                         caustic_photons=0, seed=2))
+    try:
+        _photon_pass(ctx, {}, None, None)
+        n = 40
+        o = np.tile([0.3, -1.0, 1.0], (n, 1)) - ctx.geo.offset
+        d = np.tile(np.array([0.0, 0.6, -1.0]) / math.hypot(0.6, 1.0), (n, 1))
+        t, prim, u, v = ctx.accel.intersect(o, d)
+        assert np.all(prim >= 0)
+        r0 = 0.004 + 1e-4 * np.arange(n)  # each hit's own footprint
+        hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, footprint=r0)
+        hit.footprint, hit.spread = r0, np.full(n, spread)
+        seen = []
+        real = Bump.perturb
+
+        def spy(self, geo, prim, u, v, nrm, footprint=None):
+            seen.append((geo.hit_points(prim, u, v), footprint))
+            return real(self, geo, prim, u, v, nrm, footprint=footprint)
+
+        monkeypatch.setattr(Bump, "perturb", spy)
+        gather_indirect(ctx, hit, np.random.default_rng(5), Counters(), rays=8)
+    finally:
+        ctx.accel.close()
+    assert len(seen) >= 8
+    p0 = hit.p[0]
+    for p, got in seen:
+        assert got is not None
+        # (the hits share a point: any of their footprints, the smallest row's first)
+        t_end = np.linalg.norm(p - p0, axis=1)
+        assert np.all(t_end > 0.05)
+        lo, hi = transfer_footprint(r0[0], spread, t_end), transfer_footprint(r0[-1], spread,
+                                                                             t_end)
+        assert np.all(got >= lo - 1e-12) and np.all(got <= hi + 1e-12)
+        # by hand: each end's footprint minus its length x dD is one of the hits' own
+        # (within the ray origin's offset and Embree's float32 distance, ~1e-6 m x dD;
+        # the hits' footprints are 1e-4 m apart)
+        np.testing.assert_allclose(
+            np.min(np.abs((got - spread * t_end)[:, None] - r0[None, :]), axis=1), 0.0,
+            atol=1e-8)
+
+
+def test_camera_hits_footprint_is_dd_times_the_whole_camera_distance(monkeypatch):
+    """Cycles starts a camera ray at its clip start with dP = nearclip x dD
+    (kernel/camera/camera.h), so a camera hit's footprint is dD x its whole distance from
+    the camera, not from the clip start (a 0.5 m clip start here: 14 % of the floor's
+    distance); the gather rays' ends go on from there (longer paths: larger ratios)."""
+    from engine import RenderSettings
+    from engine.render import render
+    s = _bumped_room()
+    s.camera.clip_start = 0.5
+    seen = []
+    real = Bump.perturb
+
+    def spy(self, geo, prim, u, v, nrm, footprint=None):
+        if footprint is not None:
+            view = geo.view_footprint
+            p = geo.hit_points(prim, u, v) - view.position
+            dist = np.linalg.norm(p, axis=1)
+            dd = camera_differential(view.camera, view.width, view.height, p / dist[:, None])
+            seen.append(footprint / (dd * dist))
+        return real(self, geo, prim, u, v, nrm, footprint=footprint)
+
+    monkeypatch.setattr(Bump, "perturb", spy)
+    render(s, RenderSettings(workers=1, photons=2_000, caustic_photons=0, spp=1, seed=1))
+    assert len(seen) > 2
+    # (Embree's float32 distances: 1e-6)
+    np.testing.assert_allclose(seen[0], 1.0, rtol=1e-6)  # the camera's first hits
+    ratios = np.concatenate(seen[1:])
+    assert np.all(ratios >= 1.0 - 1e-6)  # the gather ends': dD x (t_cam + t_gather)
+    assert np.median(ratios) > 1.05

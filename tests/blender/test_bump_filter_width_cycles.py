@@ -9,7 +9,8 @@ each grout edge is a band a few millimetres wide whose slope sweeps through the 
 that mirrors the sun into the camera: the bumped plane reads 1.19 x the unbumped one in
 Cycles (64 x 64, orthographic). Derivatives at a fixed 1e-4 barycentric step (before
 bump50) resolved the ramp instead and read 0.99 x: ours / Cycles 0.83 orthographic, 0.970
-in perspective; now 0.992 and 0.998. Direct light only; an orthographic view (footprint:
+in perspective; now 0.992 and 1.001 (0.998 before footprint51 counted the camera's clip
+start in the footprint). Direct light only; an orthographic view (footprint:
 the pixel's width) and a perspective one (the camera's differential times the
 distance)."""
 import math
