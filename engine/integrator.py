@@ -180,7 +180,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     light_cut = None
-    if bsdf is not None and chosen is None:
+    if bsdf is not None and (chosen is None or glossy_only_lights(ctx)):
+        # (with the light tree only for the lamps only glossy rays see: the tree's
+        # members light every lobe, its entries take no cut)
         light_cut = np.array([lobe_cut(light) for light in ctx.lights], np.int64)
         if not light_cut.any():
             light_cut = None
@@ -386,7 +388,8 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
     reflection: the caller weighs the samples by the reflective lobes and cuts each
     light's by lobe_cut (directlight.direct_light's light_cut): a delta light with only
     its glossy visibility on is sampled too, and every light with a cut is traced (the
-    cut is applied per shadow ray)."""
+    cut is applied per shadow ray); with many lights those lamps (glossy_only_lights)
+    take entries of their own after the tree's (the sampler's ("light-glossy", li, si))."""
     chosen = selector_for(ctx, skip_mesh_lights)
     samples = []
     if chosen is not None:
@@ -407,6 +410,17 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
             else:
                 u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
             samples.append((-1, True, S, u1, u2, choose))
+        if reflection:
+            # The lamps only the glossy lobes see, by shadow rays of their own (none of
+            # the tree's members), cut per shadow ray (lobe_cut), after the tree's.
+            for li in glossy_only_lights(ctx):
+                count = ctx.plan.light_samples.get(ctx.lights[li].name, 1)
+                for si in range(count):
+                    if sampler is not None:
+                        u1, u2 = sampler.uv(("light-glossy", li, si))
+                    else:
+                        u1, u2 = rng.random((2, n))
+                    samples.append((li, True, count, u1, u2, None))
         return samples
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
     # mesh light's triangle choice), sample by sample.
@@ -527,8 +541,9 @@ def reflection_only_lights(ctx) -> np.ndarray:
     then MIS-weighted against those samples (lamp_mis); its other rays (a rough glass's
     refraction, a translucent lobe's: engine/glasslight.py takes no sample of a lamp
     without diffuse visibility) count it in full, as before. All False with the light
-    tree (its members are the lights with diffuse visibility: such a lamp is not one) and
-    with REFLECTION_ONLY_SAMPLING off."""
+    tree (its members are the lights with diffuse visibility: such a lamp is none) they
+    take shadow rays of their own beside the tree's (glossy_only_lights). All False with
+    REFLECTION_ONLY_SAMPLING off."""
     out = np.zeros(len(ctx.lights), np.bool_)
     if not REFLECTION_ONLY_SAMPLING:
         return out
@@ -536,9 +551,19 @@ def reflection_only_lights(ctx) -> np.ndarray:
         out[li] = (light.has_size and light.shadow_sampled
                    and lobe_cut(light) == CUT_DIFFUSE
                    and light.kind in (AREA, SUN, POINT, SPOT))
-    if out.any() and selector_for(ctx) is not None:
-        out[:] = False
     return out
+
+
+def glossy_only_lights(ctx) -> list:
+    """Indices of the lights the rough reflective lobes sample with the diffuse lobe cut
+    (light_sample_list's reflection): a delta lamp whose Diffuse visibility is off and
+    Glossy on, and the reflection-only lamps with a size (reflection_only_lights). With
+    the light tree they are none of its members: they take shadow rays of their own
+    beside the tree's pick (before, a delta one gave no highlight at all there)."""
+    refl = reflection_only_lights(ctx)
+    return [li for li, light in enumerate(ctx.lights)
+            if light.shadow_sampled and lobe_cut(light) == CUT_DIFFUSE
+            and (not light.has_size or refl[li])]
 
 
 def lamp_mis(modes, reflection_only, li, ray_cls):
@@ -734,6 +759,8 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     that the tree picks light li there (LightSelector.pmf; sets (N,): the receiver sets
     of the surfaces the rays left, whose own trees pick there: lightlinking.tree_pmf)."""
     chosen = selector_for(ctx)
+    if chosen is not None and not light.ray_kinds & SHADOW:
+        chosen = None  # (a lamp only glossy rays see: its own shadow rays, no tree pick)
     with np.errstate(invalid="ignore", over="ignore"):  # rows that missed it: t = inf
         if chosen is not None:
             n = selection_samples(ctx.settings)
@@ -2722,8 +2749,11 @@ def _camera_pass_dimensions(ctx) -> SampleDimensions:
     lens = lens + [("probe", j) for j in range(max(WORLD_PROBES, 0))]
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
+        # (then the lamps only glossy rays see, sampled beside the tree: last, moving none)
+        glossy = [("light-glossy", li, si) for li in glossy_only_lights(ctx)
+                  for si in range(ctx.plan.light_samples.get(ctx.lights[li].name, 1))]
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
-                                 + [("bsdf",)] + lens)
+                                 + [("bsdf",)] + lens + glossy)
     return camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
                                              for li in ctx.lights], [("bsdf",)] + lens)
 
