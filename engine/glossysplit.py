@@ -332,6 +332,9 @@ class GatherChains:
         # The lights the continuations meet in full (those light sampling leaves to them).
         self.continuation_lights = [li for li, m in enumerate(self.modes)
                                     if m == it.MODE_CONTINUATION]
+        # ... but the glossy rays leave a reflection-only lamp (Diffuse visibility off) to
+        # the vertex's reflective lobes' shadow rays (integrator.reflection_only_lights).
+        self.reflection_only = it.reflection_only_lights(ctx)
         self.unsampled = it._unsampled_meshes(ctx)
         self._vertex = None  # (q, psum, w_diffuse, ns) of vertex()'s hits
         # The lights next-event panes and lamp shades carry by their own shadow rays
@@ -592,6 +595,8 @@ class GatherChains:
             if mask.any():
                 # (a ray that meets the lamp ends there, counted or not)
                 add = mask & counted(li)
+                if self.reflection_only[li]:
+                    add &= cls != it.GLOSSY  # (its light sampled at the vertex)
                 Le[add] += L[add]
                 t = np.where(mask, tl, t)
                 at_lamp |= mask
@@ -610,6 +615,9 @@ class GatherChains:
                 sun = (worldmedium.background(ctx.scene, dm) if light.kind == it.WORLD
                        else light.seen_at_infinity(dm))
                 if sun is not None:
-                    Le[miss] += np.where(np.reshape(counted(li, miss), (-1, 1)), sun, 0.0)
+                    use = counted(li, miss)
+                    if self.reflection_only[li]:
+                        use &= cls[miss] != it.GLOSSY
+                    Le[miss] += np.where(np.reshape(use, (-1, 1)), sun, 0.0)
         add = tp * (math.pi / G) * Le
         np.add.at(E, rows_idx, add)

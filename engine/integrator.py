@@ -180,7 +180,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     light_cut = None
-    if bsdf is not None and chosen is None:
+    if bsdf is not None and (chosen is None or glossy_only_lights(ctx)):
+        # (with the light tree only for the lamps only glossy rays see: the tree's
+        # members light every lobe, its entries take no cut)
         light_cut = np.array([lobe_cut(light) for light in ctx.lights], np.int64)
         if not light_cut.any():
             light_cut = None
@@ -198,7 +200,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             mode = np.full(len(ctx.lights),
                            MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA, np.int64)
         else:
-            mode = light_modes(ctx)
+            mode = light_modes(ctx, reflection=light_cut is not None)
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
                 np.ascontiguousarray(hit.wo, np.float64), mode,
                 np.ascontiguousarray(sel, np.float64))
@@ -386,7 +388,8 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
     reflection: the caller weighs the samples by the reflective lobes and cuts each
     light's by lobe_cut (directlight.direct_light's light_cut): a delta light with only
     its glossy visibility on is sampled too, and every light with a cut is traced (the
-    cut is applied per shadow ray)."""
+    cut is applied per shadow ray); with many lights those lamps (glossy_only_lights)
+    take entries of their own after the tree's (the sampler's ("light-glossy", li, si))."""
     chosen = selector_for(ctx, skip_mesh_lights)
     samples = []
     if chosen is not None:
@@ -407,19 +410,31 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
             else:
                 u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
             samples.append((-1, True, S, u1, u2, choose))
+        if reflection:
+            # The lamps only the glossy lobes see, by shadow rays of their own (none of
+            # the tree's members), cut per shadow ray (lobe_cut), after the tree's.
+            for li in glossy_only_lights(ctx):
+                count = ctx.plan.light_samples.get(ctx.lights[li].name, 1)
+                for si in range(count):
+                    if sampler is not None:
+                        u1, u2 = sampler.uv(("light-glossy", li, si))
+                    else:
+                        u1, u2 = rng.random((2, n))
+                    samples.append((li, True, count, u1, u2, None))
         return samples
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
     # mesh light's triangle choice), sample by sample.
     plan = ctx.plan
+    reflection_only = reflection_only_lights(ctx) if reflection else None
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
         cut = lobe_cut(light) if reflection else 0
         if not light.ray_kinds & SHADOW and not (
-                cut == CUT_DIFFUSE and not light.has_size):
-            # The light object's diffuse visibility is off (a lamp that only highlights:
-            # sampled for the glossy lobes when it is a delta light, else the glossy
-            # continuation finds it).
+                cut == CUT_DIFFUSE and (not light.has_size or reflection_only[li])):
+            # The light object's diffuse visibility is off (a lamp that only highlights):
+            # sampled for the glossy lobes alone (reflection_only_lights), else left to
+            # the glossy continuation.
             continue
         if not light.shadow_sampled:  # Emission Sampling None on every emissive triangle
             continue
@@ -508,8 +523,61 @@ def _mix64(h):
 
 MODE_CONTINUATION, MODE_DELTA, MODE_MIS, MODE_TREE = 0, 1, 2, 3
 
+# Lamps with a size whose Diffuse visibility is off take shadow rays for the rough
+# reflective lobes, MIS-weighted against the glossy continuation (reflection_only_lights;
+# docs/accuracy.md "lampvis51"); False: the glossy continuation alone finds them, as
+# before (the same mean at ~200x Cycles' pixel variance a sample in their highlight).
+REFLECTION_ONLY_SAMPLING = True
 
-def light_modes(ctx) -> np.ndarray:
+
+def reflection_only_lights(ctx) -> np.ndarray:
+    """(L,) bool: the lights with a size (area, sun with an angle, point / spot with a
+    radius) whose Diffuse ray visibility is off and Glossy on (lobe_cut CUT_DIFFUSE), which
+    the rough reflective lobes sample by shadow rays with that cut (direct_irradiance's
+    reflection: light_sample_list, light_modes(ctx, reflection=True)), as Cycles' next-event
+    estimation does for the closures SHADER_EXCLUDE_DIFFUSE leaves
+    (intern/cycles/kernel/integrator/shade_surface.h, surface_shader.h
+    _surface_shader_exclude). The continuation's glossy rays that meet such a lamp are
+    then MIS-weighted against those samples (lamp_mis); its other rays (a rough glass's
+    refraction, a translucent lobe's: engine/glasslight.py takes no sample of a lamp
+    without diffuse visibility) count it in full, as before. All False with the light
+    tree (its members are the lights with diffuse visibility: such a lamp is none) they
+    take shadow rays of their own beside the tree's (glossy_only_lights). All False with
+    REFLECTION_ONLY_SAMPLING off."""
+    out = np.zeros(len(ctx.lights), np.bool_)
+    if not REFLECTION_ONLY_SAMPLING:
+        return out
+    for li, light in enumerate(ctx.lights):
+        out[li] = (light.has_size and light.shadow_sampled
+                   and lobe_cut(light) == CUT_DIFFUSE
+                   and light.kind in (AREA, SUN, POINT, SPOT))
+    return out
+
+
+def glossy_only_lights(ctx) -> list:
+    """Indices of the lights the rough reflective lobes sample with the diffuse lobe cut
+    (light_sample_list's reflection): a delta lamp whose Diffuse visibility is off and
+    Glossy on, and the reflection-only lamps with a size (reflection_only_lights). With
+    the light tree they are none of its members: they take shadow rays of their own
+    beside the tree's pick (before, a delta one gave no highlight at all there)."""
+    refl = reflection_only_lights(ctx)
+    return [li for li, light in enumerate(ctx.lights)
+            if light.shadow_sampled and lobe_cut(light) == CUT_DIFFUSE
+            and (not light.has_size or refl[li])]
+
+
+def lamp_mis(modes, reflection_only, li, ray_cls):
+    """Which continuation rays that met light li take the MIS weight against its shadow
+    rays: True (all: modes[li] MODE_MIS), an (N,) bool of the rays (a reflection-only lamp,
+    reflection_only_lights: the glossy rays, ray_cls GLOSSY) or False (none)."""
+    if modes[li] == MODE_MIS:
+        return True  # (Python bools: callers test `is True` / `is False`)
+    if reflection_only[li]:
+        return np.asarray(ray_cls) == GLOSSY
+    return False
+
+
+def light_modes(ctx, reflection=False) -> np.ndarray:
     """How each light reaches the rough reflective lobes (directlight.accumulate_bsdf):
     MODE_DELTA: a point, spot or sun without size, by shadow rays only; MODE_MIS: an area
     light (with or without spread), a sun with an angle, a point / spot light with a
@@ -526,9 +594,14 @@ def light_modes(ctx) -> np.ndarray:
     the tree's probability of choosing it at the point and shading normal the
     continuation left (LightSelector.pmf; Cycles' light_tree_pdf, pbrt-v4's
     BVHLightSampler::PMF), in the kernel (directlight.sample_lights) and in _mis_weight /
-    _mesh_mis_weight alike."""
+    _mesh_mis_weight alike.
+    reflection: the modes the rough reflective lobes' shadow rays take (direct_irradiance
+    with bsdf): the reflection-only lamps (reflection_only_lights) MODE_MIS too (MODE_DELTA
+    without continuation); elsewhere they stay MODE_CONTINUATION (lamp_mis)."""
     modes = np.zeros(len(ctx.lights), np.int64)
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
+    if reflection:
+        modes[reflection_only_lights(ctx)] = mis
     for li, light in enumerate(ctx.lights):
         # A delta lamp seen by glossy rays but not diffuse ones is sampled for the glossy
         # lobes (light_sample_list's reflection), in full: no continuation meets it.
@@ -686,6 +759,8 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     that the tree picks light li there (LightSelector.pmf; sets (N,): the receiver sets
     of the surfaces the rays left, whose own trees pick there: lightlinking.tree_pmf)."""
     chosen = selector_for(ctx)
+    if chosen is not None and not light.ray_kinds & SHADOW:
+        chosen = None  # (a lamp only glossy rays see: its own shadow rays, no tree pick)
     with np.errstate(invalid="ignore", over="ignore"):  # rows that missed it: t = inf
         if chosen is not None:
             n = selection_samples(ctx.settings)
@@ -733,15 +808,24 @@ def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org
                     clamp_tp=None):
     """The light L (K,3) of lamp li that the rays at rows met (at tl along o, d) into the
     accumulator: weighted by MIS against the BSDF rays' pdf_b when `mis` (the light tree's
-    choice in the receiver sets of link_prim), by the shade the path left (lamp_w),
+    choice in the receiver sets of link_prim; an (N,) bool array: for those rays,
+    lamp_mis), by the shade the path left (lamp_w),
     clamped, and into the data passes. clamp_tp: (N,3) the throughput the clamp reads
     (sampleclamp.split_throughput; None: tp)."""
+    per_ray = None
+    if isinstance(mis, np.ndarray):
+        # (lamp_mis: the rays that take the weight, the others count the lamp in full)
+        per_ray = np.take(np.broadcast_to(mis, (len(o),)), rows)
+        mis = bool(per_ray.any())
     if mis:
         om, tm = o[rows], tl[rows]
         if passages is not None:
             om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
-        L = L * _mis_weight(ctx, li, light, om, d[rows], tm, pdf_b[rows], org_ns[rows],
-                            org_p[rows], _link_sets(ctx, link_prim, rows))[:, None]
+        w = _mis_weight(ctx, li, light, om, d[rows], tm, pdf_b[rows], org_ns[rows],
+                        org_p[rows], _link_sets(ctx, link_prim, rows))
+        if per_ray is not None:
+            w = np.where(per_ray, w, 1.0)
+        L = L * w[:, None]
     if lamp_w is not None and len(rows):
         # Its light through the shade the path left: shared with the shade samples of
         # the glossy hit before (shadelight.shade_bsdf_weights).
@@ -756,12 +840,13 @@ def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org
 
 
 def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, org_ns, org_p,
-                        clamping, tp, chain, acc, target, pix, ftp, feat, s, clamp_tp=None):
+                        clamping, tp, chain, acc, target, pix, ftp, feat, s, clamp_tp=None,
+                        refl_only=None, ray_cls=None):
     """Shadow Linking for lights at infinity (suns): the rays rows_mask (n,) that met a
     surface see a shadow-linked sun's disc when no blocker of it lies in that direction
     (its BlockerAccel; Cycles' dedicated shadow-linking ray counts distant lights),
     weighted as the discs the missing rays see (MIS, clamping; clamp_tp:
-    _add_lamp_light's)."""
+    _add_lamp_light's; refl_only, ray_cls (n,): lamp_mis's, None: by modes alone)."""
     for li, light in enumerate(ctx.lights):
         past = links.blocker_accel(li)
         if past is None or not hasattr(light, "seen_at_infinity"):
@@ -783,10 +868,14 @@ def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, or
         rows, sun = rows[~blocked], sun[~blocked]
         if not len(rows):
             continue
-        if modes[li] == MODE_MIS:
-            sun = sun * _mis_weight(ctx, li, light, o[rows], d[rows], None, pdf_b[rows],
-                                    org_ns[rows], org_p[rows],
-                                    _link_sets(ctx, link_prim, rows))[:, None]
+        mis = (bool(modes[li] == MODE_MIS) if refl_only is None
+               else lamp_mis(modes, refl_only, li, ray_cls))
+        if mis is not False:
+            w = _mis_weight(ctx, li, light, o[rows], d[rows], None, pdf_b[rows],
+                            org_ns[rows], org_p[rows], _link_sets(ctx, link_prim, rows))
+            if mis is not True:  # (the glossy rays alone)
+                w = np.where(np.take(np.broadcast_to(mis, (len(o),)), rows), w, 1.0)
+            sun = sun * w[:, None]
         if clamping:
             sun = sampleclamp.clamp(sun, tp if clamp_tp is None else clamp_tp, rows,
                                     sampleclamp.bounce_limits(
@@ -2694,8 +2783,11 @@ def _camera_pass_dimensions(ctx) -> SampleDimensions:
     lens = lens + [("probe", j) for j in range(max(WORLD_PROBES, 0))]
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
+        # (then the lamps only glossy rays see, sampled beside the tree: last, moving none)
+        glossy = [("light-glossy", li, si) for li in glossy_only_lights(ctx)
+                  for si in range(ctx.plan.light_samples.get(ctx.lights[li].name, 1))]
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
-                                 + [("bsdf",)] + lens)
+                                 + [("bsdf",)] + lens + glossy)
     return camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
                                              for li in ctx.lights], [("bsdf",)] + lens)
 
@@ -3038,6 +3130,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
     modes = light_modes(ctx)
+    # Lamps the rough reflective lobes alone sample (Diffuse visibility off): MIS for the
+    # glossy rays that meet them (lamp_mis).
+    refl_only = reflection_only_lights(ctx)
     # Lamps through shades (engine/shadelight.py): the glossy lobes' shade samples and
     # the continuation that meets the shade share the light by MIS. shade_from: the
     # paths whose ray left a hit whose glossy lobes took the shade samples, by a
@@ -3056,7 +3151,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     catchers = getattr(ctx, "catcher_objects", None)
     # No material emits: no emission rows to gather or test (surface_hit's are zeros).
     emitters = bool(ctx.table.emission.any())
-    want_glossy = bool(np.any(modes != MODE_CONTINUATION))
+    want_glossy = bool(np.any(modes != MODE_CONTINUATION) or refl_only.any())
     table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
     plain = plain_surfaces(ctx.table)  # no per-hit nodes: surface data and lobes fused
     # Smooth glass bent past photonkernels.GLASS_ADJOINT_MIN_BEND_DEG (None: none).
@@ -3194,7 +3289,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 # non-blockers (Cycles' dedicated shadow-linking ray): its light where
                 # no blocker lies between, the path going on to its own hit.
                 _shadow_linked_lamp(ctx, li, light, past, o, d, sees & (ray_cls != CAMERA),
-                                    link_prim, modes[li] == MODE_MIS, pdf_b, org_ns, org_p,
+                                    link_prim, lamp_mis(modes, refl_only, li, ray_cls),
+                                    pdf_b, org_ns, org_p,
                                     passages, lamp_w, clamping, tp, chain, acc, target, pix,
                                     ftp, feat, s, sampleclamp.split_throughput(tp, cscale))
                 sees = sees & (ray_cls == CAMERA)
@@ -3222,7 +3318,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 # (MIS for the rays that met the light only: with the light tree each
                 # takes a walk down the tree per light for its choice probability)
                 _add_lamp_light(ctx, li, light, rows, L, o, d, tl,
-                                bounce > 0 and modes[li] == MODE_MIS and len(rows) > 0,
+                                (lamp_mis(modes, refl_only, li, ray_cls)
+                                 if bounce > 0 and len(rows) > 0 else False),
                                 passages, pdf_b, org_ns, org_p, link_prim, lamp_w, clamping,
                                 tp, chain, s, acc, target, pix, ftp, feat,
                                 sampleclamp.split_throughput(tp, cscale))
@@ -3240,7 +3337,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             _shadow_linked_suns(ctx, links, o, d, ~miss & (ray_cls != CAMERA), link_prim,
                                 modes, pdf_b, org_ns, org_p, clamping, tp, chain, acc,
                                 target, pix, ftp, feat, s,
-                                sampleclamp.split_throughput(tp, cscale))
+                                sampleclamp.split_throughput(tp, cscale), refl_only, ray_cls)
         if world_row >= 0 and scatter is not None and miss.any():
             # Rays escaping into the world volume: the lamps' light it scatters along
             # their whole (infinite) length, cut where its transmittance is 1e-13
@@ -3317,14 +3414,18 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                 li, ctx.geo, np.take(link_prim, missed))
                             sun = sun * seen[:, None]
                         if sun is not None:
-                            if bounce > 0 and modes[li] == MODE_MIS:
-                                sun = sun * _mis_weight(ctx, li, light,
-                                                        np.take(o, missed, axis=0), d_miss,
-                                                        None, pdf_b[missed],
-                                                        np.take(org_ns, missed, axis=0),
-                                                        np.take(org_p, missed, axis=0),
-                                                        _link_sets(ctx, link_prim,
-                                                                   missed))[:, None]
+                            sun_mis = (lamp_mis(modes, refl_only, li, ray_cls)
+                                       if bounce > 0 else False)
+                            if sun_mis is not False:
+                                w = _mis_weight(ctx, li, light, np.take(o, missed, axis=0),
+                                                d_miss, None, pdf_b[missed],
+                                                np.take(org_ns, missed, axis=0),
+                                                np.take(org_p, missed, axis=0),
+                                                _link_sets(ctx, link_prim, missed))
+                                if sun_mis is not True:  # (the glossy rays alone)
+                                    w = np.where(np.take(np.broadcast_to(
+                                        sun_mis, (len(o),)), missed), w, 1.0)
+                                sun = sun * w[:, None]
                             radiance = radiance + sun
                             if full is not None:
                                 full = full + sun

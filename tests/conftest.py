@@ -27,11 +27,13 @@ def continuation_only(monkeypatch):
     from engine import integrator
     orig = integrator.light_modes
 
-    def modes(ctx):
-        m = orig(ctx)
+    def modes(ctx, reflection=False):
+        m = orig(ctx, reflection)
         m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
         return m
     monkeypatch.setattr(integrator, "light_modes", modes)
+    # (a lamp with Diffuse off: no shadow rays, the continuation counts it in full)
+    monkeypatch.setattr(integrator, "REFLECTION_ONLY_SAMPLING", False)
 
 
 def pytest_sessionstart(session):

@@ -141,7 +141,7 @@ def test_lobe_area(bpy_addon, tmp_path):
     scene, lamp = L._scene(bpy, "AREA")
     lamp.visible_diffuse, lamp.visible_glossy = False, True
     ref = _lobe_cycles(bpy, scene, tmp_path, 8192, 0)
-    for spp in (int(x) for x in os.environ.get("LOBE_SPP", "2048").split(",")):
+    for spp in (int(x) for x in os.environ.get("LOBE_SPP", "64").split(",")):
         t0 = time.process_time()
         r = [_lobe_ours(bpy, scene, tmp_path, spp, s) / ref for s in range(N)]
         _report(f"lobe AREA no_diffuse ours {spp} spp", r,
