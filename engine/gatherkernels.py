@@ -18,9 +18,9 @@ fifth slice): what ran as numpy indexing between two Embree calls of every gathe
   thread's buffers), and its answer compacted as `keep_hits` compacts Accel.intersect's:
   the same triangle rows, distances and barycentrics without intersect's conversions
   and fresh arrays (GIL-held numpy, page faults on two workers).
-- `count_bent` (s20 fig8speed): the gather rays' bounce counts after a continuation step
-  (integrator._count_continuations), one pass instead of a row take, a compare and four
-  fancy-indexed adds.
+- `count_bounces` (s20 fig8speed as count_bent; glasswater51 by lobe): the gather rays'
+  bounce counts after a continuation step (integrator._count_continuations), one pass
+  instead of a row take, a compare and four fancy-indexed adds.
 
 Each kernel performs the numpy stage's floating-point operations in the same order, so
 images are bitwise unchanged (tests/test_gather_kernels.py keeps the numpy gather as an
@@ -203,32 +203,33 @@ def lean_diffuse(mat, base, lean, table_alpha, wd, full):
 
 
 @kernel
-def count_bent(cnt, idx, keep, d_in, d, cls, diffuse, glossy, transmission):
+def count_bounces(cnt, idx, passed, cls, diffuse, glossy, transmission):
     """The gather rays' bounce counts after a continuation step (integrator.
-    _count_continuations): ray k continued from row keep[k] of the step's directions d_in
-    (N,3) into d[k] (K,3) is bent where any component differs (a NaN differs, as numpy's
-    !=); a bent ray adds 1 to cnt[idx[k], 0] and to column 1 / 2 / 3 where its class
-    cls[k] is diffuse / glossy / transmission (B_TOTAL order). cnt (n,4) int64, updated in
-    place (each hit has one ray a step: idx (K,) holds no row twice), or (0,4): only
-    tell whether some ray is bent (idx, cls not read). Returns the number of bent rays
-    counted (at most 1 without cnt). Integer counts: the numpy stage's numbers exactly."""
+    _count_continuations), as Cycles' path_state_next counts them: ray k continued by a
+    lobe other than the transparent pass (passed[k] False: a reflection or refraction,
+    an IOR 1 or normal-incidence refraction that goes on unbent too) adds 1 to
+    cnt[idx[k], 0] and to column 1 / 2 / 3 where its class cls[k] is diffuse / glossy /
+    transmission (B_TOTAL order); a pass adds none. passed (K,) bool; cnt (n,4) int64,
+    updated in place (each hit has one ray a step: idx (K,) holds no row twice), or
+    (0,4): only tell whether some ray is a bounce (idx, cls not read). Returns the
+    number of bounces counted (at most 1 without cnt). Integer counts."""
     counting = cnt.shape[0] > 0
     nb = 0
-    for k in range(keep.shape[0]):
-        r = keep[k]
-        if d[k, 0] != d_in[r, 0] or d[k, 1] != d_in[r, 1] or d[k, 2] != d_in[r, 2]:
-            nb += 1
-            if not counting:
-                return nb
-            h = idx[k]
-            c = cls[k]
-            cnt[h, 0] += 1
-            if c == diffuse:
-                cnt[h, 1] += 1
-            if c == glossy:
-                cnt[h, 2] += 1
-            if c == transmission:
-                cnt[h, 3] += 1
+    for k in range(passed.shape[0]):
+        if passed[k]:
+            continue
+        nb += 1
+        if not counting:
+            return nb
+        h = idx[k]
+        c = cls[k]
+        cnt[h, 0] += 1
+        if c == diffuse:
+            cnt[h, 1] += 1
+        if c == glossy:
+            cnt[h, 2] += 1
+        if c == transmission:
+            cnt[h, 3] += 1
     return nb
 
 
@@ -255,13 +256,14 @@ def _warm_up():
     full = np.empty(n, np.int64)
     for mat in (np.zeros(n, np.int32), np.zeros(n, np.int64)):
         lean_diffuse(mat, tp, np.ones(1, np.bool_), np.ones(1), np.empty((n, 3)), full)
+    passed = np.zeros(n, np.bool_)
     for counts in (np.zeros((0, 4), np.int64), np.zeros((n, 4), np.int64)):
-        count_bent(counts, idx, idx, o, d, idx, 2, 4, 8)
+        count_bounces(counts, idx, passed, idx, 2, 4, 8)
     # The classes read-only (integrator._count_continuations broadcasts one class: one
     # continued ray's view stays read-only through ascontiguousarray).
     frozen = np.zeros(n, np.int64)
     frozen.flags.writeable = False
-    count_bent(np.zeros((n, 4), np.int64), idx, idx, o, d, frozen, 2, 4, 8)
+    count_bounces(np.zeros((n, 4), np.int64), idx, passed, frozen, 2, 4, 8)
     for regather in (False, True):
         add_gathered(np.zeros((n, 3)), idx, rows[:k], tp, tp, np.ones((k, 3)), 2,
                      np.zeros(k, np.bool_), lt[:k], 0.5, regather, again)

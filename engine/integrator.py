@@ -39,8 +39,8 @@ from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, fi
                             film_add_scalar, film_first_normals, gather_rays, keep_path_hits,
                             mirror_survival, pick_lobes, shade_lobes)
 from .camerarays import camera_rays_kernel, chunk_samples
-from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embree_hits, keep_hits,
-                            lean_diffuse, lean_materials, rays_f32)
+from .gatherkernels import (add_gathered, count_bounces, diffuse_lookups, keep_embree_hits,
+                            keep_hits, lean_diffuse, lean_materials, rays_f32)
 from .anisotropy import anisotropic_materials, set_hit_tangents
 from .closures import principled as pr
 from .coincident import CoincidentSurfaces
@@ -1424,6 +1424,19 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     want_pass=True)
                 keep_f = keep
                 keep = full[keep]
+            if cnt is not None and len(keep):
+                # A chain whose counts at this hit are past a Light Paths limit ends here,
+                # as Cycles ends the path: each lookup after it is past too
+                # (_chain_lookups' rule) and so is its next ray's escape (cnt_in). This,
+                # not a fixed cap, bounds the chain's length (settings.gather_depth).
+                on = chaincounts.within(chaincounts.camera_counts(
+                    cnt[idx[keep]], (level + 1, level + 1, 0, 0)), lim)
+                if not on.all():
+                    on = np.flatnonzero(on)
+                    keep, keep_f, o, d, tp, ray_cls, pass_lobe = (
+                        np.take(a, on, axis=0)
+                        for a in (keep, keep_f, o, d, tp, ray_cls, pass_lobe))
+                    pdf = [np.take(x, on) for x in pdf]
             if passed is not None:
                 passed.step(prim, d_in, y.p, idx, keep, d)
             if chains is not None:
@@ -1457,7 +1470,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if turned_refl is not None and turned_refl.escapes:
                 # (the counts before this continuation: an escape's, above)
                 cnt_in = None if cnt is None else cnt.copy()
-            cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
+            cnt = _count_continuations(cnt, n, idx, pass_lobe, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
@@ -1558,28 +1571,30 @@ def _glow_without_hit(ctx, glow, acc, target, pix, prim, o, d, t, tp, medium, wo
             acc.light.met(pix, Le, tp, rows[src], lightpasses.EMISSION)
 
 
-def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
+def _count_continuations(cnt, n, idx, passed, ray_cls):
     """The gather rays' counts (n,4) per gathering hit after a continuation step
-    (B_TOTAL order, as the camera chain counts them: a bent ray is a bounce of its
-    continued class, sheen's rays (DIFFUSE) a diffuse one as Cycles counts them, a
-    transparent pass none). cnt: (n,4) before (None: zeros), updated in place; idx (K,)
-    the continued rays' hits (one ray a hit); keep (K,) their rows of d_in (N,3)."""
-    if len(keep) == 0:
+    (B_TOTAL order, as the camera chain and Cycles' path_state_next count them: a ray of
+    any lobe but the transparent pass is a bounce of its continued class, an IOR 1 or
+    normal-incidence refraction's unbent ray too; sheen's rays (DIFFUSE) a diffuse one;
+    a pass none). cnt: (n,4) before (None: zeros), updated in place; idx (K,) the
+    continued rays' hits (one ray a hit); passed (K,) bool the pass lobe's rays
+    (continue_specular's want_pass)."""
+    if len(idx) == 0:
         return cnt
-    # One compiled pass (gatherkernels.count_bent): the same integer counts.
+    # One compiled pass (gatherkernels.count_bounces): integer counts.
     c = np.ascontiguousarray
-    keep, d_in, d = c(keep, np.int64), c(d_in, np.float64), c(d, np.float64)
+    passed = c(passed, np.bool_)
     if cnt is None:
-        if not count_bent(_NO_COUNTS, _NO_ROWS, keep, d_in, d, _NO_ROWS, DIFFUSE, GLOSSY,
-                          TRANSMISSION):
+        if not count_bounces(_NO_COUNTS, _NO_ROWS, passed, _NO_ROWS, DIFFUSE, GLOSSY,
+                             TRANSMISSION):
             return None
         cnt = np.zeros((n, 4), np.int64)
-    cls = c(np.broadcast_to(np.asarray(ray_cls, np.int64), (len(keep),)))
-    count_bent(cnt, c(idx, np.int64), keep, d_in, d, cls, DIFFUSE, GLOSSY, TRANSMISSION)
+    cls = c(np.broadcast_to(np.asarray(ray_cls, np.int64), (len(idx),)))
+    count_bounces(cnt, c(idx, np.int64), passed, cls, DIFFUSE, GLOSSY, TRANSMISSION)
     return cnt
 
 
-_NO_COUNTS = np.zeros((0, 4), np.int64)  # count_bent: only whether a ray is bent
+_NO_COUNTS = np.zeros((0, 4), np.int64)  # count_bounces: only whether a ray is a bounce
 _NO_ROWS = np.zeros(0, np.int64)
 
 

@@ -595,53 +595,46 @@ def test_gather_indirect_with_invisible_objects_is_the_numpy_stage(monkeypatch):
         ctx.accel.close()
 
 
-def _count_continuations_numpy(cnt, n, idx, keep, d_in, d, ray_cls):
-    """integrator._count_continuations as the numpy stage computed it: the oracle of
-    gatherkernels.count_bent."""
+def _count_continuations_numpy(cnt, n, idx, passed, ray_cls):
+    """integrator._count_continuations in numpy: the oracle of gatherkernels.count_bounces
+    (every continuation but the pass lobe's is a bounce of its class, bent or not)."""
     from engine.visibility import GLOSSY, TRANSMISSION
-    if len(keep) == 0:
+    if len(idx) == 0:
         return cnt
-    bent = np.any(d != np.take(d_in, keep, axis=0), axis=1)
+    bounce = ~np.asarray(passed, bool)
     if cnt is None:
-        if not bent.any():
+        if not bounce.any():
             return None
         cnt = np.zeros((n, 4), np.int64)
-    cls = np.broadcast_to(ray_cls, (len(keep),))
-    cnt[idx, 0] += bent
-    cnt[idx, 1] += bent & (cls == DIFFUSE)
-    cnt[idx, 2] += bent & (cls == GLOSSY)
-    cnt[idx, 3] += bent & (cls == TRANSMISSION)
+    cls = np.broadcast_to(ray_cls, (len(idx),))
+    cnt[idx, 0] += bounce
+    cnt[idx, 1] += bounce & (cls == DIFFUSE)
+    cnt[idx, 2] += bounce & (cls == GLOSSY)
+    cnt[idx, 3] += bounce & (cls == TRANSMISSION)
     return cnt
 
 
 def test_continuation_counts_are_the_numpy_stage_counts():
-    """integrator._count_continuations (gatherkernels.count_bent) counts what the numpy
-    stage counted: bent rays (any component changed; a NaN counts as changed) per class,
-    per-ray and scalar classes, counts made on the first bent step and None while no ray
-    bends, counts carried in and added to."""
+    """integrator._count_continuations (gatherkernels.count_bounces) counts what numpy
+    counts: every continuation but a transparent pass per class, per-ray and scalar
+    classes, counts made on the first bounce and None while every ray passes, counts
+    carried in and added to."""
     from engine.integrator import _count_continuations
     from engine.visibility import GLOSSY, TRANSMISSION
     rng = np.random.default_rng(13)
-    n, N = 500, 400
+    n = 500
     classes = np.array([DIFFUSE, GLOSSY, TRANSMISSION, 16], np.int64)
     for trial in range(40):
-        d_in = rng.normal(size=(N, 3))
-        K = int(rng.integers(0, N))
-        keep = np.sort(rng.choice(N, K, replace=False)).astype(np.int64)
+        K = int(rng.integers(0, 400))
         idx = rng.choice(n, K, replace=False).astype(np.int64)  # one ray a hit
-        d = d_in[keep].copy()
-        if trial % 4:
-            changed = rng.random(K) < 0.3
-            d[changed, rng.integers(0, 3)] += 1.0
-        if trial % 5 == 1 and K:
-            d[0, 1] = np.nan
+        passed = (np.ones(K, bool) if trial % 4 == 0 else rng.random(K) < 0.7)
         ray_cls = (classes[rng.integers(0, 4, K)] if trial % 2 else
                    int(classes[trial % 4]))
         start = None if trial % 3 == 0 else rng.integers(0, 5, (n, 4)).astype(np.int64)
-        got = _count_continuations(None if start is None else start.copy(), n, idx, keep,
-                                   d_in, d, ray_cls)
+        got = _count_continuations(None if start is None else start.copy(), n, idx, passed,
+                                   ray_cls)
         want = _count_continuations_numpy(None if start is None else start.copy(), n, idx,
-                                          keep, d_in, d, ray_cls)
+                                          passed, ray_cls)
         if want is None:
             assert got is None
         else:
