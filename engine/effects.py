@@ -1009,14 +1009,18 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # A volume's invisible boundary is no "transparent" surface to a user (newuser41b's
         # smoke was listed as one); the chain still passes it.
         sharp_seen = [n for n in sharp_seen if not _volume_only(geo, table, n)]
-        through = (" through " + _labelled(geo, table, sharp_seen[:4])
-                   + (" ..." if len(sharp_seen) > 4 else "") if sharp_seen
+        # (grouped before the first four are taken: four copies of one instanced object
+        # hid the rest; counted against the scene's copies, as only those in view are)
+        in_view = _instance_totals(geo)
+        through = (" through " + _labelled(geo, table, sharp_seen, most=4, totals=in_view)
+                   if sharp_seen
                    else ": no mirror, glass or sharp glossy surface in view")
         # Translucent surfaces are said apart: what they show is light through them.
         tl_seen = [n for n in rough_seen if kinds.get(n) == "translucent"]
         rough_seen = [n for n in rough_seen if kinds.get(n) != "translucent"]
         rough_part = ("; glossy highlights (light sampling) and blurred reflections, no "
-                      "mirror image, on " + _rough_words(geo, table, rough_seen, kinds)
+                      "mirror image, on " + _rough_words(geo, table, rough_seen, kinds,
+                                                         in_view)
                       if rough_seen else "")
         if tl_seen:
             rough_part += ("; light through translucent " + _quoted(tl_seen, most=4)
@@ -1609,8 +1613,19 @@ def _instance_groups(names) -> list[tuple[str, int, str]]:
     return out
 
 
-def _shown(name: str, count: int) -> str:
+def _shown(name: str, count: int, total: int = 0) -> str:
+    """"'Scatter/Rock' (40 instances)"; with the scene's total copies where the line
+    names only some (those in view): "(23 of 89 instances in view)" (newuser51: the
+    specular line's 23 read as a contradiction of the caustics line's 89)."""
+    if total > count:
+        return f"'{name}' ({count:,} of {total:,} instance{'s' if total > 1 else ''} in view)"
     return f"'{name}'" + (f" ({count:,} instances)" if count > 1 else "")
+
+
+def _instance_totals(geo: Geometry) -> dict:
+    """{shown name: copies in the scene} of instanced objects ('Instancer/Object#k')."""
+    return {base: count for base, count, _ in _instance_groups(geo.object_names)
+            if count > 1}
 
 
 def _ordinal(n: int) -> str:
@@ -1620,21 +1635,25 @@ def _ordinal(n: int) -> str:
     return f"{n}{tail}"
 
 
-def _quoted(names, most: int | None = 4) -> str:
+def _quoted(names, most: int | None = 4, totals: dict | None = None) -> str:
     """"'a', 'b', 'c', 'd' ... (3 more)" for a report line: the first `most` names (None:
     all) quoted, " ... (N more)" where N more were left off; instanced copies once with
-    their count (_instance_groups)."""
+    their count (_instance_groups). totals: _instance_totals where names are those in
+    view, so a count below the scene's says "N of M instances in view"."""
     entries = _instance_groups(names)
     shown = entries if most is None else entries[:most]
     left = len(entries) - len(shown)
-    return (", ".join(_shown(n, c) for n, c, _ in shown)
+    totals = totals or {}
+    return (", ".join(_shown(n, c, totals.get(n, 0)) for n, c, _ in shown)
             + (f" ... ({left:,} more)" if left else ""))
 
 
-def _labelled(geo: Geometry, table: MaterialTable, names, most: int | None = None) -> str:
+def _labelled(geo: Geometry, table: MaterialTable, names, most: int | None = None,
+              totals: dict | None = None) -> str:
     """"glass 'ball', glossy 'vase'" for object names (a matte one with the specular
     layer that puts it in the list: "matte 'floor' (its rough specular layer)"); the
-    first `most` (None: all), then " ... (N more)" as _quoted."""
+    first `most` (None: all), then " ... (N more)" as _quoted (totals as there)."""
+    totals = totals or {}
     entries = _instance_groups(names)
     left = 0 if most is None else max(len(entries) - most, 0)
     entries = entries[:len(entries) - left]
@@ -1642,10 +1661,10 @@ def _labelled(geo: Geometry, table: MaterialTable, names, most: int | None = Non
     out = []
     for shown, count, n in entries:
         if n not in ids:
-            out.append(_shown(shown, count))
+            out.append(_shown(shown, count, totals.get(shown, 0)))
             continue
         kind = specular_kind(geo, table, ids[n])
-        out.append(f"{kind} {_shown(shown, count)}"
+        out.append(f"{kind} {_shown(shown, count, totals.get(shown, 0))}"
                    + (" (its rough specular layer)" if kind == "matte"
                       else _closure_words(geo, table, ids[n], kind)))
     return ", ".join(out) + (f" ... ({left:,} more)" if left else "")
@@ -1665,12 +1684,13 @@ def _split_sharp(geo: Geometry, table: MaterialTable, names) -> tuple[list, list
     return sharp, [n for n in names if kinds[n] and kinds[n] not in SHARP_KINDS], kinds
 
 
-def _rough_words(geo: Geometry, table: MaterialTable, names, kinds: dict) -> str:
+def _rough_words(geo: Geometry, table: MaterialTable, names, kinds: dict,
+                 totals: dict | None = None) -> str:
     """"the rough specular layers of 'Floor', 'BackWall', rough glossy 'Ball' (Glossy
     BSDF, roughness 0.5)": rough objects for the specular line, a Principled base's or
     coat's layer by name only (its kind, "matte" or "rough glossy", did not read as
     specular: new-user trial), a rough Glossy BSDF or metal with its closure. kinds:
-    {name: specular_kind}."""
+    {name: specular_kind}; totals: _instance_totals (names are those in view)."""
     ids = {n: i for i, n in enumerate(geo.object_names)}
 
     def glossy_node(n):
@@ -1683,9 +1703,9 @@ def _rough_words(geo: Geometry, table: MaterialTable, names, kinds: dict) -> str
     parts = []
     if layers:
         parts.append("the rough specular layer" + ("s" if len(layers) > 1 else "") + " of "
-                     + _quoted(layers))
+                     + _quoted(layers, totals=totals))
     if others:
-        parts.append(_labelled(geo, table, others[:4]) + (" ..." if len(others) > 4 else ""))
+        parts.append(_labelled(geo, table, others, most=4, totals=totals))
     return ", ".join(parts)
 
 

@@ -494,6 +494,27 @@ def test_instanced_copies_are_listed_once_with_their_count():
                                     "Scatter/Ball#2"]
 
 
+def test_instanced_copies_out_of_view_are_counted_against_the_scene():
+    """The specular line names what the camera sees: with copies out of view it says
+    how many of the scene's are in view (newuser51: 'SprinkleWhite' (23 instances) there
+    and (89 instances) in the caustics line read as a contradiction); copies of one
+    object are grouped before the line's first four are taken."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    s.add_material(Material("clear_glass", (1, 1, 1), transmission=1.0, ior=1.5))
+    for k in range(3):
+        s.add_sphere((-1.0 + k, 0.3, 0.3), 0.3, "clear_glass", name=f"Scatter/Ball#{k}",
+                     segments=12)
+    # Two copies behind the camera (it sits at y = -5 looking along +y).
+    for k in (3, 4):
+        s.add_sphere((k - 4.0, -8.0, 0.3), 0.3, "clear_glass", name=f"Scatter/Ball#{k}",
+                     segments=12)
+    plan = _plan(s)
+    caustics = _line(plan, "caustics:")
+    assert "'Scatter/Ball' (5 instances)" in caustics, caustics
+    spec = _line(plan, "specular reflection / refraction: on")
+    assert "glass 'Scatter/Ball' (3 of 5 instances in view)" in spec, spec
+
+
 def test_max_ray_depth_is_named_only_where_it_cuts_camera_paths():
     """The camera chain stops at the Light Paths limits (as Cycles'); Max Ray Depth
     (max_depth) is an extra cap, off by default, and the report says when it cuts paths
