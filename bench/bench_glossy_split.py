@@ -70,6 +70,45 @@ def ours(name, fg, spp, seed):
     return film, t1.user + t1.system - t0.user - t0.system
 
 
+def ours_diffuse(film):
+    """The light at the camera's diffuse hits D in our film (H, W, 3): its direct,
+    indirect and caustic passes (the maps, the final gather and the gather chains; the
+    specular pass holds what D's glossy lobes see)."""
+    return sum(np.asarray(getattr(film, p), np.float64)[..., :3]
+               for p in ("direct", "indirect", "caustic"))
+
+
+def cycles_diffuse(name, spp, fg, seed):
+    """Cycles' (Diffuse Direct + Diffuse Indirect) x Diffuse Color of scene `name` at
+    Filter Glossy fg (H, W, 3): the light its diffuse closures return, as ours_diffuse
+    (tools/accuracy_scenes.set_cycles, a multilayer EXR read with OpenEXR)."""
+    import tempfile
+    import bpy
+    import OpenEXR
+    scene = acc.setup(name)
+    acc.set_cycles(scene, spp, seed)
+    scene.cycles.blur_glossy = fg
+    layer = scene.view_layers[0]
+    for p in ("diffuse_direct", "diffuse_indirect", "diffuse_color"):
+        setattr(layer, "use_pass_" + p, True)
+    scene.render.use_compositing = False
+    s = scene.render.image_settings
+    if hasattr(s, "media_type"):  # Blender 5.0+
+        s.media_type = "MULTI_LAYER_IMAGE"
+    s.file_format, s.color_depth = "OPEN_EXR_MULTILAYER", "32"
+    fd, path = tempfile.mkstemp(suffix=".exr", prefix="acc_")
+    os.close(fd)
+    try:
+        scene.render.filepath, scene.render.use_file_extension = path, False
+        bpy.ops.render.render(write_still=True)
+        img = {n: np.asarray(c.pixels, np.float64)[..., :3]
+               for part in OpenEXR.File(path).parts for n, c in part.channels.items()}
+    finally:
+        os.unlink(path)
+    d = {k: img[f"{layer.name}.Diffuse {k}"] for k in ("Direct", "Indirect", "Color")}
+    return (d["Direct"] + d["Indirect"]) * d["Color"]
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--spp", type=int, default=64)

@@ -293,7 +293,8 @@ def test_linking_bar(bpy_addon, tmp_path):
                                        ("figure6_box", 1.0)])
 def test_glossy_split(scene, fg):
     """tests/test_glossy_split.py's Cycles comparisons (split50): the floor's level
-    (ours / Cycles at Filter Glossy fg) and ratio ((ours fg / ours 0) / Cycles'), one
+    (ours / Cycles at Filter Glossy fg) and ratio ((ours fg / ours 0) / Cycles'; the
+    sharp floor's diffuse part's level too, sharpfloor51), one
     seed a draw at SPLIT_SPP (64); SPLIT_GATHER=0 / 1 sets photons.SPLIT_GATHER_PHOTONS,
     BLUR_GATHER=0 / 1 photons.BLUR_GATHER_PHOTONS (unset: the defaults)."""
     from engine import photons
@@ -309,15 +310,21 @@ def test_glossy_split(scene, fg):
     spp = int(os.environ.get("SPLIT_SPP", "64"))
     cyc = (T.SHARP_FLOOR_CYCLES if scene == "sharp_floor"
            else dict(zip((0.0, 1.0), T.CYCLES_MEANS[(scene, "Floor")])))
-    t0, level, ratio = time.process_time(), [], []
+    t0, level, ratio, diffuse = time.process_time(), [], [], []
     for s in range(N):
         m = {}
         for f in (0.0, fg):
             film, _ = bgs.ours(scene, f, spp, s)
             lum = np.asarray(film.combined, np.float64)[..., :3] @ bgs.LUM
-            m[f] = float(lum[bgs.bfg.regions(scene, lum.shape)["Floor"]].mean())
+            floor = bgs.bfg.regions(scene, lum.shape)["Floor"]
+            m[f] = float(lum[floor].mean())
+            if scene == "sharp_floor" and f == fg:
+                diffuse.append(float((bgs.ours_diffuse(film) @ bgs.LUM)[floor].mean())
+                               / T.SHARP_FLOOR_CYCLES_DIFFUSE[fg])
         level.append(m[fg] / cyc[fg])
         ratio.append((m[fg] / m[0.0]) / (cyc[fg] / cyc[0.0]))
     cpu = (time.process_time() - t0) / N
     _report(f"{scene} Floor FG {fg} level, ours {spp} spp", level, cpu)
     _report(f"{scene} Floor FG {fg} ratio", ratio, cpu)
+    if diffuse:
+        _report(f"{scene} Floor FG {fg} diffuse part (sharpfloor51) level", diffuse, cpu)
