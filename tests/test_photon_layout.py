@@ -4,6 +4,8 @@
   the kernels' decode is the numpy one bit for bit, and a float32 array reads as itself;
 - RGBE power keeps zeros exactly, each channel within 1/255.5 of the row's brightest, and
   is unbiased on random powers (the summed power within 5e-5);
+- has_power and the row reads answer as the decoded values; a gather map's drop bounds
+  and the photon guide's grids read compact maps as their values (compact51);
 - a map holds 12 B of direction, normal and power a photon (36 with COMPACT off);
 - a flat surface's compact photons get the straight visibility ray the float32 ones get;
 - a real scene's estimates from the compact maps agree with the float32 maps' within
