@@ -39,6 +39,7 @@ sys.path.insert(0, os.path.join(ROOT, "tests"))
 from ball_lens import (CENTRE, IOR, R, SUN, SUN_DIR, CELL, XS, YS,  # noqa: E402
                        ball_scene, bin_irradiance, encircled_radius, floor_hits)
 from engine import RenderSettings  # noqa: E402
+from engine.photonlayout import powers  # noqa: E402
 from engine.photonmap import auto_radius  # noqa: E402
 from engine.render import prepare_context, shoot_photons  # noqa: E402
 
@@ -92,7 +93,7 @@ def main():
         cm = ctx.caustic_map
         pos = cm.photons.position.astype(np.float64) + ctx.geo.offset
         on = np.abs(pos[:, 2]) < 1e-3
-        bins = bin_irradiance(pos[on, :2], cm.photons.power[on, 1].astype(np.float64),
+        bins = bin_irradiance(pos[on, :2], powers(cm.photons.power)[on, 1],
                               XS, YS, CELL)
         l1, pk, wd, tot = scores(bins, ref)
         print(f"| {len(cm):,} | photon bins (2 cm) | - | - | {l1:.3f} | {pk:.3f} | {wd:.3f} | "

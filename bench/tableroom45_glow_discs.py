@@ -5,6 +5,7 @@ import sys, os, pickle
 sys.path.insert(0, os.getcwd())
 import numpy as np
 from engine.jit import ensure_compiled
+from engine.photonlayout import powers
 from engine.render import prepare_context, shoot_photons, close_context
 from engine.settings import RenderSettings
 ensure_compiled()
@@ -16,7 +17,7 @@ cm = ctx.caustic_map.photons
 names = list(ctx.geo.object_names)
 bw = names.index("BackWall")
 surf = np.asarray(cm.surface)
-pos = np.asarray(cm.position, np.float64); pw = np.asarray(cm.power, np.float64).sum(1)
+pos = np.asarray(cm.position, np.float64); pw = powers(cm.power).sum(1)  # (photonlayout: either layout)
 caustic = shots[1]
 print("caustic map", len(pos), "aimed emitted", caustic.emitted, "glow_share", stats.get("glow_share"), "split", stats.get("glow_split"), "glow emitted", stats.get("glow_photons_emitted"))
 for i, n in enumerate(names):

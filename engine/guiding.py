@@ -42,6 +42,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .photonkernels import CAUSTIC, INDIRECT
+from .photonlayout import powers, vectors
 from .sampling import orthonormal_basis
 
 ROWS, COLS = 4, 8   # cells in u1 (sin^2 theta) and u2 (phi / 2 pi)
@@ -77,7 +78,8 @@ class GatherGuide:
     """Per gather point (P of them) the mixture density's tables for guided gather rays.
 
     position, normal: (P,3) the gather points (world space, unit normals); photons: a
-    photons.Photons (the shot); radius: the gather map's search radius (m): the grid of a
+    photons.Photons (the shot; read through photonlayout.vectors / powers, so a map's
+    compact photons would do too); radius: the gather map's search radius (m): the grid of a
     point counts the k nearest INDIRECT photons within 2 x radius on its own side
     (photon normal . point normal > AGREEMENT); share: the mixture's guided share in
     [0, 1) (at 1 a cell without flux would have q = 0: infinite weights; ValueError).
@@ -112,8 +114,8 @@ class GatherGuide:
             found = np.isfinite(dist)
             jj = np.take(rows, np.where(found, j, 0))  # the neighbours' photon rows
             # Incoming direction (towards where the photon came from) in each point's frame.
-            wi = -np.take(photons.direction, jj, axis=0).astype(np.float64)
-            pn = np.take(photons.normal, jj, axis=0).astype(np.float64)
+            wi = -vectors(photons.direction, jj)
+            pn = vectors(photons.normal, jj)
             n = self.normal[:, None, :]
             t, b = orthonormal_basis(self.normal)
             l0 = np.einsum("pkc,pc->pk", wi, t)
@@ -122,7 +124,7 @@ class GatherGuide:
             ok = found & (np.einsum("pkc,pkc->pk", pn, np.broadcast_to(n, pn.shape))
                           > AGREEMENT) & (l2 > 0.0)
             cell = _cells(l0, l1)
-            pw = np.take(photons.power, jj, axis=0).astype(np.float64)
+            pw = powers(photons.power, jj)
             lum = pw @ np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance
             w = np.where(ok, lum, 0.0)
             flat = (np.arange(p)[:, None] * CELLS + cell).ravel()
@@ -286,15 +288,14 @@ def _flux_grids(position, normal, photons, radius, emitters, chunk=256):
     rows = np.flatnonzero(photons.kind != CAUSTIC)
     if not p or not len(rows):
         return out
-    lum = (np.take(photons.power, rows, axis=0).astype(np.float64)
-           @ np.array([0.2126, 0.7152, 0.0722]))
+    lum = (powers(photons.power, rows) @ np.array([0.2126, 0.7152, 0.0722]))
     cum = np.cumsum(lum)
     if cum[-1] <= 0.0:
         return out
     pick = np.searchsorted(cum, (np.arange(emitters) + 0.5) / emitters * cum[-1], side="right")
     pick = np.take(rows, np.minimum(pick, len(rows) - 1))
     ey = np.take(photons.position, pick, axis=0).astype(np.float64)
-    ny = np.take(photons.normal, pick, axis=0).astype(np.float64)
+    ny = vectors(photons.normal, pick)
     r2min = radius * radius
     t, b = orthonormal_basis(normal)
     for a in range(0, p, chunk):

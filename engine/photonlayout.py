@@ -27,14 +27,13 @@ read_axis instead: the octahedral point unnormalised and its squared length, com
 cosines by cos_below / cos_at_most without the decode's float32 sqrt and divide, which
 cost compact49's rows most of their 1.4-2.1x (docs/performance.md "compact50").
 
-COMPACT: PhotonMap stores its photons in this layout (True) or keeps the float32 arrays
-(False, the default: switched on, s50's clean-clone CI failed four tests: three read a
-map's raw photon arrays (RGBE bytes where they sum float32 power), and a billion-watt
-light's image differed from a 100 W one's scaled by up to 0.24 % (RGBE's 8-bit mantissa);
-every reader of map.photons outside the lookups is to be audited before it goes on
-again). A render's own estimates replayed take 1.01 / 1.04x the float32 maps' CPU
-(Figures 6 / 8; 1.62 / 1.79x in compact49) for the 24 B a held photon it saves
-(docs/performance.md "compact49", "compact50").
+COMPACT: PhotonMap stores its photons in this layout (True, the default since compact51)
+or keeps the float32 arrays (False: the float32 films, for references and A/B benches).
+Every reader of a map's photon arrays goes through this module: the kernels through the
+overloads above, numpy code through vectors / powers / has_power (docs/performance.md
+"compact51" lists the readers; the shots, Photons before a map, stay float32). A render's
+own estimates replayed take 1.01 / 1.04x the float32 maps' CPU (Figures 6 / 8) for the
+24 B a held photon it saves (docs/performance.md "compact49", "compact50").
 """
 from __future__ import annotations
 
@@ -46,7 +45,7 @@ from numba.extending import overload
 
 from .jit import kernel
 
-COMPACT = False
+COMPACT = True
 
 OCT_SCALE = 32767.0
 # The round-trip's largest angle between a unit vector and its decoded value (rad):
@@ -163,16 +162,34 @@ def decode_power(code: np.ndarray, dtype=np.float64) -> np.ndarray:
 
 def vectors(a: np.ndarray, rows=None, dtype=np.float64) -> np.ndarray:
     """(K,3) dtype of a map's direction or normal array a (float (N,3) or octahedral
-    (N,2) int16), at rows (K,) int (None: all)."""
-    a = a if rows is None else np.take(a, rows, axis=0)
-    return decode_vectors(a, dtype) if a.dtype == np.int16 else a.astype(dtype)
+    (N,2) int16), at rows (K,) int (None: all); rows of any shape S give S + (3,)."""
+    if a.dtype != np.int16:
+        return (a if rows is None else np.take(a, rows, axis=0)).astype(dtype)
+    if rows is None:
+        return decode_vectors(a, dtype)
+    rows = np.asarray(rows)
+    return decode_vectors(np.take(a, rows.ravel(), axis=0), dtype).reshape(rows.shape + (3,))
 
 
 def powers(a: np.ndarray, rows=None, dtype=np.float64) -> np.ndarray:
     """(K,3) dtype of a map's power array a (float (N,3) or RGBE (N,4) uint8), at rows
-    (K,) int (None: all)."""
-    a = a if rows is None else np.take(a, rows, axis=0)
-    return decode_power(a, dtype) if a.dtype == np.uint8 else a.astype(dtype)
+    (K,) int (None: all); rows of any shape S give S + (3,)."""
+    if a.dtype != np.uint8:
+        return (a if rows is None else np.take(a, rows, axis=0)).astype(dtype)
+    if rows is None:
+        return decode_power(a, dtype)
+    rows = np.asarray(rows)
+    return decode_power(np.take(a, rows.ravel(), axis=0), dtype).reshape(rows.shape + (3,))
+
+
+def has_power(a: np.ndarray) -> np.ndarray:
+    """(N,) bool: whether each row of a power array a (float (N,3) or RGBE (N,4) uint8)
+    has a nonzero channel once decoded, without decoding: a float row's channels != 0; an
+    RGBE row's bytes != 0, the same answer because encode_power writes all four bytes 0
+    for a powerless photon, a nonzero exponent byte only with the brightest mantissa >=
+    128 (nonzero), and exponent byte 0 decodes each mantissa m as m 2^-136 > 0 for m > 0
+    (tests/test_photon_layout.py)."""
+    return np.any(a != 0, axis=1)
 
 
 def compact(photons):

@@ -119,9 +119,9 @@ class PhotonMap:
 
     The photons are kept in the structure's order (self.photons is that permutation of
     the input), so a search result indexes the photon arrays directly: the map adds under
-    2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49 (53
-    with their surfaces, Photons.surface: 4 B; 25 / 29 with photonlayout.COMPACT on:
-    power, direction and normal in 12 B instead of 36).
+    2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 25 (29
+    with their surfaces, Photons.surface: 4 B) in the compact layout (photonlayout.COMPACT,
+    the default: power, direction and normal in 12 B; 49 / 53 B with it off).
     structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
     it serves best), required for "hashgrid". Raises ValueError for anything else.
     rows: (K,) int, the map holds only those photons (photons.take(rows), gathered once
@@ -1308,7 +1308,7 @@ class GatherMap:
         bound_keys = list((drop_bounds or {}).keys())
         bound_masks, bound_of = [], []
         if bound_keys:
-            with_power = np.any(photons.power != 0.0, axis=1)
+            with_power = photonlayout.has_power(photons.power)  # (either layout)
         for key in bound_keys:
             mask = drop_bounds[key] & with_power
             same = [i for i, m in enumerate(bound_masks) if np.array_equal(m, mask)]
@@ -1327,7 +1327,7 @@ class GatherMap:
         # (P,3) array where the lookup kernels read it as E). live: the others.
         chosen, live = None, list(range(kept))
         if masks:
-            est_power = np.any(estimating.photons.power != 0.0, axis=1)
+            est_power = photonlayout.has_power(estimating.photons.power)  # (a map: compact)
             rows_of = []
             live = []
             for i, mask in enumerate(masks):

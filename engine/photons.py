@@ -55,10 +55,10 @@ USABLE_BY_CLASS = 4096
 
 @dataclass
 class Photons:
-    # power, direction and normal are float32 in a shot; with photonlayout.COMPACT on a
-    # PhotonMap holds them in the compact layout (engine/photonlayout.py: power (N,4)
-    # uint8 RGBE, direction and normal (N,2) int16 octahedral; photonlayout.powers /
-    # vectors decode rows).
+    # power, direction and normal are float32 in a shot; with photonlayout.COMPACT on
+    # (the default) a PhotonMap holds them in the compact layout (engine/photonlayout.py:
+    # power (N,4) uint8 RGBE, direction and normal (N,2) int16 octahedral; its powers /
+    # vectors / has_power read rows of either layout).
     position: np.ndarray   # (N,3) float32, re-centred world space
     power: np.ndarray      # (N,3) float32 watts
     direction: np.ndarray  # (N,3) float32 travel direction when it arrived

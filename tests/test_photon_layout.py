@@ -4,11 +4,14 @@
   the kernels' decode is the numpy one bit for bit, and a float32 array reads as itself;
 - RGBE power keeps zeros exactly, each channel within 1/255.5 of the row's brightest, and
   is unbiased on random powers (the summed power within 5e-5);
+- has_power and the row reads answer as the decoded values; a gather map's drop bounds
+  and the photon guide's grids read compact maps as their values (compact51);
 - a map holds 12 B of direction, normal and power a photon (36 with COMPACT off);
 - a flat surface's compact photons get the straight visibility ray the float32 ones get;
 - a real scene's estimates from the compact maps agree with the float32 maps' within
   0.2 % (the same shot, both layouts).
 """
+import copy
 import math
 
 import numba
@@ -111,6 +114,71 @@ def test_rgbe_power_keeps_zeros_and_is_unbiased():
     np.testing.assert_array_equal(out, back)
     _kernel_powers(c, out)
     np.testing.assert_array_equal(out, c64)
+
+
+def test_has_power_and_row_reads_answer_as_the_decoded_values():
+    """has_power (the gather map's drop bounds and masks test it) says whether the decoded
+    power has a nonzero channel, for RGBE codes and float arrays alike, without decoding:
+    a powerless photon is all zero bytes, and no code with a nonzero byte decodes to 0
+    (down to below RGBE's range, 2^-136, where the exponent byte stays 0). vectors /
+    powers take rows of any shape (guiding's (P, k) neighbour rows)."""
+    rng = np.random.default_rng(7)
+    n = 200_000
+    c = (rng.random((n, 3)) * np.exp2(rng.uniform(-150, 40, n))[:, None]).astype(np.float32)
+    c[::5, 0] = 0.0
+    c[::9] = 0.0
+    code = L.encode_power(c)
+    back = L.decode_power(code)
+    on = L.has_power(code)
+    np.testing.assert_array_equal(on, np.any(back != 0.0, axis=1))
+    assert on.sum() > 0.8 * n and (~on).sum() > n / 9  # (zeros, and some below the range)
+    np.testing.assert_array_equal(L.has_power(c), np.any(c != 0.0, axis=1))
+    rows = rng.integers(0, n, (50, 7))
+    np.testing.assert_array_equal(L.powers(code, rows), back[rows])
+    np.testing.assert_array_equal(L.powers(c, rows), c.astype(np.float64)[rows])
+    v = _unit(n, rng)[:n]
+    vc = L.encode_vectors(v)
+    np.testing.assert_array_equal(L.vectors(vc, rows, np.float32), L.decode_vectors(vc)[rows])
+    np.testing.assert_array_equal(L.vectors(v, rows), v.astype(np.float64)[rows])
+
+
+def test_drop_bounds_and_guides_read_compact_maps_as_their_values(monkeypatch):
+    """A gather map's drop bounds (a mask's photons of nonzero power in a point's disc)
+    are the float32 maps' with COMPACT on (the estimating map compact, its zero-power
+    photons all zero bytes), and a mask of powerless photons bounds nothing; the photon
+    guide's grids from a compact map's photons are those of round_trip's float32 ones,
+    bit for bit (engine/guiding.py reads through vectors / powers)."""
+    from engine.guiding import GatherGuide
+    from engine.photonmap import GatherMap
+    from engine.photons import INDIRECT
+    rng = np.random.default_rng(8)
+    n = 20000
+    ph = _plane_photons(n, rng)
+    ph.direction[:, 2] = np.minimum(ph.direction[:, 2], -0.3)  # (no grazing photon)
+    ph.direction /= np.linalg.norm(ph.direction, axis=1)[:, None]
+    dark = rng.random(n) < 0.3
+    ph.power[dark] = 0.0
+    some = rng.random(n) < 0.2
+    bounds = {(0, 1): some, (0, 2): some & dark, (1, 1): dark}
+    got = {}
+    for compact in (True, False):
+        monkeypatch.setattr(L, "COMPACT", compact)
+        g = GatherMap(ph, 0.05, 32, 1, "knn_simpson", keep=~some, drop_bounds=bounds,
+                      max_points=3000, bounces=np.zeros((n, 4), np.uint8))
+        assert (g.estimating.photons.power.dtype == np.uint8) == compact
+        got[compact] = g
+    for key in bounds:
+        np.testing.assert_array_equal(got[True].drop_bounds[key], got[False].drop_bounds[key])
+    assert got[True].drop_bounds[(0, 1)].any()
+    assert not got[True].drop_bounds[(0, 2)].any() and not got[True].drop_bounds[(1, 1)].any()
+    ph.kind[:] = INDIRECT
+    q = ph.position[:40].astype(np.float64)
+    nq = np.tile([0.0, 0.0, 1.0], (40, 1))
+    for source in ("indirect", "flux"):
+        a = GatherGuide(q, nq, L.compact(copy.copy(ph)), 0.05, source=source)
+        b = GatherGuide(q, nq, L.round_trip(ph), 0.05, source=source)
+        np.testing.assert_array_equal(a.row_prob, b.row_prob)
+        np.testing.assert_array_equal(a.col_prob, b.col_prob)
 
 
 def _plane_photons(n, rng):
