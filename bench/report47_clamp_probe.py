@@ -9,7 +9,9 @@ light HEIGHT m over the floor facing down, a World of (0.2, 0.3, 0.4)), built wi
 prints the probe's shares (the engine scene exported by the add-on, Indirect 10) and
 Cycles' Diffuse Indirect x Diffuse Color and Combined image means at Indirect 10 over
 off (96 x 72, same seed, no denoise / adaptive / glossy blur). blend: the probe's
-shares for a saved scene at its own Light Paths settings, and its clamping line.
+shares for a saved scene at its own Light Paths settings, the caustics' and the
+seen-through-glass probes' (effects.clamped_caustics, clamped_through_glass), and its
+clamping line.
 """
 from __future__ import annotations
 
@@ -84,6 +86,11 @@ def probe(bpy, seeds):
                                    3.0 * settings.clamp_indirect, np.random.default_rng(seed))
         print(f"probe (seed {seed}, Indirect {settings.clamp_indirect:g}): "
               + (", ".join(f"{k} {100 * v:.2f} %" for k, v in got.items()) or "none"))
+    # (the caustics' and the seen-through-glass probes, clampnote51: the plan's own seed)
+    for what, got in (("caustics", ctx.plan.clamped_caustics),
+                      ("through glass", ctx.plan.clamped_glass)):
+        print(f"{what} probe: " + (", ".join(f"{k} {100 * v:.2f} %" for k, v in got.items())
+                                   or "none"))
     line = next((r for r in ctx.plan.report() if r.startswith("clamping")), "")
     print("report:", line)
     ctx.accel.close()

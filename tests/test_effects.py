@@ -929,14 +929,18 @@ def test_report_says_when_clamping_is_on():
     assert "rare bright samples that the clamp cuts" in text
     assert "set Indirect to 0 in both" in text
     assert "bounce light of a sunlit scene" in text
-    # A World colour without a sun: not "sunlit" (newuser45's evening room).
+    # A World colour without a sun: not "sunlit" (newuser45's evening room); its bounce
+    # light probed and none over the clamp, so no "can read brighter" (clampnote51:
+    # studio48's and newuser51's World-lit sets read it where nothing did).
     sky = PaperScene(width=16, height=16)
     sky.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
     sky.add_sphere((0, 0, 1), 0.5, "white_diffuse", name="ball")
     sky.background = (0.2, 0.3, 0.4)
     sky.set_camera((0, -5, 2), (0, 0, 0.5))
     text = effects(sky.render(dataclasses.replace(base, clamp_indirect=10.0)))
-    assert "bounce light of a sky-lit (World) scene" in text and "sunlit" not in text, text
+    assert ("Cycles' clamp changes nothing measurable in the World's bounce light here (a "
+            "probe of Cycles' first diffuse bounces finds none over it)") in text, text
+    assert "can read brighter" not in text and "sunlit" not in text, text
     # No light at all: a black image, no clamping paragraph.
     dark = PaperScene(width=16, height=16)
     dark.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
@@ -972,8 +976,9 @@ def test_clamping_line_names_the_light_whose_bounce_light_cycles_clamp_cuts():
     assert plan.clamped == {}, plan.clamped
     line = _line(plan, "clamping: on")
     assert "the bounce light of 'Area'" not in line, line
-    # (the World's possibility note, saying the probe found nothing)
-    assert "a probe of its first diffuse bounces here finds none over it" in line, line
+    # (the World's bounce light, probed: none over the clamp, said in one sentence)
+    assert "a probe of Cycles' first diffuse bounces finds none over it" in line, line
+    assert "can read brighter" not in line, line
     # The lamp alone (no sun, no World): the cut is named all the same (the note was
     # for scenes a sun or the World lights only).
     s = room(1.0)
@@ -984,15 +989,20 @@ def test_clamping_line_names_the_light_whose_bounce_light_cycles_clamp_cuts():
 
 def test_clamping_line_names_the_light_seen_through_glass():
     """newuser46's bottle in front of a window Area light read 1.18x Cycles at its default
-    Indirect 10 (0.99x with both clamps off): the lamp seen through a closed glass object
-    reaches Cycles' camera paths after two refractions, as indirect light its clamp cuts
-    (to 0.63 of itself there; ours' clamp to 0.74). The clamping line says so, naming
-    the glass in view; not with the clamp off, nor without glass."""
+    Indirect 10 (0.99x with both clamps off): the lamp seen through (or in) a closed glass
+    object reaches Cycles' camera paths after a refraction or reflection, as indirect
+    light its clamp cuts (to 0.63 of itself there; ours' clamp to 0.74). The clamping
+    line says so, naming the glass in view and the share a probe of Cycles' samples
+    through it finds over the clamp (effects.clamped_through_glass: here the 400 W area
+    light's reflections in the ball); not with the clamp off, nor without glass."""
     glass = _room(Material("plain", (0.6, 0.6, 0.6)), extra=[("glass", "Clear")])
-    line = _line(_plan(glass, clamp_indirect=10.0), "clamping: on")
-    assert ("the light seen through glass 'Clear' (a lamp or the sky behind it) reaches "
-            "Cycles' camera paths after two refractions, as indirect light its clamp cuts "
-            "where it is bright: such glass can read brighter here") in line, line
+    plan = _plan(glass, clamp_indirect=10.0)
+    line = _line(plan, "clamping: on")
+    assert ("the light seen through glass 'Clear' (a lamp or the sky behind it or reflected "
+            "in it) reaches Cycles' camera paths after a refraction or reflection, as "
+            "indirect light its clamp cuts where it is bright ('Area' (area light, ") in line, line
+    assert "such glass can read brighter here" in line, line
+    assert plan.clamped_glass["Area"] > 0.02, plan.clamped_glass
     assert not any(r.startswith("clamping") for r in _plan(glass).report())
     plain = _room(Material("plain", (0.6, 0.6, 0.6)))
     assert "seen through glass" not in _line(_plan(plain, clamp_indirect=10.0), "clamping: on")
@@ -1168,10 +1178,58 @@ def test_clamping_line_names_the_caustic_casters():
     at Indirect 10, 1.000 with it off): the clamping line names the casters; without a
     caster it does not."""
     s = _room(Material("plain", (0.6, 0.6, 0.6)), extra=[("glass", "Eye")])
-    line = _line(_plan(s, clamp_indirect=10.0), "clamping: on - ")
+    plan = _plan(s, clamp_indirect=10.0)
+    line = _line(plan, "clamping: on - ")
     assert "the caustics of 'Eye' likewise reach Cycles' paths" in line, line
+    # (a 400 W 1 m area light, radiance 127: its caustic samples a_x T L, R + G + B ~230
+    # against 30)
+    assert "rare bright samples that its clamp cuts ('Area' (area light, " in line, line
+    assert plan.clamped_caustics["Area"] > 0.002, plan.clamped_caustics
     plain = _room(Material("plain", (0.6, 0.6, 0.6)))
     assert "caustics of" not in _line(_plan(plain, clamp_indirect=10.0), "clamping: on - ")
+
+
+def _caster_table(light):
+    """Two coated casters under a dim 10 W area light (light "dim"), or a glass ball under
+    a 0.526-degree sun of 5 W/m^2 ("sun"), on a floor before a wall."""
+    s = PaperScene(width=24, height=18)
+    s.add_material(Material("plain", (0.6, 0.6, 0.6)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 6, "plain", name="Floor")
+    s.add_plane((0, 2.0, 1.5), (0, -1, 0), (6, 3), "plain", name="BackWall")
+    if light == "sun":
+        s.add_material(Material("clear_glass", (1, 1, 1), transmission=1.0, ior=1.5))
+        s.add_sphere((0.0, 0.3, 0.5), 0.5, "clear_glass", name="Ball", segments=24)
+        s.add_sun(direction=(0.3, 0.2, -1), strength=5.0, angle_degrees=0.526,
+                  name="Sun")
+    else:
+        s.add_material(Material("glaze", (0.8, 0.8, 0.8), roughness=0.4,
+                                coat_weight=1.0, coat_roughness=0.03))
+        s.add_sphere((-0.6, 0.3, 0.4), 0.4, "glaze", name="Plate", segments=24)
+        s.add_sphere((0.6, 0.3, 0.4), 0.4, "glaze", name="Mug", segments=24)
+        s.add_rect_area_light((0.8, -0.8, 1.2), (0.6, 0.6), power=10, name="Lamp")
+    s.set_camera((0, -5, 2.5), (0, 0.5, 0.5), view_angle=50)
+    return s
+
+
+def test_clamping_line_says_the_caustics_only_where_a_probe_finds_them_over_the_clamp():
+    """The caustics clause fired wherever a caster was (clampnote51: newuser51's donut,
+    whose coated plate and mug under a 10 W area light and an HDRI of radiance 6 read
+    0.95-1.003 of Cycles, Cycles' clamp changing nothing). effects.clamped_caustics probes
+    Cycles' caustic samples (a diffuse point in view, a caster, the light's radiance):
+    coated casters under a dim area light (radiance 8.8: R + G + B at most ~20 a sample)
+    none over the clamp, said in one sentence; a glass ball under a bright sun (its
+    0.526-degree disc, radiance ~75,000) nearly all."""
+    plan = _plan(_caster_table("dim"), clamp_indirect=10.0)
+    assert plan.casters and plan.clamped_caustics == {}, (plan.casters, plan.clamped_caustics)
+    line = _line(plan, "clamping: on - ")
+    assert "can read brighter" not in line, line
+    assert ("a probe of Cycles' samples of the caustics of 'Plate', 'Mug' finds none over "
+            "the clamp: it changes nothing measurable there") in line, line
+    plan = _plan(_caster_table("sun"), clamp_indirect=10.0)
+    line = _line(plan, "clamping: on - ")
+    assert ("the caustics of 'Ball' likewise reach Cycles' paths in rare bright samples "
+            "that its clamp cuts ('Sun' (sun, ") in line, line
+    assert plan.clamped_caustics["Sun"] > 0.002, plan.clamped_caustics
 
 
 def test_cycles_caustics_switches_are_named_where_they_change_cycles_image():
