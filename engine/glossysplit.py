@@ -244,7 +244,7 @@ class DiffusePdf:
         sel = np.asarray(sel, np.int64)
 
         def reject(rows, photons):
-            # A block of pairs at a time: a lookup block's pairs (up to 16,384 rows x 128
+            # A block of pairs at a time: a lookup block's pairs (up to 16,384 rows x 2k
             # photons) made their directions', normals' and lobe parameters' temporaries
             # all at once, tens of MB a worker (docs/performance.md "mem51").
             out = np.empty(len(rows), bool)
