@@ -244,6 +244,16 @@ class DiffusePdf:
         sel = np.asarray(sel, np.int64)
 
         def reject(rows, photons):
+            # A block of pairs at a time: a lookup block's pairs (up to 16,384 rows x 2k
+            # photons) made their directions', normals' and lobe parameters' temporaries
+            # all at once, tens of MB a worker (docs/performance.md "mem51").
+            out = np.empty(len(rows), bool)
+            for a in range(0, len(rows), REJECT_BLOCK):
+                out[a:a + REJECT_BLOCK] = reject_block(rows[a:a + REJECT_BLOCK],
+                                                       photons[a:a + REJECT_BLOCK])
+            return out
+
+        def reject_block(rows, photons):
             r = np.take(sel, rows)
             out = np.ones(len(r), bool)
             test = np.flatnonzero(np.take(self.largest, r) >= self.fg)
@@ -279,6 +289,9 @@ def window_glass(ctx):
 
 
 PDF_BLOCK = 1 << 16  # DiffusePdf.pdf's pairs per call (its gathered lobe rows' memory)
+# DiffusePdf.reject_for's pairs per block (each pair's test is its own: the same answers;
+# its direction, normal and pdf temporaries' memory: docs/performance.md "mem51").
+REJECT_BLOCK = 1 << 14
 
 
 def shadow_carried(light) -> bool:

@@ -183,16 +183,11 @@ def test_photon_reverse_pdf_through_the_surface_is_the_camera_sides():
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-300)
 
 
-def test_maps_and_chains_decide_each_path_alike():
-    """Hand-made paths L S_1 S_2 D: D a Principled floor of roughness 0.1 (specular 0.5)
-    seen at a grazing angle, S_2 a rough metal. The maps count the photon (DiffusePdf's
-    reject: min(pdf_D(-w_photon), the photon's stored reverse pdf at S_2) >= fg) exactly
-    where the gather chain D -> S_2 -> S_1 is not blurred at S_1 (GatherChains: start at
-    pdf_D of the gather direction, lowered by the continuation's MIS pdf at S_2), at
-    Filter Glossy 0.1, 0.3 and 1; both outcomes occur, and D's specular layer keeps
-    some paths unblurred at 1 that its Lambert lobe alone (cos / pi) would blur."""
+def _split_paths(k):
+    """test_maps_and_chains_decide_each_path_alike's k hand-made paths L S_1 S_2 D: (the
+    hit at D, the map of their photons, D's gather directions towards S_2, the photons'
+    stored reverse pdfs, the chains' MIS pdfs at S_2)."""
     rng = np.random.default_rng(7)
-    k = 400
     floor = Material("floor", (0.8, 0.8, 0.8), roughness=0.1, specular=1.0)  # Blender's
     metal = Material("metal", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.3)
     cos_view = 0.15
@@ -220,6 +215,36 @@ def test_maps_and_chains_decide_each_path_alike():
     chain_pdf = _chain_mis_pdf(prm_s, w_s, wo_s, wi_s)
     pmap = SimpleNamespace(photons=SimpleNamespace(
         direction=(-towards_s).astype(np.float32), blur_pdf=stored))
+    return hit, pmap, towards_s, stored, chain_pdf
+
+
+def test_reject_answers_each_pair_alone(monkeypatch):
+    """DiffusePdf.reject_for's test made REJECT_BLOCK pairs at a time (its temporaries'
+    memory, docs/performance.md "mem51") answers every (row, photon) pair as one block of
+    all the pairs does, bit for bit: pairs in any order, rows and photons repeated."""
+    k = 400
+    hit, pmap, *_ = _split_paths(k)
+    rng = np.random.default_rng(51)
+    rows, photons = rng.integers(0, k, 5000), rng.integers(0, k, 5000)
+    d_pdf = glossysplit.DiffusePdf(SimpleNamespace(table=None), hit, 0.3)
+    monkeypatch.setattr(glossysplit, "REJECT_BLOCK", 1 << 30)
+    whole = d_pdf.reject_for(pmap, np.arange(k))(rows, photons)
+    monkeypatch.setattr(glossysplit, "REJECT_BLOCK", 7)
+    blocks = d_pdf.reject_for(pmap, np.arange(k))(rows, photons)
+    np.testing.assert_array_equal(blocks, whole)
+    assert whole.any() and not whole.all()
+
+
+def test_maps_and_chains_decide_each_path_alike():
+    """Hand-made paths L S_1 S_2 D: D a Principled floor of roughness 0.1 (specular 0.5)
+    seen at a grazing angle, S_2 a rough metal. The maps count the photon (DiffusePdf's
+    reject: min(pdf_D(-w_photon), the photon's stored reverse pdf at S_2) >= fg) exactly
+    where the gather chain D -> S_2 -> S_1 is not blurred at S_1 (GatherChains: start at
+    pdf_D of the gather direction, lowered by the continuation's MIS pdf at S_2), at
+    Filter Glossy 0.1, 0.3 and 1; both outcomes occur, and D's specular layer keeps
+    some paths unblurred at 1 that its Lambert lobe alone (cos / pi) would blur."""
+    k = 400
+    hit, pmap, towards_s, stored, chain_pdf = _split_paths(k)
     rows = np.arange(k)
     lambert_kept = 0
     for fg in (0.1, 0.3, 1.0):
