@@ -579,7 +579,6 @@ class GatherChains:
         t, prim, u, v = ctx.accel.intersect(o, d, cls=cls)
         t = np.where(prim >= 0, t, np.inf)
         Le = np.zeros((k, 3))
-        at_lamp = np.zeros(k, bool)
         carrier = np.take(self.left_carrier, rows_idx)
         carried = {li: j for j, (li, _) in enumerate(self.carried)}
 
@@ -606,20 +605,19 @@ class GatherChains:
                 continue
             mask = mask & sees
             if mask.any():
-                # (a ray that meets the lamp ends there, counted or not)
+                # (the ray goes on past the lamp, as in Cycles: the camera path's rule,
+                # integrator._trace_paths)
                 add = mask & counted(li)
                 if self.reflection_only[li]:
                     add &= cls != it.GLOSSY  # (its light sampled at the vertex)
                 Le[add] += L[add]
-                t = np.where(mask, tl, t)
-                at_lamp |= mask
-        surf = np.flatnonzero((prim >= 0) & ~at_lamp)
+        surf = np.flatnonzero(prim >= 0)
         if len(surf) and self.unsampled:
             y = surface_hit(ctx.geo, ctx.table, prim[surf], u[surf], v[surf], d[surf])
             if y.emission is not None and np.any(y.emission > 0):
                 Le[surf] += it.unsampled_emission(ctx, self.unsampled, prim[surf], d[surf],
                                                   np.asarray(y.emission, np.float64))
-        miss = np.flatnonzero((prim < 0) & ~at_lamp)
+        miss = np.flatnonzero(prim < 0)
         if len(miss):
             dm = np.take(d, miss, axis=0)
             for li in self.continuation_lights:

@@ -773,6 +773,36 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
 
 
+def lamp_passes(met, n, t_count, t_limit):
+    """The camera paths' passes through the lamps their rays met (met: a list of (light
+    index, light, rows (k,) int64, distances (k,), ...) per lamp), as Cycles counts them:
+    each a transparent bounce (integrator_shade_light_forward), the path ending at the
+    lamp whose pass brings its count (t_count (n,) int64, the passes so far) to t_limit
+    (Max Bounces > Transparent). Returns (t_end (n,): where each path ends, at that
+    lamp, inf for the paths that go on; None when none ends there, the counts (n,) after
+    the passes counted up to that lamp)."""
+    met_count = np.zeros(n, np.int64)
+    for entry in met:
+        met_count[entry[2]] += 1
+    total = t_count + met_count
+    over = np.flatnonzero((total >= t_limit) & (met_count > 0))
+    if not len(over):
+        return None, total
+    # The pass that reaches the limit: the (t_limit - t_count)-th nearest lamp met.
+    rows = np.concatenate([entry[2] for entry in met])
+    dist = np.concatenate([entry[3] for entry in met])
+    take = np.isin(rows, over)
+    rows, dist = rows[take], dist[take]
+    order = np.lexsort((dist, rows))
+    rows, dist = rows[order], dist[order]
+    start = np.searchsorted(rows, over)
+    nth = np.maximum(t_limit - t_count[over], 1) - 1
+    t_end = np.full(n, np.inf)
+    t_end[over] = dist[start + nth]
+    total[over] = np.maximum(t_limit, t_count[over])
+    return t_end, total
+
+
 def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b, org_ns,
                         org_p, passages, lamp_w, clamping, tp, chain, acc, target, pix, ftp,
                         feat, s, clamp_tp=None):
@@ -1993,12 +2023,15 @@ def probe_rows(p, psum, over=None):
     return np.flatnonzero(ok)
 
 
-def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None):
+def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None, t_limit=8,
+                 used=None):
     """The escaping world light of WORLD_PROBES further reflections at the hits rows (K,)
     (of hit, throughputs tp (N,3)), each sampled again from the hit's lobe choice
     (continue_specular with every row surviving, from rng, a stream of its own) and
     tested for escape as the continuation's ray would meet it (an occlusion ray of class
-    GLOSSY; the surfaces of lamps glossy rays see stop it too). Returns (hit rows (M,),
+    GLOSSY; the lamps glossy rays see are passed, unless t_limit (Max Bounces >
+    Transparent, less used (N,) int64: the passes each path made before the hit; None:
+    none) of them lie on the way: lamp_passes). Returns (hit rows (M,),
     light (M,3) with its throughput: world x tp x f cos / pdf / P(lobe) / (q + K), q the
     hit's survival probability, K = WORLD_PROBES), the rows of escaped probes, a row
     once per probe; every value >= 0. uv: a function of the probe's index j giving its
@@ -2019,11 +2052,16 @@ def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None):
         counters.shadow_rays += len(keep)
         # (occlusion rays from the camera's first hits: counted with their shadow rays)
         counters.count("camera shadow", 0, len(keep))
+        # A lamp on the way hides no world (the ray goes on past it, _trace_paths),
+        # unless the passes through the lamps reach Max Bounces > Transparent (t_limit):
+        # the path ends at the lamp, as lamp_passes.
+        met = np.zeros(len(keep), np.int64) if used is None else np.take(used, keep)
         for light in ctx.lights:
             if light.has_surface and light.ray_kinds & GLOSSY and escaped.any():
-                met, _, L = light.intersect(o, d, np.full(len(o), np.inf))
+                hit_lamp, _, L = light.intersect(o, d, np.full(len(o), np.inf))
                 if L is not None:
-                    escaped &= ~met
+                    met += hit_lamp
+        escaped &= met < t_limit
         sel = np.flatnonzero(escaped)
         r = keep[sel]
         # (continue_specular divides by q; a probe always goes on: times q, over q + K)
@@ -3290,7 +3328,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # floor under it leave the glass first (engine/coincident.py).
             coincident.meet(o, d, left_p, org_prim, t, prim, u, v, inward=True)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
-        # by default not camera rays, but mirrors and glass).
+        # by default not camera rays, but mirrors and glass). A lamp is transparent, as
+        # in Cycles (integrator_shade_light_forward: its light added, the ray goes on
+        # from it as a transparent bounce): the ray goes on to the surface or world
+        # behind it, unless the pass reaches Max Bounces > Transparent (lamp_passes).
+        # (Ending there lost the world behind an area light in a smooth coat's
+        # reflection: the donut's mug under a 0.001 W lamp, docs/accuracy.md "mis51".)
+        met_lamps = []
         for li, light in enumerate(ctx.lights):
             if not light.has_surface:  # nothing to meet (many point lights: no cost)
                 continue
@@ -3319,7 +3363,19 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # (camera rays and their transparent continuations see it).
                     mask &= (ray_cls == CAMERA) | links.lights_hit(li, ctx.geo, link_prim)
                 rows = np.nonzero(mask)[0]
-                L = L[rows]
+                if len(rows):
+                    met_lamps.append((li, light, rows, np.take(tl, rows), L[rows]))
+        t_end = None
+        if met_lamps:
+            t_end, t_count = lamp_passes(met_lamps, len(o), t_count, t_limit)
+        for li, light, rows, tl_rows, L in met_lamps:
+            if t_end is not None:
+                # (past the pass that ended the path: not met)
+                keep_r = tl_rows <= np.take(t_end, rows)
+                rows, tl_rows, L = rows[keep_r], tl_rows[keep_r], L[keep_r]
+            if len(rows):
+                tl = np.full(len(o), np.inf)
+                tl[rows] = tl_rows
                 if medium is not None and len(rows):
                     # The lamp seen through the medium the ray is in (an object's, the
                     # world volume's): the segment's exp(-sigma_t s). (A medium not
@@ -3338,8 +3394,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                 passages, pdf_b, org_ns, org_p, link_prim, lamp_w, clamping,
                                 tp, chain, s, acc, target, pix, ftp, feat,
                                 sampleclamp.split_throughput(tp, cscale))
-                t = np.where(mask, tl, t)
-                prim = np.where(mask, -2, prim)  # ends at the light
+        if t_end is not None:
+            # Paths whose lamp pass reached the transparent limit end at that lamp.
+            ended_at = np.isfinite(t_end)
+            t = np.where(ended_at, t_end, t)
+            prim = np.where(ended_at, -2, prim)
         miss = prim == -1
         if glow is not None:
             # The glow along the segments that end on a lamp, or escape through the world
@@ -3894,7 +3953,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 if sampler is not None and PROBES_STRATIFIED:
                     puv = (lambda j, smp=sampler, r=probe_rng: smp.uv(("probe", j), rng=r))
                 er, Le = world_probes(ctx, hit, tp_in, choice, prow, probe_world, probe_rng,
-                                      counters, puv)
+                                      counters, puv, t_limit, t_count)
                 acc.add("specular", pix, Le, None, er)
                 if lpass is not None:  # (the world met one glossy bend on)
                     lpass.shaded(pix, Le, None, er, lightpasses.GLOSSY_DIRECT)

@@ -162,11 +162,14 @@ def _lamp_in_fog_scene(world: bool):
 def test_a_lamp_seen_inside_a_medium_is_dimmed_and_the_medium_glows(world):
     """The lamp's radiance P / (pi A) through the medium's length in front of it (1 m in
     the box, 2.5 m in the world volume: exp(-sigma_a s)) plus the medium's glow on that
-    segment; in the box the 1.5 m of clear air above it add nothing."""
+    segment and, the lamp being transparent as in Cycles (integrator_shade_light_forward:
+    the ray goes on past it; mis51), on as much again behind it to the box's floor or
+    the black floor: the glow of 2 s; in the box the 1.5 m of clear air above it add
+    nothing."""
     film = render(_lamp_in_fog_scene(world),
                   RenderSettings(workers=1, spp=4, photon_mapping=False, seed=1))
     s = 2.5 if world else 1.0
-    expect = 10.0 / math.pi * np.exp(-SIGMA_A * s) + _glow(s, SIGMA_A)
+    expect = 10.0 / math.pi * np.exp(-SIGMA_A * s) + _glow(2.0 * s, SIGMA_A)
     np.testing.assert_allclose(_mean(film), expect, rtol=2e-3)
 
 
