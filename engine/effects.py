@@ -1885,25 +1885,13 @@ def clamped_bounce_light(scene, geo: Geometry, table: MaterialTable, lights: lis
     from .bsdf import surface_hit
     from .datapasses import lobe_albedo
     from .integrator import light_shadow_rays
-    flux = [float(luminance(np.asarray(li.photon_flux))) for li in lights]
-    emitting = sorted((i for i, f in enumerate(flux) if f > 0),
-                      key=lambda i: -flux[i])[:CLAMP_PROBE_LIGHTS]
+    emitting = _probe_lights(lights)
     if not emitting or geo.count == 0 or scene.camera is None or not np.isfinite(limit):
         return {}
-    d, prim, u, v = _probe_camera_hits(scene, geo, accel, rng, probe, repeats)
-    rows = np.nonzero(prim >= 0)[0]
-    if not len(rows):
+    first = _probe_first_bounce(scene, geo, table, accel, rng, probe, repeats)
+    if first is None:
         return {}
-    hx = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
-    a_x = lobe_albedo(table, hx)[1][:, 0, :]
-    keep = np.nonzero(a_x.sum(axis=1) > 0)[0]
-    if not len(keep):
-        return {}
-    # Cosine-weighted directions about the shading normal (pdf cos / pi: the sample's
-    # weight is the diffuse albedo).
-    wd = _cosine_directions(hx.ns[keep], rng)
-    o2 = hx.clear(keep, wd)
-    _, prim2, u2, v2 = accel.intersect(o2, wd)
+    hx, a_x, keep, wd, prim2, u2, v2 = first
     on = np.nonzero(prim2 >= 0)[0]
     if not len(on):
         return {}
@@ -1926,6 +1914,37 @@ def clamped_bounce_light(scene, geo: Geometry, table: MaterialTable, lights: lis
     if total <= 0:
         return {}
     return dict(sorted(((k, c / total) for k, c in cut.items()), key=lambda kv: -kv[1]))
+
+
+def _probe_lights(lights: list) -> list:
+    """Indices of the CLAMP_PROBE_LIGHTS brightest emitting lights (photon flux), brightest
+    first: the lights the clamp probes sample."""
+    flux = [float(luminance(np.asarray(li.photon_flux))) for li in lights]
+    return sorted((i for i, f in enumerate(flux) if f > 0),
+                  key=lambda i: -flux[i])[:CLAMP_PROBE_LIGHTS]
+
+
+def _probe_first_bounce(scene, geo: Geometry, table: MaterialTable, accel, rng, probe: int,
+                        repeats: int):
+    """Cycles' first indirect bounce as the clamp probes sample it: the probe grid's camera
+    hits x (SurfaceHit hx), their diffuse albedo a_x (M, 3), the rows `keep` with one, a
+    cosine-weighted direction wd (K, 3) about each kept row's shading normal (pdf cos / pi:
+    the sample's weight is a_x) and what it meets (prim2 (K,), -1 none; u2, v2). None
+    where no camera ray meets a diffuse surface."""
+    from .bsdf import surface_hit
+    from .datapasses import lobe_albedo
+    d, prim, u, v = _probe_camera_hits(scene, geo, accel, rng, probe, repeats)
+    rows = np.nonzero(prim >= 0)[0]
+    if not len(rows):
+        return None
+    hx = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
+    a_x = lobe_albedo(table, hx)[1][:, 0, :]
+    keep = np.nonzero(a_x.sum(axis=1) > 0)[0]
+    if not len(keep):
+        return None
+    wd = _cosine_directions(hx.ns[keep], rng)
+    _, prim2, u2, v2 = accel.intersect(hx.clear(keep, wd), wd)
+    return hx, a_x, keep, wd, prim2, u2, v2
 
 
 def _probe_camera_hits(scene, geo: Geometry, accel, rng, probe: int, repeats: int):
@@ -1968,23 +1987,14 @@ def clamped_caustics(scene, geo: Geometry, table: MaterialTable, lights: list, a
     from .bsdf import surface_hit
     from .datapasses import lobe_albedo
     caster_ids = np.asarray(caster_ids, np.int64)
-    flux = [float(luminance(np.asarray(li.photon_flux))) for li in lights]
-    lit = sorted((i for i, f in enumerate(flux) if f > 0),
-                 key=lambda i: -flux[i])[:CLAMP_PROBE_LIGHTS]
+    lit = _probe_lights(lights)
     if (not lit or not len(caster_ids) or geo.count == 0 or scene.camera is None
             or not np.isfinite(limit)):
         return {}
-    d, prim, u, v = _probe_camera_hits(scene, geo, accel, rng, probe, repeats)
-    rows = np.nonzero(prim >= 0)[0]
-    if not len(rows):
+    first = _probe_first_bounce(scene, geo, table, accel, rng, probe, repeats)
+    if first is None:
         return {}
-    hx = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
-    a_x = lobe_albedo(table, hx)[1][:, 0, :]
-    keep = np.nonzero(a_x.sum(axis=1) > 0)[0]
-    if not len(keep):
-        return {}
-    wd = _cosine_directions(hx.ns[keep], rng)
-    _, prim2, u2, v2 = accel.intersect(hx.clear(keep, wd), wd)
+    hx, a_x, keep, wd, prim2, u2, v2 = first
     on = np.nonzero(prim2 >= 0)[0]
     at = np.isin(geo.object_id[prim2[on]], caster_ids)
     pairs, rest = on[at], on[~at]
@@ -2165,9 +2175,7 @@ def clamped_through_glass(scene, geo: Geometry, table: MaterialTable, lights: li
     studio48's bottle none (Cycles 0.9989)."""
     from .bsdf import surface_hit
     glass_ids = np.asarray(glass_ids, np.int64)
-    flux = [float(luminance(np.asarray(li.photon_flux))) for li in lights]
-    lit = sorted((i for i, f in enumerate(flux) if f > 0),
-                 key=lambda i: -flux[i])[:CLAMP_PROBE_LIGHTS]
+    lit = _probe_lights(lights)
     if (not lit or not len(glass_ids) or geo.count == 0 or scene.camera is None
             or not np.isfinite(limit)):
         return {}
