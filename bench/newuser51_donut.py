@@ -148,6 +148,24 @@ def icing(mat):
     return o
 
 
+def canonical_faces(me):
+    """Rebuild me with its faces in a fixed order, each starting at its smallest vertex
+    index (winding kept). Blender 5.0's create_uvsphere (bmesh.ops and
+    bpy.ops.mesh.primitive_uv_sphere_add alike) gives the same vertices and faces but
+    another face order and first corner in every process, so the loop triangles (which
+    diagonal splits a quad) and the vertex normals (summed in face order, 9e-8 apart) of
+    a scene built by script differed run to run (docs/performance.md, "### determinism51")."""
+    co = [tuple(v.co) for v in me.vertices]
+    faces = []
+    for p in me.polygons:
+        f = list(p.vertices)
+        k = f.index(min(f))
+        faces.append(f[k:] + f[:k])
+    me.clear_geometry()
+    me.from_pydata(co, [], sorted(faces))
+    me.update()
+
+
 def sprinkle_shapes():
     """A Collection (not linked to the scene) of five capsules along x, one material each."""
     col = bpy.data.collections.new("SprinkleShapes")
@@ -159,6 +177,7 @@ def sprinkle_shapes():
             v.co.x += 0.0022 if v.co.x > 0 else -0.0022
         bm.to_mesh(me)
         bm.free()
+        canonical_faces(me)
         for p in me.polygons:
             p.use_smooth = True
         o = bpy.data.objects.new(f"Sprinkle{name}", me)
