@@ -1,8 +1,8 @@
 """The same .blend exports the same arrays in every process: a Geometry Nodes scene
 (Distribute Points on Faces, Instance on Points of a Collection Info, Pick Instance by a
 Random Value) saved once, then exported in two fresh processes, every array of the two
-engine Scenes compared bit for bit (docs/compatibility.md, "Instances": the export adds
-no order of its own)."""
+engine Scenes compared bit for bit (docs/design.md, Blender facts: the export adds no
+order of its own)."""
 import json
 import subprocess
 
