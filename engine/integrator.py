@@ -540,9 +540,9 @@ def reflection_only_lights(ctx) -> np.ndarray:
     _surface_shader_exclude). The continuation's glossy rays that meet such a lamp are
     then MIS-weighted against those samples (lamp_mis); its other rays (a rough glass's
     refraction, a translucent lobe's: engine/glasslight.py takes no sample of a lamp
-    without diffuse visibility) count it in full, as before. All False with the light
-    tree (its members are the lights with diffuse visibility: such a lamp is none) they
-    take shadow rays of their own beside the tree's (glossy_only_lights). All False with
+    without diffuse visibility) count it in full, as before. With the light tree (its
+    members are the lights with diffuse visibility: such a lamp is none) they take shadow
+    rays of their own beside the tree's (glossy_only_lights). All False with
     REFLECTION_ONLY_SAMPLING off."""
     out = np.zeros(len(ctx.lights), np.bool_)
     if not REFLECTION_ONLY_SAMPLING:
