@@ -103,14 +103,26 @@ def _caustic_contrast(bpy, scene, img):
 
 
 def test_caustic_fast(bpy_addon, tmp_path):
+    """The glass ball's caustic shows: its focus (3 x 3 pixels) well above the ball's
+    shadow beside it, in the Combined and Caustic passes. One 4-spp render's spot / ring
+    spreads 2.8-7.5 over seeds 0-5 (s51; s50's main 3.0-5.5, the same means: spot 2.06 /
+    2.04, ring 0.45 / 0.46), so one seed against 5x failed by the draw; seeds 0-3 averaged
+    read ~4.4x, and the bound 3x stays far from a missing caustic (spot ~ ring, 1x)."""
     bpy = bpy_addon
-    scene = open_blend(bpy, "figure8_caustic.blend")
-    cheap(scene, pct=50, spp=4, photons=50_000, caustic_photons=50_000)
-    layers = read_layers(render_exr(bpy, scene, tmp_path / "f8.exr", multilayer=True))
-    spot, ring = _caustic_contrast(bpy, scene, layers["Combined"])
-    assert spot > 5 * ring, (spot, ring)
-    r0, c0 = project(bpy, scene, (0, 0, 0))
-    assert layers["Caustic"][r0 - 1:r0 + 2, c0 - 1:c0 + 2].mean() > 1.0
+    spots, rings, caustics = [], [], []
+    for seed in range(4):
+        scene = open_blend(bpy, "figure8_caustic.blend")
+        cheap(scene, pct=50, spp=4, photons=50_000, caustic_photons=50_000)
+        scene.photonmap.seed = seed
+        layers = read_layers(render_exr(bpy, scene, tmp_path / f"f8_{seed}.exr",
+                                        multilayer=True))
+        spot, ring = _caustic_contrast(bpy, scene, layers["Combined"])
+        r0, c0 = project(bpy, scene, (0, 0, 0))
+        spots.append(spot)
+        rings.append(ring)
+        caustics.append(layers["Caustic"][r0 - 1:r0 + 2, c0 - 1:c0 + 2].mean())
+    assert np.mean(spots) > 3 * np.mean(rings), (spots, rings)
+    assert np.mean(caustics) > 1.0, caustics
 
 
 def test_cancel_stops_early(bpy_addon, tmp_path):
