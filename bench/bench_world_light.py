@@ -53,6 +53,7 @@ from engine import RenderSettings
 from engine.api import PaperScene
 from engine.render import render
 from engine.scene import Material
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 # The add-on's defaults (addon/properties.py to_settings_kwargs on a new scene).
 ADDON_DEFAULTS = dict(photons=400_000, caustic_photons=200_000, max_photon_depth=32,
@@ -200,7 +201,7 @@ def build_trial3c(tmp):
     for name, r, loc, mat in (
             ("RedBall", 0.6, (-1.0, 0.3, 0.6), material("Red", (0.8, 0.15, 0.1))),
             ("Gloss", 0.5, (0.9, 0.5, 0.5), material("Gloss", (0.2, 0.3, 0.8), Roughness=0.2))):
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
+        primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
         bpy.ops.object.shade_smooth()
         put(bpy.context.object, name, mat)
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.2, -0.9, 0.35), rotation=(0, 0, 0.5))
@@ -229,7 +230,7 @@ def build_sky(sky_type, elevation_deg=7.0, azimuth_deg=60.0):
                                                      Roughness=0.4)),
             ("Metal", 0.5, (0.9, 0.9, 0.5), material("MetalMat", (0.9, 0.85, 0.8),
                                                      Metallic=1.0, Roughness=0.25))):
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
+        primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
         bpy.ops.object.shade_smooth()
         put(bpy.context.object, name, mat)
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.1, -0.6, 0.4), rotation=(0, 0, 0.6))
