@@ -53,7 +53,6 @@ from engine import RenderSettings
 from engine.api import PaperScene
 from engine.render import render
 from engine.scene import Material
-from tools.canonical_mesh import primitive_uv_sphere_add
 
 # The add-on's defaults (addon/properties.py to_settings_kwargs on a new scene).
 ADDON_DEFAULTS = dict(photons=400_000, caustic_photons=200_000, max_photon_depth=32,
@@ -193,6 +192,7 @@ def _blender_camera(location, target, lens):
 def build_trial3c(tmp):
     """The new-user trial's case 3c in the current (empty) Blender scene."""
     import bpy
+    from tools.canonical_mesh import primitive_uv_sphere_add
     hdr = os.path.join(tmp, "sunsky.hdr")
     write_rgbe(hdr, sunsky_map())
     material, put = _blender_material, _blender_put
@@ -222,6 +222,7 @@ def build_sky(sky_type, elevation_deg=7.0, azimuth_deg=60.0):
     sun_direction at `elevation_deg`, turbidity 2.2, ground albedo 0.3; MULTIPLE_SCATTERING:
     sun_elevation, the sun disc on), the sun `azimuth_deg` from +Y towards +X; no lamps."""
     import bpy
+    from tools.canonical_mesh import primitive_uv_sphere_add
     material, put = _blender_material, _blender_put
     bpy.ops.mesh.primitive_plane_add(size=40, location=(0, 0, 0))
     put(bpy.context.object, "Ground", material("GroundMat", (0.5, 0.5, 0.5), Roughness=0.5))
