@@ -624,7 +624,12 @@ class GatherChains:
             before = (np.zeros(k, np.int64) if used is None
                       else np.take(np.asarray(used, np.int64), go))
             t_limit = max(int(ctx.settings.transparent_max_bounces), 1)
-            t_end, total = it.lamp_passes(met, k, before, t_limit)
+            # (a lamp with Shadow Linking is no pass of these indirect rays: Cycles leaves
+            # it to its dedicated ray, as _trace_paths does)
+            links = getattr(ctx, "links", None)
+            passed = [e for e in met
+                      if links is None or links.blocker_accel(e[0]) is None]
+            t_end, total = it.lamp_passes(passed, k, before, t_limit)
             passes = total - before
         for li, light, rows, tl_rows, L in met:
             if li not in continuation:
