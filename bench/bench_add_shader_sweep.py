@@ -124,9 +124,10 @@ def sphere_scene(bpy, scene, mat, res):
     """The sphere of the sweep on scene: radius 1, smooth, of material mat, filling an
     orthographic res x res view, in a uniform world of 0.5."""
     from blender_helpers import world_color
+    from tools.canonical_mesh import primitive_uv_sphere_add
     scene.render.resolution_x = scene.render.resolution_y = res
     scene.render.resolution_percentage = 100
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=48, ring_count=24)
+    primitive_uv_sphere_add(radius=1.0, segments=48, ring_count=24)
     bpy.ops.object.shade_smooth()
     bpy.context.object.data.materials.append(mat)
     world_color(bpy, scene, (0.5, 0.5, 0.5))

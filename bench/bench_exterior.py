@@ -36,6 +36,7 @@ from mathutils import Vector  # noqa: E402
 
 from bench_product_shot import _principled  # noqa: E402
 from newuser24_scenes import camera as _camera, world_colour  # noqa: E402
+from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
 
 SCENES = ("sun_sky", "world", "product")
 
@@ -56,7 +57,7 @@ def _yard(ground_size):
     bpy.ops.mesh.primitive_cone_add(vertices=4, radius1=3.1, depth=1.6,
                                     location=(0, 0, 3.8), rotation=(0, 0, math.pi / 4))
     _active("Roof", _principled("Roof", (0.45, 0.12, 0.08), 0.5))
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, location=(4.5, -3.0, 1.0))
+    primitive_uv_sphere_add(radius=1.0, location=(4.5, -3.0, 1.0))
     bpy.ops.object.shade_smooth()
     _active("Sphere", _principled("Ball", (0.1, 0.3, 0.7), 0.3))
     bpy.ops.mesh.primitive_cylinder_add(radius=0.6, depth=2.0, location=(-4.0, -3.5, 1.0))
@@ -94,7 +95,7 @@ def build(kind: str, path: str, width: int = 160, height: int = 120):
     elif kind == "product":
         bpy.ops.mesh.primitive_plane_add(size=50)
         _active("Floor", _principled("Floor", (0.7, 0.7, 0.7), 0.6))
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(-0.4, 0, 0.5))
+        primitive_uv_sphere_add(radius=0.5, location=(-0.4, 0, 0.5))
         bpy.ops.object.shade_smooth()
         _active("Ball", _principled("Ball", (0.8, 0.25, 0.1), 0.35))
         bpy.ops.mesh.primitive_torus_add(major_radius=0.4, minor_radius=0.15,

@@ -42,6 +42,7 @@ import addon
 addon.register()
 from addon import export
 from addon.core import load_engine
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
 sc = bpy.context.scene
@@ -60,8 +61,7 @@ def mesh(name, kind, loc, size, m):
     if kind == "plane":
         bpy.ops.mesh.primitive_plane_add(size=size, location=loc)
     else:
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=size, location=loc, segments=32,
-                                             ring_count=16)
+        primitive_uv_sphere_add(radius=size, location=loc, segments=32, ring_count=16)
     o = bpy.context.active_object; o.name = name
     if kind == "sphere":
         bpy.ops.object.shade_smooth()

@@ -27,6 +27,8 @@ if ROOT not in sys.path:
 import numpy as np  # noqa: E402
 import bpy  # noqa: E402
 
+from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
+
 
 def build(shape: str, size: float, weight: float, scale: float):
     bpy.ops.wm.read_homefile(use_empty=True)
@@ -41,7 +43,7 @@ def build(shape: str, size: float, weight: float, scale: float):
     p.inputs["Subsurface Weight"].default_value = weight
     p.inputs["Subsurface Scale"].default_value = scale
     if shape == "sphere":
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=size / 2, segments=48, ring_count=24)
+        primitive_uv_sphere_add(radius=size / 2, segments=48, ring_count=24)
     else:
         bpy.ops.mesh.primitive_monkey_add(size=size)
         bpy.ops.object.modifier_add(type="SUBSURF")

@@ -48,6 +48,8 @@ PAINTS = {
 CYCLES_SCRIPT = r'''
 import math, sys, numpy as np, bpy
 from mathutils import Vector
+sys.path.insert(0, ROOT)
+from tools.canonical_mesh import primitive_uv_sphere_add
 paint, E, elev, out = sys.argv[-4], [float(x) for x in sys.argv[-3].split(",")], float(sys.argv[-2]), sys.argv[-1]
 bpy.ops.wm.read_homefile(use_empty=True); sc = bpy.context.scene
 sc.render.resolution_x = sc.render.resolution_y = 48; sc.render.resolution_percentage = 100
@@ -65,7 +67,7 @@ else:
     b.inputs["Coat Roughness"].default_value = 0.03
 bpy.ops.mesh.primitive_plane_add(size=1, location=(0, 0, -1.0)); w = bpy.context.active_object
 w.rotation_euler = (math.pi / 2, 0, 0); w.scale = (8, 5, 1); w.data.materials.append(wall)
-bpy.ops.mesh.primitive_uv_sphere_add(segments=96, ring_count=48, radius=0.5, location=(0, -2.0, 0))
+primitive_uv_sphere_add(segments=96, ring_count=48, radius=0.5, location=(0, -2.0, 0))
 bpy.ops.object.shade_smooth(); bpy.context.active_object.data.materials.append(ball)
 D = Vector((0, -math.cos(elev), -math.sin(elev)))
 sun = bpy.data.lights.new("Sun", "SUN"); sun.energy = max(E); sun.color = [e / max(E) for e in E]
@@ -114,7 +116,7 @@ def cycles(paint):
     with tempfile.TemporaryDirectory() as tmp:
         script, out = os.path.join(tmp, "c.py"), os.path.join(tmp, "c.exr")
         with open(script, "w") as f:
-            f.write(CYCLES_SCRIPT)
+            f.write(f"ROOT = {ROOT!r}\n" + CYCLES_SCRIPT)
         subprocess.run([sys.executable, script, paint, ",".join(str(float(e)) for e in light["color"]),
                         str(glint.ELEVATION), out], check=True, capture_output=True)
         img = np.load(out + ".npy")

@@ -192,6 +192,7 @@ def _blender_camera(location, target, lens):
 def build_trial3c(tmp):
     """The new-user trial's case 3c in the current (empty) Blender scene."""
     import bpy
+    from tools.canonical_mesh import primitive_uv_sphere_add
     hdr = os.path.join(tmp, "sunsky.hdr")
     write_rgbe(hdr, sunsky_map())
     material, put = _blender_material, _blender_put
@@ -200,7 +201,7 @@ def build_trial3c(tmp):
     for name, r, loc, mat in (
             ("RedBall", 0.6, (-1.0, 0.3, 0.6), material("Red", (0.8, 0.15, 0.1))),
             ("Gloss", 0.5, (0.9, 0.5, 0.5), material("Gloss", (0.2, 0.3, 0.8), Roughness=0.2))):
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
+        primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
         bpy.ops.object.shade_smooth()
         put(bpy.context.object, name, mat)
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.2, -0.9, 0.35), rotation=(0, 0, 0.5))
@@ -221,6 +222,7 @@ def build_sky(sky_type, elevation_deg=7.0, azimuth_deg=60.0):
     sun_direction at `elevation_deg`, turbidity 2.2, ground albedo 0.3; MULTIPLE_SCATTERING:
     sun_elevation, the sun disc on), the sun `azimuth_deg` from +Y towards +X; no lamps."""
     import bpy
+    from tools.canonical_mesh import primitive_uv_sphere_add
     material, put = _blender_material, _blender_put
     bpy.ops.mesh.primitive_plane_add(size=40, location=(0, 0, 0))
     put(bpy.context.object, "Ground", material("GroundMat", (0.5, 0.5, 0.5), Roughness=0.5))
@@ -229,7 +231,7 @@ def build_sky(sky_type, elevation_deg=7.0, azimuth_deg=60.0):
                                                      Roughness=0.4)),
             ("Metal", 0.5, (0.9, 0.9, 0.5), material("MetalMat", (0.9, 0.85, 0.8),
                                                      Metallic=1.0, Roughness=0.25))):
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
+        primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
         bpy.ops.object.shade_smooth()
         put(bpy.context.object, name, mat)
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.1, -0.6, 0.4), rotation=(0, 0, 0.6))

@@ -21,6 +21,7 @@ import bpy
 from mathutils import Vector
 from newuser26_scenes import assign, camera, cube, cylinder, empty_scene, new_material, principled, world_colour
 from newuser44_table import arguments, lathe, render
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 
 def glass_default(name):
@@ -72,7 +73,7 @@ def build():
         for p in g.data.polygons:
             p.use_smooth = False
     # Teapot: a UV sphere body, cylinder spout and lid knob, smooth.
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.09, location=(1.15, 0.65, 0.86), scale=(1, 1, 0.8))
+    primitive_uv_sphere_add(radius=0.09, location=(1.15, 0.65, 0.86), scale=(1, 1, 0.8))
     t = bpy.context.active_object; t.name = "Teapot"; bpy.ops.object.shade_smooth(); assign(t, teapot)
     bpy.ops.mesh.primitive_cylinder_add(vertices=24, radius=0.015, depth=0.12, location=(1.04, 0.65, 0.9),
                                         rotation=(0, math.radians(-50), 0))

@@ -29,6 +29,8 @@ if ROOT not in sys.path:
 import numpy as np  # noqa: E402
 import bpy  # noqa: E402
 
+from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
+
 
 def cpu():
     r = resource.getrusage(resource.RUSAGE_SELF)
@@ -199,7 +201,7 @@ def turntable():
     nm = nt.nodes.new("ShaderNodeNormalMap")
     nt.links.new(it.outputs["Color"], nm.inputs["Color"])
     nt.links.new(nm.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Normal"])
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.45, location=(0, -0.2, 0.45))
+    primitive_uv_sphere_add(radius=0.45, location=(0, -0.2, 0.45))
     o = assign(bpy.context.active_object, bumpy)
     o.name = "NormalMappedBall"
     bpy.ops.object.shade_smooth()

@@ -61,6 +61,7 @@ sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import (assign, camera, cube, cylinder, new_material,  # noqa: E402
                               principled)
 from newuser44_table import arguments, render  # noqa: E402
+from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
 
 LEAF_N = 128  # the leaf image's size in texels
 
@@ -202,7 +203,7 @@ def prism(name, loc, length, width, height, mat):
 
 
 def sphere(name, loc, scale, mat):
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, location=loc,
+    primitive_uv_sphere_add(segments=32, ring_count=16, location=loc,
                                          scale=scale)
     o = bpy.context.active_object
     o.name = name

@@ -66,6 +66,7 @@ sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import assign, camera, object_masks, principled  # noqa: E402
 from newuser44_table import arguments, render  # noqa: E402
 from studio48_stilllife import revolve, studio_world, write_hdr  # noqa: E402
+from tools.canonical_mesh import canonical_faces  # noqa: E402
 
 DONUT_Z = 0.006 + 0.025  # the plate's top + the torus' minor radius
 SPRINKLE_COLOURS = {"Pink": (0.9, 0.2, 0.4), "White": (0.85, 0.85, 0.85),
@@ -146,24 +147,6 @@ def icing(mat):
     sub = o.modifiers.new("Subdivision", "SUBSURF")
     sub.levels = sub.render_levels = 2
     return o
-
-
-def canonical_faces(me):
-    """Rebuild me with its faces in a fixed order, each starting at its smallest vertex
-    index (winding kept). Blender 5.0's create_uvsphere (bmesh.ops and
-    bpy.ops.mesh.primitive_uv_sphere_add alike) gives the same vertices and faces but
-    another face order and first corner in every process, so the loop triangles (which
-    diagonal splits a quad) and the vertex normals (summed in face order, 9e-8 apart) of
-    a scene built by script differed run to run (docs/performance.md, "### determinism51")."""
-    co = [tuple(v.co) for v in me.vertices]
-    faces = []
-    for p in me.polygons:
-        f = list(p.vertices)
-        k = f.index(min(f))
-        faces.append(f[k:] + f[:k])
-    me.clear_geometry()
-    me.from_pydata(co, [], sorted(faces))
-    me.update()
 
 
 def sprinkle_shapes():

@@ -55,6 +55,7 @@ from newuser26_compare import read_exr  # noqa: E402
 from newuser26_scenes import (assign, camera, cube, new_material, object_masks,  # noqa: E402
                               principled, world_colour)
 from newuser44_table import arguments, render  # noqa: E402
+from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
 
 LUM = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance of linear RGB
 
@@ -106,7 +107,7 @@ def box_scene(scene, mat, light="point", walls="flipped"):
 
 
 def furnace_scene(scene, mat):
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.0)
+    primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.0)
     o = bpy.context.active_object
     o.name = "Sphere"
     bpy.ops.object.shade_smooth()

@@ -38,6 +38,7 @@ from newuser26_scenes import (assign, camera, cpu, empty_scene, new_material,  #
                               object_masks, principled, world_colour)
 from newuser44_table import lathe  # noqa: E402
 from newuser26_compare import read_exr  # noqa: E402
+from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
 
 PROFILE = [(0.05, 0.0), (0.08, 0.05), (0.09, 0.12), (0.06, 0.22), (0.04, 0.28),
            (0.05, 0.32)]
@@ -51,7 +52,7 @@ def build(a):
         obj = lathe("Vase", [(a.scale * r, a.scale * z) for r, z in PROFILE], metal,
                     (0, 0, -0.16 * a.scale + a.lift))
     else:
-        bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, radius=0.5)
+        primitive_uv_sphere_add(segments=16, ring_count=8, radius=0.5)
         obj = bpy.context.active_object
         obj.name = "Vase"
         bpy.ops.object.shade_smooth()

@@ -2057,7 +2057,8 @@ class _Clamped:
 def _light_samples(lights, lit, geo, accel, hit, weight, rng, probe, scale=1.0,
                    counted=True):
     """Each light's (lit: indices) one shadow-ray sample at hits (integrator.
-    light_shadow_rays, occluded rays 0) times weight (N,3), into probe (a _Clamped)."""
+    light_shadow_rays, occluded rays 0) times weight (N,3), into probe (a _Clamped) at
+    scale (a number, or (N,) per hit)."""
     from types import SimpleNamespace
     from .integrator import light_shadow_rays
     ctx = SimpleNamespace(lights=lights, geo=geo)
@@ -2066,7 +2067,8 @@ def _light_samples(lights, lit, geo, accel, hit, weight, rng, probe, scale=1.0,
         if not len(got) or len(o32) != len(got):
             continue
         seen = ~np.asarray(accel.occluded(o32, d32, t32), bool)
-        probe.add(lights[i].name, weight[got] * irr * seen[:, None], scale, counted)
+        probe.add(lights[i].name, weight[got] * irr * seen[:, None],
+                  scale[got] if np.ndim(scale) else scale, counted)
 
 
 def _follow_chain(scene, geo, table, lights, lit, accel, hit, T, rng, probe, depth: int,
@@ -2074,9 +2076,12 @@ def _follow_chain(scene, geo, table, lights, lit, accel, hit, T, rng, probe, dep
     """Cycles' paths from hits (on a specular object) through its sharp lobes, T (N,3)
     their throughput so far, into probe (a _Clamped): at each mostly sharp hit one
     closure picked by albedo (luminance), T times its weight (bsdf.sample_specular) over
-    the pick's probability among all lobes; where a path meets a light's surface (an
-    area light, a point light's disk, an emissive triangle) or escapes (the World) the
-    sample T L. A sun's disc, too small for the probe's paths to meet, by a kernel
+    the pick's probability among all lobes (the sample Cycles' pick makes); a path takes
+    only the sharp lobes, which Cycles picks with their share of the albedo, so each
+    sample counts in the sums at that share (its weight in probe.add, the product over
+    the path's vertices: before, each counted in full, a share reading up to 2x); where
+    a path meets a light's surface (an area light, a point light's disk, an emissive
+    triangle) or escapes (the World) the sample T L. A sun's disc, too small for the probe's paths to meet, by a kernel
     estimate: paths leaving within CLAMP_SUN_CONE of it count its radiance at the
     weight of the disc's solid angle over the cone's (the clamp sees the whole sample).
     shade_ends: at a hit that is not mostly sharp (after a bounce), each light's
@@ -2092,6 +2097,8 @@ def _follow_chain(scene, geo, table, lights, lit, accel, hit, T, rng, probe, dep
     mesh = next((lights[i].name for i in lit if lights[i].kind == MESH), None)
     cone = 1.0 - math.cos(CLAMP_SUN_CONE)
     picks = np.array([pr.L_METAL, pr.L_GLASS_R, pr.L_SPEC, pr.L_COAT])
+    # (N,) each path's share of Cycles' paths: the probability its picks were sharp
+    share = np.full(len(T), float(scale))
     for bounce in range(depth + 1):
         if not len(T):
             break
@@ -2106,7 +2113,8 @@ def _follow_chain(scene, geo, table, lights, lit, accel, hit, T, rng, probe, dep
             ends = np.nonzero(~chain)[0]
             if len(ends):
                 _light_samples(lights, lit, geo, accel, hit.take(ends),
-                               T[ends] * alb[ends, pr.L_DIFFUSE] / math.pi, rng, probe, scale)
+                               T[ends] * alb[ends, pr.L_DIFFUSE] / math.pi, rng, probe,
+                               share[ends])
         go = np.nonzero(chain)[0]
         if not len(go) or bounce == depth:
             break
@@ -2116,34 +2124,36 @@ def _follow_chain(scene, geo, table, lights, lit, accel, hit, T, rng, probe, dep
         wd, valid, _, weight = sample_specular(table, sub, picks[choice] - 1, rng)
         p_pick = lum[go, choice] / np.maximum(l_all[go], 1e-300)
         T = T[go] * weight / np.maximum(p_pick, 1e-300)[:, None]
+        share = share[go] * np.minimum(lum[go].sum(axis=1) / np.maximum(l_all[go], 1e-300),
+                                       1.0)
         keep = np.nonzero(valid)[0]
-        T, wd = T[keep], wd[keep]
+        T, wd, share = T[keep], wd[keep], share[keep]
         o = sub.clear(keep, wd)
         t_hit, prim2, u2, v2 = accel.intersect(o, wd)
         t_hit = np.where(prim2 >= 0, t_hit, np.inf)
         for i in surfaced:
             m, _, L = lights[i].intersect(o, wd, t_hit)
             if L is not None and m.any():
-                probe.add(lights[i].name, T[m] * np.asarray(L)[m], scale)
+                probe.add(lights[i].name, T[m] * np.asarray(L)[m], share[m])
         out = np.nonzero(prim2 < 0)[0]
         if len(out):
             if world is not None:
-                probe.add(world, T[out] * background_radiance(scene, wd[out]), scale)
+                probe.add(world, T[out] * background_radiance(scene, wd[out]), share[out])
             for li in suns:
                 near = out[wd[out] @ -np.asarray(li.dir, np.float64) >= math.cos(CLAMP_SUN_CONE)]
                 if len(near):
                     disc = 1.0 - li.cos_half_angle
                     probe.add(li.name, T[near] * np.asarray(li.sun_radiance)[None, :],
-                              scale * disc / cone)
+                              share[near] * (disc / cone))
         on = np.nonzero(prim2 >= 0)[0]
         if not len(on):
             break
         hit = surface_hit(geo, table, prim2[on], u2[on], v2[on], wd[on])
-        T = T[on]
+        T, share = T[on], share[on]
         if mesh is not None and hit.emission is not None:
             e = np.asarray(hit.emission)
             if e.any():
-                probe.add(mesh, T * e, scale)
+                probe.add(mesh, T * e, share)
 
 
 def _cosine_directions(n, rng):

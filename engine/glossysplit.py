@@ -546,7 +546,7 @@ class GatherChains:
                           np.take(wd, rows_y), cos_i)
         self.min_pdf[rows_idx] = np.minimum(self.min_pdf[rows_idx], pdf)
 
-    def emission(self, rows_idx, o, d, tp, cls, E, G, counts=None):
+    def emission(self, rows_idx, o, d, tp, cls, E, G, counts=None, used=None):
         """The emitters that the continued rays (hit rows rows_idx (K,), origins o,
         directions d (K,3), throughputs tp (K,3), ray classes cls (K,)) leaving a blurred
         vertex meet and light sampling leaves to them: the lights of MODE_CONTINUATION
@@ -554,17 +554,24 @@ class GatherChains:
         samples. Added to E in full (tp pi Le / G). A background that is no light (no
         photons either) is not counted. counts: (K,4) the counts the vertex they left was
         reached with (vertex's; None: D's bounce alone): past the limits it took no
-        bounce."""
+        bounce. used: (K,) int64 the transparent passes the rays' paths made so far
+        (camera path and chain; None: none): each lamp a ray meets is a pass, as on the
+        camera path (integrator._trace_paths: lamp_passes, first_at_each_distance), and the
+        pass that reaches Light Paths > Max Bounces > Transparent ends the path at that
+        lamp, its light added, nothing past it. Returns None (no lamp met) or (passes
+        (K,) int64 the lamp passes each ray made, ended (K,) bool the rays whose path
+        ended at a lamp: the caller ends those chains)."""
         from . import integrator as it
         from .bsdf import surface_hit
         from . import worldmedium
         ctx = self.ctx
         if not self.continuation_lights and not self.unsampled:
-            return
+            return None
         go = np.flatnonzero(self.from_blurred[rows_idx]
                             & self.shaded(self.vertex_counts(len(rows_idx), counts)))
         if not len(go):
-            return
+            return None
+        k_all = len(rows_idx)
         rows_idx = rows_idx[go]
         # Rays refracted through a window passage: its light is D's shadow rays' only for
         # the lights they sample (shadow_carried); a light without shadow rays and the
@@ -593,8 +600,12 @@ class GatherChains:
                 out &= ~passage[sel]
             return out
 
-        for li in self.continuation_lights:
-            light = ctx.lights[li]
+        # Every lamp the rays see is a transparent pass (the ray goes on past it, as in
+        # Cycles: the camera path's rule, integrator._trace_paths), the light of those of
+        # MODE_CONTINUATION added, up to the pass that reaches the limit.
+        met = []
+        continuation = set(self.continuation_lights)
+        for li, light in enumerate(ctx.lights):
             if not light.has_surface:
                 continue
             sees = (cls & light.ray_kinds) != 0
@@ -603,21 +614,41 @@ class GatherChains:
             mask, tl, L = light.intersect(o, d, t)
             if L is None:
                 continue
-            mask = mask & sees
-            if mask.any():
-                # (the ray goes on past the lamp, as in Cycles: the camera path's rule,
-                # integrator._trace_paths)
-                add = mask & counted(li)
-                if self.reflection_only[li]:
-                    add &= cls != it.GLOSSY  # (its light sampled at the vertex)
-                Le[add] += L[add]
+            rows = np.flatnonzero(mask & sees)
+            if len(rows):
+                met.append((li, light, rows, tl[rows], L[rows]))
+        met = it.first_at_each_distance(met)
+        t_end = None
+        passes = np.zeros(k, np.int64)
+        if met:
+            before = (np.zeros(k, np.int64) if used is None
+                      else np.take(np.asarray(used, np.int64), go))
+            t_limit = max(int(ctx.settings.transparent_max_bounces), 1)
+            # (a lamp with Shadow Linking is no pass of these indirect rays: Cycles leaves
+            # it to its dedicated ray, as _trace_paths does)
+            links = getattr(ctx, "links", None)
+            passed = [e for e in met
+                      if links is None or links.blocker_accel(e[0]) is None]
+            t_end, total = it.lamp_passes(passed, k, before, t_limit)
+            passes = total - before
+        for li, light, rows, tl_rows, L in met:
+            if li not in continuation:
+                continue
+            add = counted(li, rows)
+            if t_end is not None:
+                add &= tl_rows <= np.take(t_end, rows)  # (past the ending pass: not met)
+            if self.reflection_only[li]:
+                add &= np.take(cls, rows) != it.GLOSSY  # (its light sampled at the vertex)
+            Le[rows[add]] += L[add]
+        ended = np.zeros(k, bool) if t_end is None else np.isfinite(t_end)
+        prim = np.where(ended, -2, prim)  # (ended at the lamp: nothing behind it)
         surf = np.flatnonzero(prim >= 0)
         if len(surf) and self.unsampled:
             y = surface_hit(ctx.geo, ctx.table, prim[surf], u[surf], v[surf], d[surf])
             if y.emission is not None and np.any(y.emission > 0):
                 Le[surf] += it.unsampled_emission(ctx, self.unsampled, prim[surf], d[surf],
                                                   np.asarray(y.emission, np.float64))
-        miss = np.flatnonzero(prim < 0)
+        miss = np.flatnonzero(prim == -1)
         if len(miss):
             dm = np.take(d, miss, axis=0)
             for li in self.continuation_lights:
@@ -632,3 +663,8 @@ class GatherChains:
                     Le[miss] += np.where(np.reshape(use, (-1, 1)), sun, 0.0)
         add = tp * (math.pi / G) * Le
         np.add.at(E, rows_idx, add)
+        if not met:
+            return None
+        out_passes, out_ended = np.zeros(k_all, np.int64), np.zeros(k_all, bool)
+        out_passes[go], out_ended[go] = passes, ended
+        return out_passes, out_ended

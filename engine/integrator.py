@@ -773,6 +773,39 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
 
 
+def first_at_each_distance(met):
+    """The lamps met (a list of (light index, light, rows (k,) int64, distances (k,),
+    per-row arrays ...) per lamp, in light order) without a ray's second lamp at the
+    distance of one before it: Cycles' main path meets only the first of lamps at one
+    distance (lights_intersect keeps a lamp only nearer than the hit so far, `t >=
+    isect->t` skipped, in light order) and goes on from past that distance (shade_light:
+    tmin = intersection_t_offset(t), the next hit needs t > tmin), so the others there
+    are neither seen nor counted as passes (a lamp duplicated in place). Entries left
+    with no row are dropped; the rest keep their order and per-row arrays."""
+    if len(met) < 2:
+        return met
+    sizes = [len(entry[2]) for entry in met]
+    rows = np.concatenate([entry[2] for entry in met])
+    dist = np.concatenate([entry[3] for entry in met])
+    order = np.lexsort((np.repeat(np.arange(len(met)), sizes), dist, rows))
+    r, t = rows[order], dist[order]
+    tie = np.zeros(len(order), bool)
+    tie[1:] = (r[1:] == r[:-1]) & (t[1:] == t[:-1])
+    if not tie.any():
+        return met
+    drop = np.zeros(len(order), bool)
+    drop[order[tie]] = True
+    out, start = [], 0
+    for entry, k in zip(met, sizes):
+        keep = ~drop[start:start + k]
+        start += k
+        if keep.all():
+            out.append(entry)
+        elif keep.any():
+            out.append(tuple(entry[:2]) + tuple(np.asarray(x)[keep] for x in entry[2:]))
+    return out
+
+
 def lamp_passes(met, n, t_count, t_limit):
     """The camera paths' passes through the lamps their rays met (met: a list of (light
     index, light, rows (k,) int64, distances (k,), ...) per lamp), as Cycles counts them:
@@ -1469,11 +1502,31 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     pdf = [np.take(x, on) for x in pdf]
             if passed is not None:
                 passed.step(prim, d_in, y.p, idx, keep, d)
+            if t_h is not None and len(keep):
+                # The pass lobe's continuations are transparent passes (a volume-only
+                # surface's aside), as the camera chain counts them.
+                passed_k = pass_lobe.copy()
+                if t_vol is not None:
+                    passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
+                t_h[idx[keep]] += passed_k
             if chains is not None:
                 chains.continued(idx[keep], pdf[0], keep_f, d)
-                chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G,
-                                counts=None if cnt is None else
-                                chaincounts.camera_counts(cnt[idx[keep]], chains.D_BOUNCE))
+                lamps = chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G,
+                                        counts=None if cnt is None else
+                                        chaincounts.camera_counts(cnt[idx[keep]],
+                                                                  chains.D_BOUNCE),
+                                        used=None if t_h is None else t_h[idx[keep]])
+                if lamps is not None:
+                    # The lamps the continued rays passed count as the camera chain's
+                    # passes; a chain whose pass reached the limit ended at the lamp.
+                    if t_h is not None:
+                        t_h[idx[keep]] += lamps[0]
+                    if lamps[1].any():
+                        on = np.flatnonzero(~lamps[1])
+                        keep, keep_f, o, d, tp, ray_cls, pass_lobe = (
+                            np.take(a, on, axis=0)
+                            for a in (keep, keep_f, o, d, tp, ray_cls, pass_lobe))
+                        pdf = [np.take(x, on) for x in pdf]
             if turned_refl is not None and turned_refl.escapes:
                 turned_h[idx[keep]] = (turned_h[idx[keep]]
                                        | turned_refl.turned(y, keep, d_in[keep], d))
@@ -1487,13 +1540,6 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # volume's, if any).
                 medium_h[idx[keep]] = media.after_continuation(
                     ctx.geo, sigma, prim, d_in, keep, d, medium_h[idx], outside=world_row)
-            if t_h is not None and len(keep):
-                # The pass lobe's continuations are transparent passes (a volume-only
-                # surface's aside), as the camera chain counts them.
-                passed_k = pass_lobe.copy()
-                if t_vol is not None:
-                    passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
-                t_h[idx[keep]] += passed_k
             if fp_start is not None:
                 fp_h[idx[keep]] = np.take(y.footprint, keep)
             idx = idx[keep]
@@ -2023,15 +2069,16 @@ def probe_rows(p, psum, over=None):
     return np.flatnonzero(ok)
 
 
-def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None, t_limit=8,
-                 used=None):
+def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv, t_limit, used=None):
     """The escaping world light of WORLD_PROBES further reflections at the hits rows (K,)
     (of hit, throughputs tp (N,3)), each sampled again from the hit's lobe choice
     (continue_specular with every row surviving, from rng, a stream of its own) and
     tested for escape as the continuation's ray would meet it (an occlusion ray of class
-    GLOSSY; the lamps glossy rays see are passed, unless t_limit (Max Bounces >
-    Transparent, less used (N,) int64: the passes each path made before the hit; None:
-    none) of them lie on the way: lamp_passes). Returns (hit rows (M,),
+    GLOSSY; the lamps glossy rays see are passed, unless t_limit (Light Paths > Max
+    Bounces > Transparent, at least 1 as _trace_paths': no default, so no caller probes
+    with a limit of its own; less used (N,) int64: the passes each path made before the
+    hit; None: none) of them lie on the way: lamp_passes, one lamp counted at one
+    distance: first_at_each_distance). Returns (hit rows (M,),
     light (M,3) with its throughput: world x tp x f cos / pdf / P(lobe) / (q + K), q the
     hit's survival probability, K = WORLD_PROBES), the rows of escaped probes, a row
     once per probe; every value >= 0. uv: a function of the probe's index j giving its
@@ -2056,11 +2103,15 @@ def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv=None, t_li
         # unless the passes through the lamps reach Max Bounces > Transparent (t_limit):
         # the path ends at the lamp, as lamp_passes.
         met = np.zeros(len(keep), np.int64) if used is None else np.take(used, keep)
-        for light in ctx.lights:
+        lamps = []
+        for li, light in enumerate(ctx.lights):
             if light.has_surface and light.ray_kinds & GLOSSY and escaped.any():
-                hit_lamp, _, L = light.intersect(o, d, np.full(len(o), np.inf))
-                if L is not None:
-                    met += hit_lamp
+                hit_lamp, tl, L = light.intersect(o, d, np.full(len(o), np.inf))
+                if L is not None and hit_lamp.any():
+                    on = np.flatnonzero(hit_lamp)
+                    lamps.append((li, light, on, tl[on]))
+        for entry in first_at_each_distance(lamps):
+            met[entry[2]] += 1
         escaped &= met < t_limit
         sel = np.flatnonzero(escaped)
         r = keep[sel]
@@ -3367,6 +3418,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     met_lamps.append((li, light, rows, np.take(tl, rows), L[rows]))
         t_end = None
         if met_lamps:
+            met_lamps = first_at_each_distance(met_lamps)
             t_end, t_count = lamp_passes(met_lamps, len(o), t_count, t_limit)
         for li, light, rows, tl_rows, L in met_lamps:
             if t_end is not None:

@@ -28,6 +28,8 @@ import bpy  # noqa: E402  (must come first: it provides bmesh and mathutils)
 import bmesh  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
+from tools.canonical_mesh import canonical_faces  # noqa: E402
+
 WIDTH, HEIGHT = 320, 240
 
 
@@ -234,6 +236,7 @@ def sphere(name, radius, mat, location, segments=48, rings=24):
     bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
     bm.to_mesh(me)
     bm.free()
+    canonical_faces(me)  # create_uvsphere's face order differs in every process
     me.shade_smooth()
     return add_object(name, me, mat, location)
 

@@ -1367,3 +1367,40 @@ def test_subsurface_line_says_how_the_walk_runs():
     plain.add_sphere((0, 0, 0), 1.0, "white_diffuse", segments=16)
     plain.set_camera((0, -4, 0), (0, 0, 0), view_angle=35)
     assert "subsurface" not in effects(plain.render(base))
+
+
+@pytest.mark.parametrize("metallic", [1.0, 0.7, 0.55])
+def test_clamp_caustic_probe_counts_a_sharp_pick_at_its_share(metallic):
+    """effects._follow_chain follows a caster's sharp lobes alone, each sample T L at
+    Cycles' value (T over the pick's probability among all lobes), but Cycles picks a
+    sharp lobe only with the sharp lobes' share of the albedo: each sample counts at that
+    share, so the probe's light is the sharp lobes' albedo times the world (radiance 1
+    here), whatever the diffuse share beside them (before, every sample counted in full:
+    the albedo of all lobes, 1.43x at metallic 0.7, 1.82x at 0.55, and the clamp's share
+    in the caustics clause up to 2x)."""
+    from engine import effects
+    from engine.bsdf import surface_hit
+    from engine.closures import principled as pr
+    from engine.datapasses import lobe_albedo
+    from engine.render import prepare_context
+    s = PaperScene(width=8, height=8, background=(1.0, 1.0, 1.0))
+    s.add_material(Material("half", (0.9, 0.9, 0.9), metallic=metallic, roughness=0.0))
+    s.add_plane((0, 0, 0), (0, 0, 1), 2.0, "half", name="Plate")
+    s.set_camera((0, -3, 2), (0, 0, 0), up=(0, 0, 1), view_angle=40)
+    ctx = prepare_context(s, RenderSettings(workers=1, photons=1000))
+    try:
+        n = 2000
+        wd = np.tile(np.array([0.3, 0.0, -1.0]) / math.hypot(0.3, 1.0), (n, 1))
+        hit = surface_hit(ctx.geo, ctx.table, np.zeros(n, np.int64), np.full(n, 0.25),
+                          np.full(n, 0.25), wd)
+        alb = lobe_albedo(ctx.table, hit)[1]
+        sharp = sum(alb[:, i] for i in (pr.L_METAL, pr.L_GLASS_R, pr.L_GLASS_T, pr.L_SPEC,
+                                       pr.L_COAT)).sum(axis=1).mean()
+        probe = effects._Clamped(np.inf)
+        effects._follow_chain(ctx.scene, ctx.geo, ctx.table, ctx.lights,
+                              effects._probe_lights(ctx.lights), ctx.accel, hit,
+                              np.ones((n, 3)), np.random.default_rng(1), probe, depth=1,
+                              shade_ends=False)
+    finally:
+        ctx.accel.close()
+    assert probe.total / n == pytest.approx(sharp, rel=1e-4), (probe.total / n, sharp)

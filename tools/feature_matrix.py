@@ -35,6 +35,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 import accuracy_scenes as acc  # noqa: E402  (bpy session helpers, Cycles settings)
+from canonical_mesh import canonical_faces  # noqa: E402
 
 bpy = acc.bpy
 mb = acc.mb
@@ -1288,6 +1289,7 @@ def texture_normal_map_mikktspace():
     bmesh.ops.create_uvsphere(bm, u_segments=12, v_segments=6, radius=0.8, calc_uvs=True)
     bm.to_mesh(me)
     bm.free()
+    canonical_faces(me)
     me.shade_smooth()
     mb.add_object("LowPoly", me, m, (0.0, 0.0, 0.8))
     _sun(rotation=(0, math.radians(60), math.radians(30)))

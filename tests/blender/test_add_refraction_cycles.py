@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 import pytest
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -575,7 +576,7 @@ def test_a_glossy_bsdf_mixed_with_a_principled_is_picked_and_named_glossy(
     roots = list((m.scalar_textures or {}).values())
     assert any(isinstance(n, ClosurePick) for r in roots for n in _nodes_of(r)), roots
     assert not any("Mix Shader" in x for x in m.warnings), m.warnings
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0, 0, 0.5))
+    primitive_uv_sphere_add(radius=0.5, location=(0, 0, 0.5))
     bpy.context.object.data.materials.append(mat)
     lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
     lamp.location = (1.0, -1.0, 3.0)

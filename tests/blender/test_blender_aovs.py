@@ -7,6 +7,7 @@ import pytest
 
 from blender_helpers import (cheap, cycles_plain, principled_material, read_layers,
                              render_exr)
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -17,7 +18,7 @@ def _scene(bpy):
     cheap(scene, width=64, height=48, spp=16)
     bpy.ops.mesh.primitive_plane_add(size=10)
     bpy.context.object.data.materials.append(principled_material(bpy, "floor", (0.5,) * 3, 1))
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=1, location=(0, 0, 1))
+    primitive_uv_sphere_add(radius=1, location=(0, 0, 1))
     ball = principled_material(bpy, "ball", (0.8, 0.3, 0.2), 0.5)
     nt = ball.node_tree
     mask = nt.nodes.new("ShaderNodeOutputAOV")

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -101,7 +102,7 @@ def _camera(bpy, location, rotation, lens=50.0):
 def test_each_geometry_exported_once(fresh_scene, bpy_addon):
     bpy = bpy_addon
     red = _principled(bpy, "Red", (0.8, 0.02, 0.02))
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.1, segments=8, ring_count=4,
+    primitive_uv_sphere_add(radius=0.1, segments=8, ring_count=4,
                                          location=(0, 0, -20))
     ball = bpy.context.object
     ball.data.materials.append(red)

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 import pytest
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -72,7 +73,7 @@ def _setup(bpy, scene, mat, shape, rotation=(0.5, 0.35, 0.7), scale=(1.0, 1.0, 1
         bpy.ops.mesh.primitive_plane_add(size=1.6)
         rotation = (math.pi + 0.3, 0.25, 0.4)
     else:
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.7, segments=48, ring_count=24)
+        primitive_uv_sphere_add(radius=0.7, segments=48, ring_count=24)
         bpy.ops.object.shade_smooth()
     ob = bpy.context.object
     ob.rotation_euler, ob.scale = rotation, scale

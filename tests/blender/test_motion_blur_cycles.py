@@ -25,6 +25,7 @@ from blender_helpers import (ROOT, assert_stored_means_are_now, cycles_plain,
 
 sys.path.insert(0, os.path.join(ROOT, "example_blends"))
 import make_blends as mb  # noqa: E402
+from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
 
 pytestmark = pytest.mark.blender
 REF_PATH = os.path.join(ROOT, "tests", "references", "motion_blur_cycles.json")
@@ -48,7 +49,7 @@ def _scene(bpy, move="ball"):
                       [(0, 1, 2, 3)])
     floor.materials.append(_material(bpy, "Grey", (0.5, 0.5, 0.5)))
     sc.collection.objects.link(bpy.data.objects.new("Floor", floor))
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0, 0, 0.5))
+    primitive_uv_sphere_add(radius=0.5, location=(0, 0, 0.5))
     ball = bpy.context.active_object
     ball.name = "Ball"
     ball.data.materials.append(_material(bpy, "Red", (0.8, 0.1, 0.05)))

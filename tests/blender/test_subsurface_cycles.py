@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -23,7 +24,7 @@ def _ball(bpy, scene, color, weight):
     p.inputs["Roughness"].default_value = 0.4
     p.inputs["Subsurface Weight"].default_value = weight
     p.inputs["Subsurface Scale"].default_value = 0.01
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
+    primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
     bpy.ops.object.shade_smooth()
     bpy.context.object.data.materials.append(m)
     light = bpy.data.objects.new("Area", bpy.data.lights.new("Area", "AREA"))

@@ -12,6 +12,7 @@ import pytest
 
 from blender_helpers import (black_world, cheap, cycles_plain, looking_down_camera,
                              read_rgba, render_exr, sun_light)
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -51,7 +52,7 @@ def test_checker_ball_matches_cycles(fresh_scene, bpy_addon, tmp_path, on):
     within 1.5 % of Cycles', its 4 x 4 block means within 3 % on average; the stand-in
     (walk off) printed for comparison."""
     bpy, scene = bpy_addon, fresh_scene
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
+    primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
     bpy.ops.object.shade_smooth()
     ball = bpy.context.object
     ball.data.materials.append(_material(bpy, on))

@@ -10,6 +10,7 @@ import pytest
 
 from blender_helpers import (black_world, cheap, cycles_plain, looking_down_camera,
                              read_rgba, render_exr, sun_light)
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -75,7 +76,7 @@ def test_terminator_profile_of_a_side_lit_sphere(fresh_scene, bpy_addon, tmp_pat
     (the image's middle rows, column by column) as Cycles', and the light spread past
     the terminator into the shadow side (the diffuse stand-in leaves it black)."""
     bpy, scene = bpy_addon, fresh_scene
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
+    primitive_uv_sphere_add(radius=0.5, segments=48, ring_count=24)
     bpy.ops.object.shade_smooth()
     _add(bpy, scene, bpy.context.object, _material(bpy, (0.8, 0.5, 0.4), 1.0))
     black_world(bpy, scene)

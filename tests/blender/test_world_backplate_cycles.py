@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from blender_helpers import ROOT, cycles_plain, read_rgba, render_exr
+from tools.canonical_mesh import primitive_uv_sphere_add
 
 pytestmark = pytest.mark.blender
 
@@ -42,7 +43,7 @@ def plate_scene(bpy_addon, fresh_scene):
     coord = nt.nodes.new("ShaderNodeTexCoord")
     nt.links.new(coord.outputs["Window"], tex.inputs["Vector"])
     nt.links.new(tex.outputs["Color"], nt.nodes["Background"].inputs["Color"])
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.6, location=(0, 0, 0))
+    primitive_uv_sphere_add(radius=0.6, location=(0, 0, 0))
     mat = bpy.data.materials.new("White")
     mat.use_nodes = True
     mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 1.0
