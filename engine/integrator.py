@@ -1017,7 +1017,7 @@ GUIDE_REGATHERS = False
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     level=0, should_cancel=None, lean=_UNSET, extra=None,
-                    glow_only=False, caustic=None, passes=None) -> np.ndarray:
+                    glow_only=False, caustic=None, passes=None, d_pdf=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -1048,7 +1048,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     from there (a transparent pass adds one, as path_state_next counts it along the
     whole path): a chain that reaches Light Paths > Max Bounces > Transparent ends at its
     next surface (its emission counted, no lookup, no continuation), and a regathered
-    end's shadow rays and next gather start from its count (_gather_pass_counts)."""
+    end's shadow rays and next gather start from its count (_gather_pass_counts).
+    d_pdf: the hits' glossysplit.DiffusePdf at the split's Filter Glossy if the caller
+    has it (_photon_terms: the same object, built once; None: built here when needed)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -1138,8 +1140,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Cycles' Filter Glossy on the chains (engine/glossysplit.py; None: off): level 0's
     # chains blur their lobes and add the light the caustic / glow maps leave out.
     fg_split = glossysplit.split_filter_glossy(ctx) if level == 0 and not glow_only else 0.0
-    chains = (glossysplit.GatherChains(ctx, n, fg_split,
-                                       glossysplit.DiffusePdf(ctx, hit, fg_split))
+    chains = (glossysplit.GatherChains(ctx, n, fg_split, d_pdf if d_pdf is not None
+                                       else glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
     # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
@@ -2595,7 +2597,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         chained = np.zeros_like(f) if d_pdf is not None else None
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
-                                       caustic=chained, passes=used)
+                                       caustic=chained, passes=used, d_pdf=d_pdf)
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
         if chained is not None:
