@@ -34,7 +34,7 @@ from . import (adaptive, aopass, chaincounts, datapasses, heterogeneous, lightpa
                vectorpass, volumescatter, volumewalk, worldmedium)
 from .bump import camera_differential, transfer_footprint
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, _hit_alpha, closures, lobe_weights,
-                   plain_surfaces, surface_hit, surface_hit_lobes)
+                   plain_surfaces, reads_footprint, surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_normals, gather_rays, keep_path_hits,
                             mirror_survival, pick_lobes, shade_lobes)
@@ -3209,6 +3209,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     want_glossy = bool(np.any(modes != MODE_CONTINUATION) or refl_only.any())
     table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
     plain = plain_surfaces(ctx.table)  # no per-hit nodes: surface data and lobes fused
+    bumped = reads_footprint(ctx.table)  # (the gathers carry footprints for Bump nodes)
     # Smooth glass bent past photonkernels.GLASS_ADJOINT_MIN_BEND_DEG (None: none).
     turned_refl = TurnedReflections.for_context(ctx)
     aniso_on = bool(anisotropic_materials(ctx.table.closure_params).any())
@@ -3726,7 +3727,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             hit.medium = medium
         # The path's ray differential at the hit (Cycles' sd->dP and dD): the gather rays'
         # ends take it on over their length (bump.transfer_footprint), for Bump nodes.
-        hit.footprint = cam_fp
+        hit.footprint = cam_fp if bumped else None  # (None: nothing reads it)
         hit.spread = np.zeros(n) if ortho else cam_dd
         if aniso_on:  # the anisotropic lobes' tangents (engine/anisotropy.py)
             set_hit_tangents(ctx.geo, hit.params if hit.params is not None
