@@ -180,7 +180,7 @@ class DiffusePdf:
         albedo = np.asarray(albedo, np.float64)
         # (choose_lobes' order: SPEC_LOBES) Each lobe's max channel by two np.maximum:
         # the same values as .max(axis=2), whose reduction over 3 strided channels took
-        # ~8 % of Figure 6's camera pass (docs/performance.md "slow52").
+        # ~7 % of Figure 6's camera pass CPU (docs/performance.md "slow52").
         a = albedo[:, 1:, :]
         p = np.maximum(np.maximum(a[:, :, 0], a[:, :, 1]), a[:, :, 2])
         self.fg = float(fg)
