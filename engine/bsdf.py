@@ -240,6 +240,14 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d,
                                 if table.emission.any() else np.broadcast_to(_NO_LIGHT, (n, 3))))
 
 
+def reads_footprint(table: MaterialTable) -> bool:
+    """Whether surface_hit's footprint can change a hit of this table: some material's
+    normal map is a Bump or a displacement's DisplacedNormals (its bump, or the Bump after
+    it), the only readers (_perturb). Without one the camera paths hand their gathers no
+    footprints to carry (integrator._trace_paths; slow52)."""
+    return any(isinstance(m, (Bump, DisplacedNormals)) for m in (table.normal_maps or ()))
+
+
 def _perturb(nmap, geo, prim, u, v, ns, sel, footprint):
     """The shading normals nmap (a NormalMap, Bump, Bevel) gives the rows sel; a Bump
     over the rays' footprints where they are known."""

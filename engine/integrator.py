@@ -34,7 +34,7 @@ from . import (adaptive, aopass, chaincounts, datapasses, heterogeneous, lightpa
                vectorpass, volumescatter, volumewalk, worldmedium)
 from .bump import camera_differential, transfer_footprint
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, _hit_alpha, closures, lobe_weights,
-                   plain_surfaces, surface_hit, surface_hit_lobes)
+                   plain_surfaces, reads_footprint, surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_normals, gather_rays, keep_path_hits,
                             mirror_survival, pick_lobes, shade_lobes)
@@ -1050,7 +1050,7 @@ GUIDE_REGATHERS = False
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     level=0, should_cancel=None, lean=_UNSET, extra=None,
-                    glow_only=False, caustic=None, passes=None) -> np.ndarray:
+                    glow_only=False, caustic=None, passes=None, d_pdf=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -1081,7 +1081,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     from there (a transparent pass adds one, as path_state_next counts it along the
     whole path): a chain that reaches Light Paths > Max Bounces > Transparent ends at its
     next surface (its emission counted, no lookup, no continuation), and a regathered
-    end's shadow rays and next gather start from its count (_gather_pass_counts)."""
+    end's shadow rays and next gather start from its count (_gather_pass_counts).
+    d_pdf: the hits' glossysplit.DiffusePdf at the split's Filter Glossy if the caller
+    has it (_photon_terms: the same object, built once; None: built here when needed)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -1171,8 +1173,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Cycles' Filter Glossy on the chains (engine/glossysplit.py; None: off): level 0's
     # chains blur their lobes and add the light the caustic / glow maps leave out.
     fg_split = glossysplit.split_filter_glossy(ctx) if level == 0 and not glow_only else 0.0
-    chains = (glossysplit.GatherChains(ctx, n, fg_split,
-                                       glossysplit.DiffusePdf(ctx, hit, fg_split))
+    chains = (glossysplit.GatherChains(ctx, n, fg_split, d_pdf if d_pdf is not None
+                                       else glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
     # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
@@ -2646,7 +2648,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         chained = np.zeros_like(f) if d_pdf is not None else None
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
-                                       caustic=chained, passes=used)
+                                       caustic=chained, passes=used, d_pdf=d_pdf)
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
         if chained is not None:
@@ -3258,6 +3260,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     want_glossy = bool(np.any(modes != MODE_CONTINUATION) or refl_only.any())
     table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
     plain = plain_surfaces(ctx.table)  # no per-hit nodes: surface data and lobes fused
+    bumped = reads_footprint(ctx.table)  # (the gathers carry footprints for Bump nodes)
     # Smooth glass bent past photonkernels.GLASS_ADJOINT_MIN_BEND_DEG (None: none).
     turned_refl = TurnedReflections.for_context(ctx)
     aniso_on = bool(anisotropic_materials(ctx.table.closure_params).any())
@@ -3776,7 +3779,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             hit.medium = medium
         # The path's ray differential at the hit (Cycles' sd->dP and dD): the gather rays'
         # ends take it on over their length (bump.transfer_footprint), for Bump nodes.
-        hit.footprint = cam_fp
+        hit.footprint = cam_fp if bumped else None  # (None: nothing reads it)
         hit.spread = np.zeros(n) if ortho else cam_dd
         if aniso_on:  # the anisotropic lobes' tangents (engine/anisotropy.py)
             set_hit_tangents(ctx.geo, hit.params if hit.params is not None
