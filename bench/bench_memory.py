@@ -21,12 +21,14 @@ once, the same walk as engine/resources.held_bytes but self-contained, so an old
 checkout is measured alike) by map, over the stored photons (global + caustic + glow),
 beside the shots' arrays (the figure photon_bytes gave before perf47) and what the
 photon-hit view keeps through the camera pass (before perf47 the shots' positions and
-kinds; since, its chosen dots).
+kinds; since, its chosen dots), and the render's CPU seconds. --arrays B lists, per
+scene and checkout, the arrays of at least B bytes a stored photon at the camera pass'
+end: path from the Context, dtype, shape (docs/performance.md "hdri52").
 
     .venv/bin/python bench/bench_memory.py [--quick] [--only HDRI]
     .venv/bin/python bench/bench_memory.py --triangles [--sizes 1000000 5000000] [--smooth]
     .venv/bin/python bench/bench_memory.py --photon-bytes --roots BASE . \
-        --pickles $TMPDIR/film_hashes/figure6_box.pkl ...
+        --pickles $TMPDIR/film_hashes/figure6_box.pkl ... [--arrays 0.5]
 
 (BASE: another checkout, e.g. `git worktree add /tmp/base main`; the pickles are the ones
 tools/film_hashes.py writes.)
@@ -191,7 +193,7 @@ def main_triangles(sizes, smooth, root):
 
 
 PHOTON_BYTES_CHILD = r"""
-import importlib, json, pickle, sys
+import importlib, json, pickle, sys, time
 sys.path.insert(0, ROOT)
 import numpy as np
 from engine.jit import ensure_compiled
@@ -202,10 +204,11 @@ FIELDS = ("global_map", "caustic_map", "glow_map", "gather_map", "secondary_map"
           "regather_maps", "regather_secondary", "gather_counts")
 
 
-def held(roots, seen):
+def held(roots, seen, arrays=None):
+    # arrays: {path: [bytes, dtype, shape]} of each buffer, by the first path met
     total, stack = 0, list(roots)
     while stack:
-        obj = stack.pop()
+        path, obj = stack.pop()
         if isinstance(obj, np.ndarray):
             base = obj
             while isinstance(base.base, np.ndarray):
@@ -214,23 +217,25 @@ def held(roots, seen):
             if key not in seen:
                 seen.add(key)
                 total += base.nbytes
+                if arrays is not None:
+                    arrays[path] = [base.nbytes, str(base.dtype), list(base.shape)]
             continue
         if obj is None or isinstance(obj, (int, float, str, bool)) or id(obj) in seen:
             continue
         seen.add(id(obj))
         if isinstance(obj, (list, tuple)):
-            stack.extend(obj)
+            stack.extend((f"{path}[{i}]", v) for i, v in enumerate(obj))
         elif isinstance(obj, dict):
-            stack.extend(obj.values())
+            stack.extend((f"{path}{{{k}}}", v) for k, v in obj.items())
         elif type(obj).__module__.startswith("engine.") and hasattr(obj, "__dict__"):
-            stack.extend(v for k, v in vars(obj).items() if k != "accel")
+            stack.extend((f"{path}.{k}", v) for k, v in vars(obj).items() if k != "accel")
     return total
 
 
-def parts(ctx):
+def parts(ctx, arrays=None):
     seen, out = set(), {}
     for name in FIELDS:  # (in this order: a regather map shares the gather map's arrays)
-        out[name] = held([getattr(ctx, name, None)], seen)
+        out[name] = held([(name, getattr(ctx, name, None))], seen, arrays)
     return out
 
 
@@ -241,7 +246,8 @@ def spy(ctx, *a, **kw):
     try:
         return camera(ctx, *a, **kw)
     finally:
-        got["end"] = parts(ctx)
+        got["arrays"] = {}
+        got["end"] = parts(ctx, got["arrays"])
 R.render_camera = spy
 photon_pass = R.shoot_photons
 def shots_spy(*a, **kw):
@@ -260,21 +266,24 @@ with open(PICKLE, "rb") as f:
     obj = pickle.load(f)
 scene, kw = obj if isinstance(obj, tuple) else (obj, {})
 scene.width, scene.height = 160, 120
+cpu = time.process_time()
 film = R.render(scene, RenderSettings(**dict(kw, workers=1, spp=16, seed=0)))
+cpu = time.process_time() - cpu
 st = film.stats
 stored = st.get("global_photons", 0) + st.get("caustic_photons", 0) + st.get("glow_photons", 0)
 print(json.dumps(dict(stored=stored, shots=st.get("shot_bytes", st.get("photon_bytes", 0)),
                       stat=st.get("photon_bytes", 0), hit_view=got["hit_view"],
-                      start=got["start"], end=got["end"])))
+                      start=got["start"], end=got["end"], arrays=got["arrays"], cpu=cpu)))
 """
 
 
-def main_photon_bytes(pickles, roots):
+def main_photon_bytes(pickles, roots, arrays=0.0):
     print("160 x 120, 16 spp, 1 worker, seed 0; B a stored photon (global + caustic + glow)")
     print("| scene | checkout | stored | shots' arrays | maps at the camera pass' start | "
           "at its end | of which (end): gather map / caustic / counts / other | "
-          "photon_bytes stat | photon-hit view |")
-    print("|---|---|---:|---:|---:|---:|---|---:|---:|")
+          "photon_bytes stat | photon-hit view | render CPU s |")
+    print("|---|---|---:|---:|---:|---:|---|---:|---:|---:|")
+    listed = []
     for path in pickles:
         for root in roots:
             code = f"ROOT={root!r}; PICKLE={path!r}\n" + PHOTON_BYTES_CHILD
@@ -290,7 +299,20 @@ def main_photon_bytes(pickles, roots):
             name = os.path.splitext(os.path.basename(path))[0]
             print(f"| {name} | {root} | {r['stored']:,} | {r['shots'] / n:.1f} | "
                   f"{start / n:.1f} | {end / n:.1f} | {split} | {r['stat'] / n:.1f} | "
-                  f"{r['hit_view'] / n:.1f} |", flush=True)
+                  f"{r['hit_view'] / n:.1f} | {r['cpu']:.1f} |", flush=True)
+            if arrays:
+                listed.append((name, root, n, r["arrays"]))
+    for name, root, n, held_arrays in listed:
+        # (each buffer under the first path the walk met: a level shared by the views
+        # shows under one of them)
+        print(f"\n{name}, {root}: arrays of at least {arrays} B a stored photon at the "
+              "camera pass' end")
+        print("| B a stored photon | array | dtype | shape |")
+        print("|---:|---|---|---|")
+        for path, (nbytes, dtype, shape) in sorted(held_arrays.items(),
+                                                   key=lambda kv: -kv[1][0]):
+            if nbytes / n >= arrays:
+                print(f"| {nbytes / n:.2f} | {path} | {dtype} | {tuple(shape)} |")
 
 
 def run(case):
@@ -319,9 +341,13 @@ def main():
                     help="--photon-bytes: pickled scenes (example blends' exports)")
     ap.add_argument("--roots", nargs="+", default=[ROOT],
                     help="--photon-bytes: checkouts to measure, each in a fresh process")
+    ap.add_argument("--arrays", type=float, default=0.0, metavar="B",
+                    help="--photon-bytes: also list the arrays held at the camera pass' "
+                    "end of at least B bytes a stored photon (path, dtype, shape)")
     args = ap.parse_args()
     if args.photon_bytes:
-        main_photon_bytes(args.pickles, [os.path.abspath(r) for r in args.roots])
+        main_photon_bytes(args.pickles, [os.path.abspath(r) for r in args.roots],
+                          args.arrays)
         return
     if args.triangles:
         main_triangles(args.sizes, args.smooth, os.path.abspath(args.root))

@@ -247,7 +247,8 @@ PALETTE_SAMPLE = 4096
 
 class GatherCounts:
     """The gather map's photons' counts and power (the shot's non-caustic photons:
-    bounces (N,4) uint8, power (N,) float64 summed over RGB), to decide which gather
+    bounces (N,4) uint8, power (N,) summed over RGB, float64 or float32: held as a
+    palette, as float32 where every value is one, else as float64), to decide which gather
     lookups the precomputed irradiance cannot serve (reroute). Shared by the render's
     threads; its cache is filled as lookups ask (the same answer from any thread).
 
@@ -289,6 +290,15 @@ class GatherCounts:
             if not len(miss):
                 self._power = (values, index)
             del index, miss
+        if not isinstance(self._power, tuple):
+            # Values that are all float32 (the render rounds its photons' sums so) are
+            # held as float32, the same values: 4 B a photon instead of 8 (an HDRI's
+            # photons: 264 k distinct powers of 286 k, no palette; docs/performance.md
+            # "hdri52").
+            narrow = power.astype(np.float32)
+            if np.array_equal(narrow, power):
+                self._power = narrow
+            del narrow
         self.limits = np.asarray(limits, np.int64)
         self.share = share
         self._cache = {}
@@ -304,7 +314,7 @@ class GatherCounts:
         """(N,) float64 the photons' power summed over RGB (the constructor's values)."""
         if isinstance(self._power, tuple):
             return np.take(*self._power)
-        return self._power
+        return np.asarray(self._power, np.float64)
 
     def _mask(self, key):
         mask = self._cache.get(("mask",) + key)

@@ -32,7 +32,8 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
               unique_nearest tells whether those m are free of ties
   nearest_walk  nearest's answers for a block of queries in Morton order, each from
               the previous answer's list of its k nearest (neighbour_lists, built
-              once: 4 B x k + 8 B per point) without the tree when the lists prove it;
+              once: 2 B x k + 4 B per point, 4 B x k + 4 B above NARROW_NEIGHBOURS
+              points) without the tree when the lists prove it;
               else nearest, seeded
 Far subtrees are skipped by the query's squared distance to their cell (Arya & Mount
 1993, kept incrementally per axis). Distances are computed in float64 from the float32
@@ -57,6 +58,10 @@ PARALLEL_POINTS = 1 << 16
 # points per job of a threaded build.
 NEIGHBOURS = 12
 NEIGHBOUR_CHUNK = 8192
+# neighbour_lists: a table of at most this many points lists them as uint16 (2 B an entry:
+# a gather map's ~60 k points, 24 B a point instead of 48; docs/performance.md "hdri52"),
+# a larger one as int32.
+NARROW_NEIGHBOURS = 1 << 16
 # kth_d2_rows and neighbour_lists list a seeded sphere of up to this many times the
 # points they need before they fall back to the heap search (knn).
 KTH_LIST_FACTOR = 8
@@ -846,10 +851,11 @@ def ball_count(pos, axis, split, leaf, bounds, qx, qy, qz, r2):
 @kernel
 def neighbour_lists(pos, axis, split, leaf, lo, hi, nbr, reach):
     """For the points j in [lo, hi): their k = nbr.shape[1] nearest other points (knn's
-    order) into nbr[j] (int32; padded with j itself when there are fewer), and into
-    reach[j] the distance (not squared) within which no unlisted point lies: the k-th
-    listed one's, shrunk by 1e-9 relative (far above the float64 rounding of the
-    distances), inf when every other point is listed. nearest_walk's table.
+    order) into nbr[j] (uint16 or int32, neighbour_dtype; padded with j itself when there
+    are fewer), and into reach[j] (float64) the distance (not squared) within which no
+    unlisted point lies: the k-th listed one's, shrunk by 1e-9 relative (far above the
+    float64 rounding of the distances), inf when every other point is listed.
+    nearest_walk's table (KdTree.neighbour_lists keeps reach as float32, rounded down).
 
     Each point's k + 1 nearest (itself among them) lie within the previous point's
     (k + 1)-th distance + the distance between the two (triangle inequality; points come
@@ -971,7 +977,8 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
                 if j >= 0:
                     prev = j
                 continue
-            jump = bd > JUMP_REACH * JUMP_REACH * reach[g] * reach[g]
+            rg = np.float64(reach[g])
+            jump = bd > JUMP_REACH * JUMP_REACH * rg * rg
             for _ in range(0 if jump else steps):
                 dg = bd  # best == g here
                 # The list's distances first, then their least m and its first entry: the
@@ -999,7 +1006,7 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
                     for t in range(k):
                         if dd[t] == bd and nbr[g, t] != best:
                             tie = True
-                if not tie and np.sqrt(bd) + np.sqrt(dg) < reach[g]:
+                if not tie and np.sqrt(bd) + np.sqrt(dg) < np.float64(reach[g]):
                     settled = True
                     j = best if bd < r2 else -1
                     break
@@ -1102,6 +1109,22 @@ def _dist2q(queries, j, qx, qy, qz):
     return dx * dx + dy * dy + dz * dz
 
 
+def neighbour_dtype(n: int):
+    """The index type of a neighbour table over n points: uint16 up to NARROW_NEIGHBOURS
+    points (every index 0..n-1 fits), int32 above (docs/performance.md "hdri52")."""
+    return np.uint16 if n <= NARROW_NEIGHBOURS else np.int32
+
+
+def reach32(reach: np.ndarray) -> np.ndarray:
+    """(N,) float32: reach (N,) float64 rounded toward zero (a value rounded up to nearest
+    steps one float32 ulp down; inf stays inf): reach32(r) <= r, so a reach stays a
+    distance within which no unlisted point lies."""
+    out = reach.astype(np.float32)
+    up = out.astype(np.float64) > reach
+    out[up] = np.nextafter(out[up], np.float32(0.0))
+    return out
+
+
 class KdTree:
     """The kd-tree over points (N,3); self.order maps the tree's point index -> input
     index, self.position are the points in the tree's order."""
@@ -1152,12 +1175,15 @@ class KdTree:
                 + self.leaf.nbytes + self.bounds.nbytes)
 
     def neighbour_lists(self, k: int = NEIGHBOURS, workers: int = 1, should_cancel=None):
-        """(nbr (N,k) int32, reach (N,) float64): each point's k nearest other points and
-        the distance within which no other point lies (neighbour_lists), for
-        nearest_walk. Built on `workers` threads (the same table); raises
-        parallel.Cancelled when should_cancel is set."""
+        """(nbr (N,k) uint16 or int32 (neighbour_dtype), reach (N,) float32): each point's
+        k nearest other points and the distance within which no other point lies
+        (neighbour_lists), for nearest_walk. reach is the kernel's float64 distance
+        rounded down to float32 (reach32): never beyond it, so every row the lists settle
+        is still nearest's answer; a row whose float64 reach would have settled it by less
+        than a float32 step searches the tree (the same answer). Built on `workers`
+        threads (the same table); raises parallel.Cancelled when should_cancel is set."""
         n = len(self.position)
-        nbr = np.empty((n, k), np.int32)
+        nbr = np.empty((n, k), neighbour_dtype(n))
         reach = np.empty(n)
         chunks = [(a, min(a + NEIGHBOUR_CHUNK, n)) for a in range(0, n, NEIGHBOUR_CHUNK)]
 
@@ -1169,7 +1195,7 @@ class KdTree:
         for _ in ordered_map(job, chunks, workers if n >= PARALLEL_POINTS // 4 else 1,
                              should_cancel):
             pass
-        return nbr, reach
+        return nbr, reach32(reach)
 
     def kth(self, queries: np.ndarray, k: int) -> np.ndarray:
         """(M,) float64 distances (not squared) from queries (M,3) to their k-th nearest
@@ -1208,8 +1234,13 @@ def _warm_up():
     nearest_facing(tree.position, *tree.nodes, nrm, 0.5, 0.5, 0.5, 0.0, 0.0, 1.0, 0.7, 0.1)
     count_closer(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1, 8)
     nbr, reach = tree.neighbour_lists(4)
+    # The int32 table of more than NARROW_NEIGHBOURS points (the same kernels).
+    wide = np.empty(nbr.shape, np.int32)
+    neighbour_lists(tree.position, *tree.nodes, 0, len(pts), wide, np.empty(len(pts)))
     q = np.full((2, 3), 0.5)
     rows = np.arange(2, dtype=np.int64)
     near = np.empty(2, np.int64)
-    for walked in (np.empty(2, np.bool_), np.zeros(0, np.bool_)):
-        nearest_walk(tree.position, *tree.nodes, nbr, reach, q, rows, 0.1, 3, near, walked)
+    for table in (nbr, wide):
+        for walked in (np.empty(2, np.bool_), np.zeros(0, np.bool_)):
+            nearest_walk(tree.position, *tree.nodes, table, reach, q, rows, 0.1, 3, near,
+                         walked)

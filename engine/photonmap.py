@@ -1173,6 +1173,14 @@ class _LazyPoints:
         self.known = np.zeros(len(boundary), np.bool_)
 
 
+# The gather points' levels (E, the subset maps' E, secondary_levels, counts_irradiance's
+# answers): each point's float64 estimate rounded once to float32 (to nearest: within
+# 2^-24 of it, relative), 12 B a point and level instead of 24. A lookup returns a
+# point's value: a pixel's gathered light, a non-negative weighted sum of them, moves by
+# at most 2^-24 of itself (docs/performance.md "hdri52").
+LEVEL_DTYPE = np.float32
+
+
 class GatherMap:
     """Precomputed irradiance at a subset of photon positions (Christensen 1999), so a
     final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate.
@@ -1195,7 +1203,7 @@ class GatherMap:
     min_photons: photons an estimate needs (fewer: no estimate, flagged);
     integrator.smooth_min_photons gives 1 outside paper mode.
 
-    secondary_E: (P,3) float64 or None, per gather point (self.position's order) the
+    secondary_E: (P,3) float32 or None, per gather point (self.position's order) the
     irradiance of the secondary-caustic (CAUSTIC_DIFFUSE) photons alone from the point's
     own estimate: the share of E that a regathered end must add back
     (integrator._secondary_irradiance). Set by the caller from secondary_levels; None:
@@ -1358,17 +1366,21 @@ class GatherMap:
             # The arrays the estimates fill (in place: the views below read them); the
             # drop bounds' masks fill their (P,) flags alone (_fill), and with keep no
             # view reads the estimate of every photon (E is keep's level): not kept.
-            done = (np.zeros((P, 3)) if keep is None else None, np.ones(P, np.bool_)) + (
-                () if chosen is None else (np.zeros((n_live, P, 3)),))
+            # Float32 levels (LEVEL_DTYPE): the float64 estimates rounded once.
+            done = (np.zeros((P, 3), LEVEL_DTYPE) if keep is None else None,
+                    np.ones(P, np.bool_)) + (
+                () if chosen is None else (np.zeros((n_live, P, 3), LEVEL_DTYPE),))
             self.neighbours = run_tasks([neighbours], 1, should_cancel)[0]
             hit = [np.zeros(P, np.bool_) for _ in bound_masks]
         else:
             done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
             if bound_masks:
+                # (from the float64 estimates: a tiny nonzero term still counts)
                 hit = [np.any(b != 0.0, axis=1) for b in done[2][n_live:]]
-                # Only the kept levels: the drop bounds' (P,3) estimates, views of one
-                # array with them, would keep it all alive (24 B a point and mask).
-                done = done[:2] + (done[2][:n_live].copy(),)
+            # The levels as float32 (LEVEL_DTYPE), the kept ones alone: the drop bounds'
+            # (P,3) estimates, views of one array with them, would keep it all alive.
+            done = ((None if keep is not None else done[0].astype(LEVEL_DTYPE)), done[1]) + (
+                () if len(done) < 3 else (done[2][:n_live].astype(LEVEL_DTYPE),))
         E, self.boundary = done[0], done[1]
         levels = []
         if kept:
@@ -1379,11 +1391,11 @@ class GatherMap:
                     levels.append(done[2][live.index(i)])
                 elif i < first_secondary:
                     if zero_E is None:
-                        zero_E = np.zeros((P, 3))
+                        zero_E = np.zeros((P, 3), LEVEL_DTYPE)
                     levels.append(zero_E)
                 else:
                     if zero_share is None:
-                        zero_share = np.broadcast_to(np.zeros(3), (P, 3))
+                        zero_share = np.broadcast_to(np.zeros(3, LEVEL_DTYPE), (P, 3))
                     levels.append(zero_share)
         for key, j in zip(bound_keys, bound_of):
             self.drop_bounds[key] = hit[j] if j >= 0 else np.zeros(len(self.position), bool)
@@ -1454,7 +1466,7 @@ class GatherMap:
         return self
 
     def counts_irradiance(self, points, limits, camera) -> np.ndarray:
-        """(M,3) float64: the irradiance at gather points `points` (M,) int64 (indices into
+        """(M,3) float32: the irradiance at gather points `points` (M,) int64 (indices into
         self.position) from the photons usable at camera-side counts `camera` (4-tuple,
         B_TOTAL order) within `limits` (4,) alone: what a subset map of those photons
         (the constructor's subsets, the others' power counted as 0) holds there, the same
@@ -1474,7 +1486,8 @@ class GatherMap:
             # these calls' CPU on Figure 6.
             bits = pack_masks(np.take(pk.bounce_usable(rows, np.asarray(limits, np.int64),
                                                        key), which)[None])
-            got = self.counts_cache.setdefault(key, (bits, _NO_POINTS, np.zeros((0, 3))))
+            got = self.counts_cache.setdefault(key, (bits, _NO_POINTS,
+                                                     np.zeros((0, 3), LEVEL_DTYPE)))
         # A sparse store per count: the points asked so far (ascending) and their E. A
         # dense (P,3) + (P,) per count held 52 MB on Figure 6 (34 counts, 60 k points)
         # for 11 k points asked (docs/performance.md, mem45).
@@ -1492,7 +1505,8 @@ class GatherMap:
             merged = np.concatenate([known, new])
             order = np.argsort(merged, kind="stable")
             known = merged[order]
-            known_E = np.concatenate([known_E, masked[0]])[order]
+            # (as a subset map's level holds them: float32)
+            known_E = np.concatenate([known_E, masked[0].astype(LEVEL_DTYPE)])[order]
             # (two threads may both add points: the last store wins, the other's are
             # computed again when asked, the same bits)
             self.counts_cache[key] = (bits, known, known_E)
@@ -2019,9 +2033,13 @@ def _warm_up_gather():
                           np.zeros(m, np.uint8)), 0.5, 8, 2, "knn_simpson")
     q = rng.random((4, 3))
     nq = np.tile([0.0, 0.0, 1.0], (4, 1))
-    g.lookup(q, nq)
-    g.lookup(q, nq, offset=np.full(4, 1e-6))
-    g.lookup(q, nq, offset=np.full(4, 1e-6), points=True)
+    nbr, reach = g.neighbours
+    # The uint16 neighbour table, then the int32 one (above kdtree.NARROW_NEIGHBOURS points).
+    for table in (nbr, nbr.astype(np.int32)):
+        g.neighbours = (table, reach)
+        g.lookup(q, nq)
+        g.lookup(q, nq, offset=np.full(4, 1e-6))
+        g.lookup(q, nq, offset=np.full(4, 1e-6), points=True)
     # The hidden-candidate steps (they run only with an Accel).
     rows = np.arange(4)
     lists = np.empty((4, 8), np.int64)

@@ -108,8 +108,9 @@ BYTES_PER_INSTANCE = 400  # a shared instance: record, matrices, top-level box a
 # GATHER_MAX_POINTS of those: GatherMap's max_points), and more where photons are sparse
 # (photonmap._point_shares): measured 1.08x the every-step-th points in the Figure 6 box
 # at the defaults (60,739 points of 733,827 photons), 0.99x on an HDRI-lit ground;
-# GATHER_POINT_SPREAD leaves room above that. Each deeper level holds a (P,3) float64
-# irradiance per point; the boundary flags are the level-0 map's (shared).
+# GATHER_POINT_SPREAD leaves room above that. Each deeper level holds a (P,3) float32
+# irradiance per point (photonmap.LEVEL_DTYPE); the boundary flags are the level-0 map's
+# (shared).
 # The estimating photons a gather map keeps for its lookups' subsets (GatherMap
 # estimating, counts_cache): float32 position, power, direction, normal (48 B), kind,
 # surface (5 B), the kd-tree's share and a count class (1-2 B), and the sparse per-count
@@ -118,7 +119,7 @@ BYTES_PER_INSTANCE = 400  # a shared instance: record, matrices, top-level box a
 BYTES_PER_KEPT_GATHER_PHOTON = 64
 GATHER_MAX_POINTS = 60_000
 GATHER_POINT_SPREAD = 1.25
-BYTES_PER_GATHER_POINT_LEVEL = 24
+BYTES_PER_GATHER_POINT_LEVEL = 12
 # Building an environment map's tables (lights.environment.texel_function: the texels as
 # float64, their luminance and its filtered copies) holds this much per texel beyond the
 # tables for a moment (tracemalloc, 2k x 1k: peak 40.0 B/texel with the cosine tables'
@@ -408,7 +409,7 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
             est.drivers["gather lookups' photons"] = "photons"
         if s.final_gather and s.photons and integrator.SECONDARY_FROM_GATHER_POINTS:
             # Each regathering level's secondary-caustic share of the gather points'
-            # estimates ((P,3) float64 a level: GatherMap.secondary_levels).
+            # estimates ((P,3) float32 a level: GatherMap.secondary_levels).
             est.parts["regather secondary shares"] = (
                 gather_points(s.photons * stores) * integrator.MAX_GATHER_LEVEL
                 * BYTES_PER_GATHER_POINT_LEVEL)
