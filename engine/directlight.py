@@ -516,7 +516,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 if rad > 0:
                     lp = d2 / max(PI * rad * rad * cl, 1e-300)
                 if code == C_SPOT:
-                    m = _spot_mask(a0, a1, a2, q)
+                    # Along the ray from the disk's sample to the shaded point (Cycles'
+                    # spot_light_attenuation(-ls->D)), as rays that meet the disk read it
+                    # (PointLight.intersect): the light's size softens the cone's edge.
+                    m = _spot_mask(-w0, -w1, -w2, q) if rad > 0 else _spot_mask(a0, a1, a2, q)
                     e0, e1, e2 = e0 * m, e1 * m, e2 * m
                 if q.shape[0] > pk.IES and q[pk.IES + HEADER] > 0:
                     # The IES profile along the direction from the light sample to the
