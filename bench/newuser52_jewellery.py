@@ -61,7 +61,7 @@ from mathutils import Vector  # noqa: E402
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import assign, camera, object_masks, principled  # noqa: E402
 from newuser44_table import arguments, render  # noqa: E402
-from newuser51_donut import canonical_faces  # noqa: E402
+from tools.canonical_mesh import canonical_faces  # noqa: E402
 from studio48_stilllife import revolve, studio_world, write_hdr  # noqa: E402
 
 TOP = 0.03  # the plinth's top (m)
