@@ -55,6 +55,12 @@ BLOCK_ROWS = 1024
 # shared by worker threads still splits a call among them) and the rays of a block
 # (BLOCK_ROWS rows).
 READ_ROWS = 16384
+# The same for a map no other thread shares (workers 1: a camera chunk's serial context,
+# Context.serial): its search runs on the calling thread whatever the block, so the block
+# only sets the read lists each worker keeps (4 MB at k = 64 instead of 16; slices52,
+# docs/performance.md). Each row's estimate, search and visibility are its own: the same
+# bits in any block (tests/test_photon_visibility_reuse.py).
+SERIAL_READ_ROWS = 4096
 # A row's read list holds up to this many times k photons; a row that reads more (a
 # footprint floor or MIN_RADIUS_FRACTION wider than its k-th photon) is read again with
 # a list as wide as it needs (a second search for those rows alone).
@@ -297,7 +303,8 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     """(E (M,3), rows (H,), photons (H,)): the estimate at p / n (chaincounts.irradiance,
     counts (M,4) or None) and its hidden (row, photon) pairs, by row: the photons each
     row's estimate read (_estimate_read) traced from the row (_hidden_pairs), in blocks
-    of READ_ROWS rows (one search a row for both). Rows the pre-test frees (geo:
+    of READ_ROWS rows (SERIAL_READ_ROWS where pmap is a one-thread view; one search a
+    row for both). Rows the pre-test frees (geo:
     OneSurfaceCells; None: none) are not traced. visible: E's rows that hide a photon
     hold their estimate from their visible photons alone (_visible_sums: from the read
     lists, the bits of _reestimate's second search). surface: the rows' (M,) object ids
@@ -320,8 +327,9 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
         traced = ~one_surface_cells(geo, radius).free(p, reach, n)
     E = np.empty((m, 3))
     rows_out, photons_out = [], []
-    for a in range(0, m, READ_ROWS):
-        b = min(a + READ_ROWS, m)
+    block = READ_ROWS if getattr(pmap, "workers", 1) > 1 else SERIAL_READ_ROWS
+    for a in range(0, m, block):
+        b = min(a + block, m)
         counts_here = None if counts is None else counts[a:b]
         E[a:b], count, photons, weight, factor, (wide, *wide_read) = _estimate_read(
             pmap, limits, counts_here, p[a:b], n[a:b], radius, k, min_photons, estimator,

@@ -203,6 +203,45 @@ def test_read_list_sums_give_the_masked_searchs_bits(monkeypatch):
     assert ((read[3] != 1.0) & (count > 0)).sum() > 10
 
 
+def test_estimate_blocks_give_the_same_bits(monkeypatch):
+    """_estimate_hidden reads its rows in blocks (READ_ROWS; SERIAL_READ_ROWS for a map
+    no other thread shares, as a camera chunk's): each row's estimate, read list and
+    visibility are its own, so blocks of 7 or 64 rows give the bits of one block, with a
+    footprint floor, camera-side counts and the hidden pairs (offset by each block's
+    start)."""
+    from engine import photonvisibility as pv
+    ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
+    ph = shoot_photons(ctx, {})[-1]
+    rng = np.random.default_rng(31)
+    b = rng.integers(0, 3, (len(ph), 4)).astype(np.uint8)
+    b[:, 0] = b[:, 1:].sum(1)
+    pmap = PhotonMap(ph, keep_source=True)
+    pmap.photons.bounces = b[pmap.source]
+    assert pmap.workers == 1  # (SERIAL_READ_ROWS' case)
+    m = 300
+    p = np.column_stack([rng.uniform(-0.6, 0.6, m), np.full(m, 2.0),
+                         rng.uniform(1.0, 2.1, m)]) - ctx.geo.offset
+    n = np.tile([0.0, -1.0, 0.0], (m, 1))
+    limits = np.array([4, 3, 3, 3], np.int64)
+    counts = np.zeros((m, 4), np.int64)
+    counts[:, 1] = rng.integers(0, 2, m)
+    counts[:, 0] = counts[:, 1]
+    r_floor = rng.uniform(0.0, 0.3, m)
+    for lim, cnt in ((None, None), (limits, counts)):
+        def run(rows):
+            with monkeypatch.context() as mp:
+                mp.setattr(pv, "SERIAL_READ_ROWS", rows)
+                return pv._estimate_hidden(pmap, ctx.accel, p, n, None, 0.19, 64, 1,
+                                           "knn_simpson", r_floor, lim, cnt, None,
+                                           visible=True)
+        whole = run(m)
+        assert len(np.unique(whole[1])) > 10  # rows that hide photons
+        for rows in (7, 64):
+            got = run(rows)
+            for a, w in zip(got, whole):
+                assert np.array_equal(a, w)
+
+
 def test_read_list_sums_take_pairs_in_any_order():
     """_visible_sums walks each row's hidden photons along its read list (the order
     _hidden_pairs gives them); pairs shuffled (rows and photons in any order) are sorted
