@@ -323,7 +323,10 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
         plan.add("glossy blur", True,
                  said + "; so does ours: that light comes through the final gather's "
                  "rays, their lobes blurred as Cycles', not from the caustic photons "
-                 "(light off them after a further diffuse bounce stays unblurred)")
+                 "(light off them after a further diffuse bounce stays unblurred); at "
+                 "Filter Glossy 0 both render sharp caustics, ours from the caustic "
+                 "photons, whose smooth estimates Cycles' clamp does not cut as it cuts "
+                 "its own rare bright samples (see the clamping line then)")
         return
     # (fgroom46: the camera paths' own lobes blur at any Filter Glossy, filterglossy.py;
     # only the maps' light named here stays unblurred without the split.)
@@ -331,7 +334,7 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
     own = " (only its camera paths' own lobes, as Cycles)" if BLUR_CAMERA_PATHS else ""
     plan.add("glossy blur", False,
              said + f"; ours does not blur that light{own}, so that light matches Cycles "
-             "with Filter Glossy 0: set that to compare")
+             "with Filter Glossy 0 (sharp caustics in both): set that to compare")
 
 
 def _cycles_caustics_note(plan: EffectPlan, s, geo: Geometry, table: MaterialTable,
@@ -1321,17 +1324,32 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # changing nothing) while right on newuser41's glass eyes (1.12x at Indirect 10,
         # 1.000 with Cycles' clamp off) and newuser46's bottle before a window (0.63 of
         # its unclamped self in Cycles, 0.74 in ours).
+        # At Filter Glossy above 1/pi (the split on: engine/glossysplit.py; a matte hit
+        # reads no caustic photon, Lambert's pdf being at most 1/pi) the casters' light
+        # reaches the matte surfaces through the final gather's paths, clamped per sample
+        # as Cycles' are (newuser52: under the pendant ours 1.000-1.004 of clamped Cycles at
+        # Filter Glossy 1), and the probe, which follows sharp lobes, read 5.2 % or none
+        # by seed: said so, not probed. At 0 (and partly up to 1/pi) ours takes it from
+        # the caustic photons: probed.
         kinds_of = {li.name: li.kind for li in emitting}
         quiet = []  # what the probes found under the clamp
-        if (s.clamp_indirect > 0 and plan.caustics and plan.casters and probe_clamp
+        gathered = settings_filter_glossy(s) > 1.0 / math.pi
+        if (s.clamp_indirect > 0 and plan.caustics and plan.casters and gathered):
+            glass_note += ("; the caustics of " + _quoted(plan.casters, most=REPORT_NAMES_MAX)
+                           + " reach the matte surfaces through the final gather's paths "
+                           f"here (Filter Glossy {s.cycles_filter_glossy:g}: see the glossy "
+                           "blur line), and ours clamps those paths' samples as Cycles "
+                           "clamps its own")
+        elif (s.clamp_indirect > 0 and plan.caustics and plan.casters and probe_clamp
                 and has_tris):
-            reach_rng = np.random.default_rng([s.seed, 93])
+            # Fixed streams: the answer is the scene's, not the seed's (clampblur52).
+            reach_rng = np.random.default_rng([CLAMP_CAUSTIC_STREAM[0], 93])
             reaching = ({li.name for li in emitting
                          if any(_light_reaches(li, accel, geo, oid, c, r, reach_rng)
                                 for oid, c, r, _ in reached)} if reached else None)
             plan.clamped_caustics = clamped_caustics(
                 scene, geo, table, emitting, accel, plan.caster_ids,
-                3.0 * s.clamp_indirect, np.random.default_rng([s.seed, 94]), reaching)
+                3.0 * s.clamp_indirect, np.random.default_rng(CLAMP_CAUSTIC_STREAM), reaching)
             cut = [(k, v) for k, v in plan.clamped_caustics.items() if v >= CLAMP_CUT_MIN]
             casters = _quoted(plan.casters, most=REPORT_NAMES_MAX)
             if cut:
@@ -1341,7 +1359,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                            for k, v in cut[:REPORT_NAMES_MAX])
                                + ": that share of the first diffuse bounce's light off the "
                                "surfaces in view, cut from their caustics by a probe of "
-                               "Cycles' samples here): they can read brighter here")
+                               "Cycles' samples here), while ours takes them from the "
+                               "caustic photons' smooth estimates: they can read brighter "
+                               "here")
             else:
                 quiet.append("the caustics of " + casters)
         # A lamp (or the sky) seen through a closed glass object is indirect light to
@@ -1854,6 +1874,17 @@ CLAMP_PROBE_LIGHTS = 16    # the brightest lights probed (by photon flux; one ke
 CLAMP_CAUSTIC_PATHS = 8192  # caustic paths (diffuse point, caster, on) the caustic probe follows
 CLAMP_CAUSTIC_REPEATS = 16  # at most this many paths a (diffuse point, caster point) pair
 CLAMP_BASE_ROWS = 2048    # bounce samples off other surfaces the caustic probe's share is of
+# The caustic probe's own sizes and stream: a lamp of radius 10 mm behind a 7 mm crystal
+# drop (newuser52's jewellery display) reaches a few of 8,192 paths at most, and the
+# clause flipped with the render's seed (5.2 % cut at seed 0, none at 1; Cycles' clamp
+# cuts 13 % of that pendant's shadow at Filter Glossy 0). At these sizes it found a cut
+# on 8 of 8 streams (docs/accuracy.md, clampblur52), in ~0.5 s; the stream is fixed, so
+# one scene gets one answer at any seed.
+CLAMP_CAUSTIC_GRID = 128          # probe grid of the caustic probe (CLAMP_PROBE's role)
+CLAMP_CAUSTIC_GRID_REPEATS = 16   # its bounce samples per probe ray
+CLAMP_CAUSTIC_FOLLOWED = 65536    # caustic paths it follows (CLAMP_CAUSTIC_PATHS' role)
+CLAMP_CAUSTIC_FOLLOW_REPEATS = 256  # at most this many paths a pair (CLAMP_CAUSTIC_REPEATS')
+CLAMP_CAUSTIC_STREAM = (94,)      # its random stream, the render seed's left out
 CLAMP_CHAIN_DEPTH = 8      # specular bounces the caustic probe follows from a caster
 CLAMP_SUN_CONE = math.radians(10.0)  # the kernel estimate's cone round a sun's disc
 
@@ -1964,8 +1995,11 @@ def _probe_camera_hits(scene, geo: Geometry, accel, rng, probe: int, repeats: in
 
 
 def clamped_caustics(scene, geo: Geometry, table: MaterialTable, lights: list, accel,
-                     caster_ids, limit: float, rng, reaching=None, probe: int = CLAMP_PROBE,
-                     repeats: int = CLAMP_PROBE_REPEATS) -> dict:
+                     caster_ids, limit: float, rng, reaching=None,
+                     probe: int = CLAMP_CAUSTIC_GRID,
+                     repeats: int = CLAMP_CAUSTIC_GRID_REPEATS,
+                     paths: int = CLAMP_CAUSTIC_FOLLOWED,
+                     again: int = CLAMP_CAUSTIC_FOLLOW_REPEATS) -> dict:
     """{light name: the share of the first diffuse bounce's light off the surfaces in view
     that Cycles' clamp cuts from that light's caustics}, for each light with a cut above 0
     (largest first); reaching: the names of the lights whose photons reach a caster (None:
@@ -1975,7 +2009,8 @@ def clamped_caustics(scene, geo: Geometry, table: MaterialTable, lights: list, a
     of camera rays meets x, a cosine-sampled ray from x, weight x's diffuse albedo a_x,
     meets y): where y is on a caster (caster_ids: object ids) the path follows its sharp
     lobes to a light (_follow_chain: Cycles' closure pick, the samples T L where it meets
-    a light; each (x, y) pair's path up to CLAMP_CAUSTIC_REPEATS times); elsewhere each
+    a light; at most `paths` paths, each (x, y) pair's up to `again` times; probe,
+    repeats: the grid's rays along the longer side and bounce samples a ray); elsewhere each
     light's one shadow-ray sample at y gives a_x a_y / pi E (a subset of at most
     CLAMP_BASE_ROWS rows, scaled). Every sample is clamped as Cycles' film_clamp_light
     does (|R| + |G| + |B| <= limit, 3 x Indirect); the share is a light's caustic cut
@@ -1983,7 +2018,10 @@ def clamped_caustics(scene, geo: Geometry, table: MaterialTable, lights: list, a
     tree, glossy lobes at x. Measured (docs/accuracy.md, clampnote51): newuser51's
     donut and studio48's still life none (Cycles' clamp: 1.0000 on studio48's backdrop);
     newuser46's kitchen 'WindowLight' 1.6-1.7 %; a glass ball under a 400 W 1 m area
-    light 3 m up 0.5-3.4 %, under a 5 W/m^2 sun of 0.526 degrees 3.1-4.5 %."""
+    light 3 m up 0.5-3.4 %, under a 5 W/m^2 sun of 0.526 degrees 3.1-4.5 %; newuser52's
+    jewellery display (a 10 mm spot behind crystal) 47-89 % over 8 streams (clampblur52).
+    The sharp lobes only: at Filter Glossy above 1/pi Cycles blurs them, and ours takes
+    that light through the final gather's clamped paths (the clause is not probed there)."""
     from .bsdf import surface_hit
     from .datapasses import lobe_albedo
     caster_ids = np.asarray(caster_ids, np.int64)
@@ -2011,9 +2049,9 @@ def clamped_caustics(scene, geo: Geometry, table: MaterialTable, lights: list, a
                        scale=len(rest) / len(part), counted=False)
     # The caustic samples: y's sharp lobes to the lights, each pair's path followed
     # several times (a lamp's caustic reaches the few paths that meet it).
-    part = (pairs if len(pairs) <= CLAMP_CAUSTIC_PATHS
-            else rng.choice(pairs, size=CLAMP_CAUSTIC_PATHS, replace=False))
-    again = max(1, min(CLAMP_CAUSTIC_REPEATS, CLAMP_CAUSTIC_PATHS // len(part)))
+    part = (pairs if len(pairs) <= paths
+            else rng.choice(pairs, size=paths, replace=False))
+    again = max(1, min(again, paths // len(part)))
     part = np.repeat(part, again)
     hy = surface_hit(geo, table, prim2[part], u2[part], v2[part], wd[part])
     to_casters = [i for i in lit if reaching is None or lights[i].name in reaching]

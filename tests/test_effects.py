@@ -1232,6 +1232,35 @@ def test_clamping_line_says_the_caustics_only_where_a_probe_finds_them_over_the_
     assert plan.clamped_caustics["Sun"] > 0.002, plan.clamped_caustics
 
 
+def test_clamping_line_says_the_caustics_as_the_filter_glossy_routes_them():
+    """newuser52's jewellery display: at Blender's default Filter Glossy 1 the casters'
+    light reaches diffuse surfaces through the final gather's paths, clamped per sample as
+    Cycles' (ours 1.000-1.004 of clamped Cycles under the pendant), yet the clause said
+    "can read brighter" at seed 0 and "changes nothing" at seed 1. At Filter Glossy above
+    1/pi it says the gather clamps that light as Cycles does, unprobed; at 0 (ours from the
+    caustic photons) the probe, on its own fixed stream, answers the same at any seed."""
+    scene = _caster_table("sun")
+    for seed in (0, 1):
+        plan = _plan(scene, clamp_indirect=10.0, cycles_filter_glossy=1.0, seed=seed)
+        line = _line(plan, "clamping: on - ")
+        assert ("the caustics of 'Ball' reach the matte surfaces through the final "
+                "gather's paths here (Filter Glossy 1: see the glossy blur line), and "
+                "ours clamps those paths' samples as Cycles clamps its own") in line, line
+        assert "they can read brighter" not in line and plan.clamped_caustics == {}, line
+        blur = _line(plan, "glossy blur: on - ")
+        assert ("at Filter Glossy 0 both render sharp caustics, ours from the caustic "
+                "photons, whose smooth estimates Cycles' clamp does not cut") in blur, blur
+    sharp = [_plan(scene, clamp_indirect=10.0, cycles_filter_glossy=0.0, seed=seed)
+             for seed in (0, 1)]
+    assert sharp[0].clamped_caustics == sharp[1].clamped_caustics, [
+        p.clamped_caustics for p in sharp]
+    assert sharp[0].clamped_caustics["Sun"] > 0.002, sharp[0].clamped_caustics
+    line = _line(sharp[1], "clamping: on - ")
+    assert ("while ours takes them from the caustic photons' smooth estimates: they can "
+            "read brighter here") in line, line
+    assert not any(r.startswith("glossy blur") for r in sharp[1].report())
+
+
 def test_cycles_caustics_switches_are_named_where_they_change_cycles_image():
     """Cycles' Light Paths > Caustics > Reflective / Refractive off drop the light its
     paths would find off a mirror / through glass after a diffuse bounce, and its shadow
