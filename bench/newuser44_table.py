@@ -215,6 +215,17 @@ def render(scene, a):
     print(f"RESULT {a.mode} cpu_s={t:.1f} wall_s={wall:.1f}", flush=True)
 
 
+def print_report():
+    """Print what the add-on's last render reported besides its effect lines: warnings,
+    the export's counts and the stats (the new-user trials read them)."""
+    import addon.engine as ae
+    lr = ae.last_render
+    for w in lr.get("warnings", []):
+        print("WARNING:", w)
+    print("export:", lr.get("export"))
+    print("stats:", {k: v for k, v in lr.get("stats", {}).items() if k != "effects"})
+
+
 def main():
     ap = arguments()
     ap.add_argument("--world", default="sky", choices=("sky", "colour"))

@@ -64,7 +64,7 @@ from mathutils import Vector  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import assign, camera, object_masks, principled  # noqa: E402
-from newuser44_table import arguments, render  # noqa: E402
+from newuser44_table import arguments, print_report, render  # noqa: E402
 from studio48_stilllife import revolve, studio_world, write_hdr  # noqa: E402
 from tools.canonical_mesh import canonical_faces  # noqa: E402
 
@@ -344,13 +344,8 @@ def main():
         scene.render.resolution_percentage = 100
         return grouped_masks(scene, *a.res, a.masks)
     render(scene, a)
-    if a.mode == "ours":  # what the add-on reports besides its effect lines
-        import addon.engine as ae
-        lr = ae.last_render
-        for w in lr.get("warnings", []):
-            print("WARNING:", w)
-        print("export:", lr.get("export"))
-        print("stats:", {k: v for k, v in lr.get("stats", {}).items() if k != "effects"})
+    if a.mode == "ours":
+        print_report()
 
 
 if __name__ == "__main__":
