@@ -302,14 +302,14 @@ def _strong_reflector(geo: Geometry, table: MaterialTable, oid: int) -> bool:
 
 
 def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
-                        split: bool = False) -> None:
+                        split: bool = False, clamped: bool = True) -> None:
     """The "glossy blur" line: Cycles' Filter Glossy (the scene's, read by the add-on) is
     on and light reaches diffuse surfaces off specular ones here (the caustic map's L S+ D
     paths), which Cycles renders through blurred lobes (glow36: a roughness 0.4 metal
     block on a diffuse floor, the floor beside it 1.19x Cycles at its default 1.0 without
     the blur, within 5 % of Cycles at 0). split: engine/glossysplit.py renders those
     paths blurred too (on: Filter Glossy above 0, final gathering); else ours does not
-    blur."""
+    blur. clamped: Clamp Indirect is on (the clamp's clause only then)."""
     if not names:
         return
     lo, hi = (float(a) for a in filter_glossy_alpha(filter_glossy, [1.0 / math.pi, 0.0]))
@@ -325,8 +325,9 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
                  "rays, their lobes blurred as Cycles', not from the caustic photons "
                  "(light off them after a further diffuse bounce stays unblurred); at "
                  "Filter Glossy 0 both render sharp caustics, ours from the caustic "
-                 "photons, whose smooth estimates Cycles' clamp does not cut as it cuts "
-                 "its own rare bright samples (see the clamping line then)")
+                 "photons" + (", whose smooth estimates Cycles' clamp does not cut as it "
+                              "cuts its own rare bright samples (see the clamping line "
+                              "then)" if clamped else ""))
         return
     # (fgroom46: the camera paths' own lobes blur at any Filter Glossy, filterglossy.py;
     # only the maps' light named here stays unblurred without the split.)
@@ -989,7 +990,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             _filter_glossy_note(plan, s.cycles_filter_glossy, [
                 n for n in [n for _, _, _, n in reached] + rough_reached
                 if _strong_reflector(geo, table, ids_of[n])],
-                split=settings_filter_glossy(s) > 0.0)
+                split=settings_filter_glossy(s) > 0.0, clamped=s.clamp_indirect > 0)
         if not (s.cycles_caustics_reflective and s.cycles_caustics_refractive):
             _cycles_caustics_note(plan, s, geo, table,
                                   [n for _, _, _, n in reached] + rough_reached)
@@ -1326,20 +1327,24 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # its unclamped self in Cycles, 0.74 in ours).
         # At Filter Glossy above 1/pi (the split on: engine/glossysplit.py; a matte hit
         # reads no caustic photon, Lambert's pdf being at most 1/pi) the casters' light
-        # reaches the matte surfaces through the final gather's paths, clamped per sample
-        # as Cycles' are (newuser52: under the pendant ours 1.000-1.004 of clamped Cycles at
-        # Filter Glossy 1), and the probe, which follows sharp lobes, read 5.2 % or none
-        # by seed: said so, not probed. At 0 (and partly up to 1/pi) ours takes it from
-        # the caustic photons: probed.
+        # reaches the matte surfaces through the final gather's paths, clamped per camera
+        # sample (the mean of its gather rays; Cycles clamps each path) (newuser52: under
+        # the pendant ours 1.000-1.004 of clamped Cycles at Filter Glossy 1), and the
+        # probe, which follows sharp lobes, read 5.2 % or none by seed: said so, not
+        # probed. At 0 (and partly up to 1/pi) ours takes it from the caustic photons:
+        # probed.
         kinds_of = {li.name: li.kind for li in emitting}
         quiet = []  # what the probes found under the clamp
         gathered = settings_filter_glossy(s) > 1.0 / math.pi
         if (s.clamp_indirect > 0 and plan.caustics and plan.casters and gathered):
+            blur_line = any(d.effect == "glossy blur" for d in plan.decisions)
             glass_note += ("; the caustics of " + _quoted(plan.casters, most=REPORT_NAMES_MAX)
                            + " reach the matte surfaces through the final gather's paths "
-                           f"here (Filter Glossy {s.cycles_filter_glossy:g}: see the glossy "
-                           "blur line), and ours clamps those paths' samples as Cycles "
-                           "clamps its own")
+                           f"here (Filter Glossy {s.cycles_filter_glossy:g}"
+                           + (": see the glossy blur line" if blur_line else "")
+                           + "), and ours clamps those paths' light per camera sample as "
+                           "Cycles clamps its own samples (ours the mean of a sample's "
+                           "gather rays: one bright path is cut a little less)")
         elif (s.clamp_indirect > 0 and plan.caustics and plan.casters and probe_clamp
                 and has_tris):
             # Fixed streams: the answer is the scene's, not the seed's (clampblur52).

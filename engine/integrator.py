@@ -1939,7 +1939,8 @@ SECONDARY_FROM_GATHER_POINTS = True
 
 
 def _point_secondary(sec_E, point):
-    """(K,3) float64: sec_E[point] (GatherMap.secondary_E at the lookups' gather points),
+    """(K,3) of sec_E's dtype (float32 levels, hdri52): sec_E[point] (GatherMap.secondary_E
+    at the lookups' gather points),
     NaN rows where point is -1 (no point found: _secondary_irradiance estimates those)."""
     out = np.take(sec_E, np.maximum(point, 0), axis=0)
     out[point < 0] = np.nan

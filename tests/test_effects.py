@@ -1245,11 +1245,16 @@ def test_clamping_line_says_the_caustics_as_the_filter_glossy_routes_them():
         line = _line(plan, "clamping: on - ")
         assert ("the caustics of 'Ball' reach the matte surfaces through the final "
                 "gather's paths here (Filter Glossy 1: see the glossy blur line), and "
-                "ours clamps those paths' samples as Cycles clamps its own") in line, line
+                "ours clamps those paths' light per camera sample as Cycles clamps its "
+                "own samples") in line, line
         assert "they can read brighter" not in line and plan.clamped_caustics == {}, line
         blur = _line(plan, "glossy blur: on - ")
         assert ("at Filter Glossy 0 both render sharp caustics, ours from the caustic "
                 "photons, whose smooth estimates Cycles' clamp does not cut") in blur, blur
+    # Clamp Indirect off: no clamping line, so the blur line names no clamp (review52).
+    plan = _plan(scene, clamp_indirect=0.0, cycles_filter_glossy=1.0, seed=0)
+    blur = _line(plan, "glossy blur: on - ")
+    assert blur.endswith("ours from the caustic photons"), blur
     sharp = [_plan(scene, clamp_indirect=10.0, cycles_filter_glossy=0.0, seed=seed)
              for seed in (0, 1)]
     assert sharp[0].clamped_caustics == sharp[1].clamped_caustics, [
