@@ -1222,9 +1222,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                        else glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
-    # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
-    # nothing to count), the limit and the volume-only surfaces (their pass is none).
-    t_limit, t_h, t_vol = _gather_pass_counts(ctx, n, passes)
+    # Each ray's transparent bounces by hit row (None: no surface or lamp a ray may
+    # pass, or nothing to count), the limit and the volume-only surfaces (their pass is
+    # none). The chains' lamps are passes (GatherChains.emission): counted on from step
+    # to step, as a camera path counts them.
+    t_limit, t_h, t_vol = _gather_pass_counts(
+        ctx, n, passes, lamps=chains is not None and any(
+            light.has_surface for light in ctx.lights))
     # The path's ray footprint at each ray's origin, by hit row (Cycles' dP: the hits', then
     # their chains' last vertex's), and its dD (the hits' spread): the ends' footprint for
     # Bump nodes (bump.transfer_footprint). None: the hits' is not known (the ends take the
@@ -1600,18 +1604,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     return E
 
 
-def _gather_pass_counts(ctx, n, passes):
+def _gather_pass_counts(ctx, n, passes, lamps=False):
     """(t_limit, t_h, t_vol) for gather_indirect's chains: Light Paths > Max Bounces >
     Transparent (at least 1, as the camera chain's), t_h (n,) int64 each hit row's
     transparent bounces (filled per gather step from passes) or None where no chain can
-    reach the limit (no material a ray passes and no count given), t_vol (M,) bool the
-    volume-only materials (their pass is none, path_state_volume_next) or None."""
+    reach the limit (no material a ray passes, no lamp the chains pass (lamps: whether
+    they may meet one) and no count given), t_vol (M,) bool the volume-only materials
+    (their pass is none, path_state_volume_next) or None."""
     table = ctx.table
     t_limit = max(int(ctx.settings.transparent_max_bounces), 1)
     counted = passes is not None and np.any(passes)
     if not counted and not n:
         return t_limit, None, None
-    if not counted and not ShadowTransmittance.transparent_materials(table).any():
+    if (not counted and not lamps
+            and not ShadowTransmittance.transparent_materials(table).any()):
         return t_limit, None, None
     vol = getattr(table, "volume_only", None)
     t_vol = np.asarray(vol, bool) if vol is not None and np.any(vol) else None

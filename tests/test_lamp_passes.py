@@ -335,3 +335,14 @@ def test_the_chains_do_not_meet_a_lamp_that_does_not_light_the_floor():
     linked8 = _chains_floor(8, receivers=["Wall"])
     assert linked8 > 0 and abs(linked1 / linked8 - 1.0) < 0.02, (linked1, linked8)
 
+
+def test_the_chains_count_lamp_passes_from_step_to_step():
+    """A chain's ray up from the floor passes one lamp, down from the ceiling another:
+    at Max Bounces > Transparent 2 the second pass ends the path (Cycles counts every
+    transparent bounce along the path, path_state_next), so the light of the chains that
+    went on (floor, ceiling, floor, world) is lost against 8 (review53 (b): without a
+    transparent material the chains' passes were not carried from step to step, 2 read
+    the same bits as 8)."""
+    two, eight = _chains_floor(2, ceiling=True), _chains_floor(8, ceiling=True)
+    one = _chains_floor(1, ceiling=True)
+    assert one < two < 0.97 * eight, (one, two, eight)
