@@ -239,101 +239,63 @@ def irradiance(pmap, limits, counts, p, n, *args, **kwargs) -> np.ndarray:
     return out
 
 
-# GatherCounts keeps its photons' power as a palette when a sample of PALETTE_SAMPLE of
-# them holds at most PALETTE distinct values that give every photon's back.
-PALETTE = 256
-PALETTE_SAMPLE = 4096
+# exact_class_sums' extraction levels: each takes ~31 more bits of every value (a
+# million photons); three leave a residual below 2^-90 of the largest.
+EXACT_LEVELS = 3
+
+
+def exact_class_sums(which, values, n_classes: int) -> np.ndarray:
+    """(n_classes, EXACT_LEVELS + 1) float64 partial sums per class of values (N,) float64
+    (finite) by class which (N,) int: math.fsum of any set of classes' rows is the
+    correctly rounded sum of their values (the last column's residual aside, below
+    2^-90 of the largest value times N), in any order. Rump, Ogita and Oishi's
+    error-free extraction ("Accurate floating-point summation", 2008, ExtractVector):
+    with sigma a power of two at least 2 N max|r|, q = (sigma + r) - sigma is r's part
+    on sigma's ulp grid, exact, and r - q the exact rest; sums of such q are exact in
+    any order (multiples of one ulp, below 2^53 of them), so np.bincount adds them
+    exactly."""
+    out = np.zeros((n_classes, EXACT_LEVELS + 1))
+    r = np.array(values, np.float64)
+    grow = math.ceil(math.log2(len(r) + 2)) + 1
+    for j in range(EXACT_LEVELS):
+        m = float(np.abs(r).max()) if len(r) else 0.0
+        if m == 0.0:
+            return out
+        sigma = math.ldexp(1.0, math.frexp(m)[1] + grow)
+        q = (sigma + r) - sigma
+        r -= q
+        out[:, j] = np.bincount(which, q, minlength=n_classes)
+    out[:, EXACT_LEVELS] = np.bincount(which, r, minlength=n_classes)
+    return out
 
 
 class GatherCounts:
     """The gather map's photons' counts and power (the shot's non-caustic photons:
-    bounces (N,4) uint8, power (N,) summed over RGB, float64 or float32: held as a
-    palette, as float32 where every value is one, else as float64), to decide which gather
+    bounces (N,4) uint8, power (N,) float64 summed over RGB), to decide which gather
     lookups the precomputed irradiance cannot serve (reroute). Shared by the render's
     threads; its cache is filled as lookups ask (the same answer from any thread).
 
     A decision reads the photons by their distinct count rows (a few hundred classes,
     bounce_usable row by row: the same mask), not photon by photon: Figure 6 asks ~45
-    (level, counts) pairs a render, ~10 ms each over its 0.7 M photons (0.45 CPU s of a
-    25 s render, docs/performance.md camspeed2)."""
-
-    # A decision whose class sums fall this close (relative to the photons' summed |power|)
-    # to the share is taken again from the photons' own sums: the classes' sums round
-    # differently (each within ~N ulps of that total), never by this much.
-    EXACT_MARGIN = 1e-9
+    (level, counts) pairs a render over its 0.7 M photons (docs/performance.md
+    camspeed2). Each class's power is held as exact partial sums (exact_class_sums,
+    made from the float64 powers), so a decision compares the correctly rounded float64
+    sums of the photons' powers, in any order: the photons themselves are not kept
+    (review53: their powers were rounded to float32 first, which could flip a class
+    within 2^-24 of the share)."""
 
     def __init__(self, bounces, power, limits, share):
-        self._power = power = np.asarray(power, np.float64)
-        # The power as a palette of values and each photon's uint8 index where at most
-        # PALETTE values give every photon's back bit for bit (a one-light room: 12 values,
-        # 1 B a photon instead of 8; docs/performance.md "mem48"); else as it is. The
-        # palette: a strided sample's distinct values, plus those of the few photons they
-        # miss (rare values); a search per photon, no sort of the whole array.
-        values = np.unique(power[::max(1, len(power) // PALETTE_SAMPLE)])
-        if 0 < len(values) <= PALETTE and len(power) > 8 * PALETTE:
-            index = np.minimum(np.searchsorted(values, power), len(values) - 1)
-            index = index.astype(np.uint8)
-            miss = np.flatnonzero(np.take(values, index).view(np.int64)
-                                  != power.view(np.int64))
-            if 0 < len(miss) <= len(power) // 16:
-                # The missed photons' values added: the others' indices moved to the new
-                # palette's places, the missed ones searched in it (then checked).
-                more = np.union1d(values, np.take(power, miss))
-                if len(more) <= PALETTE:
-                    index = np.take(np.searchsorted(more, values).astype(np.uint8), index)
-                    got = np.minimum(np.searchsorted(more, np.take(power, miss)),
-                                     len(more) - 1)
-                    index[miss] = got
-                    values = more
-                    miss = miss[np.take(more, got).view(np.int64)
-                                != np.take(power, miss).view(np.int64)]
-            if not len(miss):
-                self._power = (values, index)
-            del index, miss
-        if not isinstance(self._power, tuple):
-            # Values that are all float32 (the render rounds its photons' sums so) are
-            # held as float32, the same values: 4 B a photon instead of 8 (an HDRI's
-            # photons: 264 k distinct powers of 286 k, no palette; docs/performance.md
-            # "hdri52").
-            narrow = power.astype(np.float32)
-            if np.array_equal(narrow, power):
-                self._power = narrow
-            del narrow
+        power = np.asarray(power, np.float64)
         self.limits = np.asarray(limits, np.int64)
         self.share = share
         self._cache = {}
-        # The photons' distinct count rows and each photon's, in the smallest unsigned
-        # type (1 B a photon where the counts were 4: bounce_usable is row by row, so a
-        # photon's mask bit is its row's; docs/performance.md "perf47").
         rows, which = unique_counts(bounces)
         self.rows = rows
-        self.which = which.astype(np.min_scalar_type(max(len(rows) - 1, 0)))
+        self.sums = exact_class_sums(which, power, len(rows))
 
-    @property
-    def power(self) -> np.ndarray:
-        """(N,) float64 the photons' power summed over RGB (the constructor's values)."""
-        if isinstance(self._power, tuple):
-            return np.take(*self._power)
-        return np.asarray(self._power, np.float64)
-
-    def _mask(self, key):
-        mask = self._cache.get(("mask",) + key)
-        if mask is None:
-            mask = self._cache[("mask",) + key] = np.take(
-                pk.bounce_usable(self.rows, self.limits, key), self.which)
-        return mask
-
-    def _classes(self):
-        """(rows (U,4) int64, power (U,) float64, scale): the photons' distinct count rows,
-        each one's summed power, and the photons' summed |power|; made on first use (two
-        threads may make it twice: the same values)."""
-        got = self._cache.get("classes")
-        if got is None:
-            power = self.power
-            got = self._cache["classes"] = (
-                self.rows, np.bincount(self.which, power, minlength=len(self.rows)),
-                float(np.abs(power).sum()))
-        return got
+    def _sum(self, classes) -> float:
+        """The photons' summed power over classes ((U,) bool), correctly rounded."""
+        return math.fsum(self.sums[classes].ravel().tolist())
 
     def drops(self, level, key) -> bool:
         """Whether lookups at gather level `level` (the map filtered for camera counts
@@ -341,18 +303,9 @@ class GatherCounts:
         more than `share` of the power that level's photons carry."""
         got = self._cache.get((level,) + key)
         if got is None:
-            rows, power, scale = self._classes()
-            nominal = pk.bounce_usable(rows, self.limits, (level + 1, level + 1, 0, 0))
-            ok = pk.bounce_usable(rows, self.limits, key)
-            kept = float(power[nominal].sum())
-            dropped = float(power[nominal & ~ok].sum())
-            if abs(dropped - self.share * kept) <= self.EXACT_MARGIN * scale:
-                nominal = self._mask((level + 1, level + 1, 0, 0))
-                ok = self._mask(key)
-                power = self.power
-                kept = float(power[nominal].sum())
-                dropped = float(power[nominal & ~ok].sum())
-            got = dropped > self.share * kept
+            nominal = pk.bounce_usable(self.rows, self.limits, (level + 1, level + 1, 0, 0))
+            ok = pk.bounce_usable(self.rows, self.limits, key)
+            got = self._sum(nominal & ~ok) > self.share * self._sum(nominal)
             self._cache[(level,) + key] = got
         return got
 
@@ -361,7 +314,7 @@ class GatherCounts:
         drop any photon that level's map (counts (level + 1, level + 1, 0, 0)) keeps."""
         got = self._cache.get(("any", level) + key)
         if got is None:
-            rows, _, _ = self._classes()
+            rows = self.rows
             nominal = pk.bounce_usable(rows, self.limits, (level + 1, level + 1, 0, 0))
             ok = pk.bounce_usable(rows, self.limits, key)
             got = self._cache[("any", level) + key] = bool((nominal & ~ok).any())
@@ -385,11 +338,10 @@ class GatherCounts:
         diagnostic: a lookup's own share is where the dropped photons lie)."""
         got = self._cache.get(("share", level) + key)
         if got is None:
-            rows, power, _ = self._classes()
-            nominal = pk.bounce_usable(rows, self.limits, (level + 1, level + 1, 0, 0))
-            ok = pk.bounce_usable(rows, self.limits, key)
-            kept = float(power[nominal].sum())
-            got = float(power[nominal & ok].sum()) / kept if kept > 0.0 else 1.0
+            nominal = pk.bounce_usable(self.rows, self.limits, (level + 1, level + 1, 0, 0))
+            ok = pk.bounce_usable(self.rows, self.limits, key)
+            kept = self._sum(nominal)
+            got = self._sum(nominal & ok) / kept if kept > 0.0 else 1.0
             self._cache[("share", level) + key] = got
         return got
 

@@ -550,7 +550,7 @@ class GatherChains:
                           np.take(wd, rows_y), cos_i)
         self.min_pdf[rows_idx] = np.minimum(self.min_pdf[rows_idx], pdf)
 
-    def emission(self, rows_idx, o, d, tp, cls, E, G, counts=None, used=None):
+    def emission(self, rows_idx, o, d, tp, cls, E, G, counts=None, used=None, left=None):
         """The emitters that the continued rays (hit rows rows_idx (K,), origins o,
         directions d (K,3), throughputs tp (K,3), ray classes cls (K,)) leaving a blurred
         vertex meet and light sampling leaves to them: the lights of MODE_CONTINUATION
@@ -562,9 +562,12 @@ class GatherChains:
         (camera path and chain; None: none): each lamp a ray meets is a pass, as on the
         camera path (integrator._trace_paths: lamp_passes, first_at_each_distance), and the
         pass that reaches Light Paths > Max Bounces > Transparent ends the path at that
-        lamp, its light added, nothing past it. Returns None (no lamp met) or (passes
-        (K,) int64 the lamp passes each ray made, ended (K,) bool the rays whose path
-        ended at a lamp: the caller ends those chains)."""
+        lamp, its light added, nothing past it. left: (K,) int64 the triangles the rays
+        left (the vertex's), for Light Linking (integrator.lamps_met: a lamp that does
+        not light it is not met; a lamp with Shadow Linking is met past its blockers
+        alone, wherever it lies, and is no pass); None: no Light Linking. Returns None
+        (no lamp met) or (passes (K,) int64 the lamp passes each ray made, ended (K,)
+        bool the rays whose path ended at a lamp: the caller ends those chains)."""
         from . import integrator as it
         from .bsdf import surface_hit
         from . import worldmedium
@@ -607,33 +610,18 @@ class GatherChains:
         # Every lamp the rays see is a transparent pass (the ray goes on past it, as in
         # Cycles: the camera path's rule, integrator._trace_paths), the light of those of
         # MODE_CONTINUATION added, up to the pass that reaches the limit.
-        met = []
         continuation = set(self.continuation_lights)
-        for li, light in enumerate(ctx.lights):
-            if not light.has_surface:
-                continue
-            sees = (cls & light.ray_kinds) != 0
-            if not sees.any():
-                continue
-            mask, tl, L = light.intersect(o, d, t)
-            if L is None:
-                continue
-            rows = np.flatnonzero(mask & sees)
-            if len(rows):
-                met.append((li, light, rows, tl[rows], L[rows]))
-        met = it.first_at_each_distance(met)
+        links = getattr(ctx, "links", None)
+        met, linked = it.lamps_met(ctx, o, d, t, cls,
+                                   None if left is None or links is None
+                                   else np.take(np.asarray(left, np.int64), go))
         t_end = None
         passes = np.zeros(k, np.int64)
         if met:
             before = (np.zeros(k, np.int64) if used is None
                       else np.take(np.asarray(used, np.int64), go))
             t_limit = max(int(ctx.settings.transparent_max_bounces), 1)
-            # (a lamp with Shadow Linking is no pass of these indirect rays: Cycles leaves
-            # it to its dedicated ray, as _trace_paths does)
-            links = getattr(ctx, "links", None)
-            passed = [e for e in met
-                      if links is None or links.blocker_accel(e[0]) is None]
-            t_end, total = it.lamp_passes(passed, k, before, t_limit)
+            t_end, total = it.lamp_passes(met, k, before, t_limit)
             passes = total - before
         for li, light, rows, tl_rows, L in met:
             if li not in continuation:
@@ -643,6 +631,14 @@ class GatherChains:
                 add &= tl_rows <= np.take(t_end, rows)  # (past the ending pass: not met)
             if self.reflection_only[li]:
                 add &= np.take(cls, rows) != it.GLOSSY  # (its light sampled at the vertex)
+            Le[rows[add]] += L[add]
+        for li, light, rows, _, L in linked:
+            # (Shadow Linking: its light past its blockers alone, as _trace_paths adds it)
+            if li not in continuation:
+                continue
+            add = counted(li, rows)
+            if self.reflection_only[li]:
+                add &= np.take(cls, rows) != it.GLOSSY
             Le[rows[add]] += L[add]
         ended = np.zeros(k, bool) if t_end is None else np.isfinite(t_end)
         prim = np.where(ended, -2, prim)  # (ended at the lamp: nothing behind it)

@@ -836,22 +836,69 @@ def lamp_passes(met, n, t_count, t_limit):
     return t_end, total
 
 
-def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b, org_ns,
-                        org_p, passages, lamp_w, clamping, tp, chain, acc, target, pix, ftp,
-                        feat, s, clamp_tp=None):
-    """Shadow Linking: the light of lamp li (whose shadows only its blockers cast, past:
-    their lightlinking.BlockerAccel) that the rays o, d (left a surface; `sees` (n,) the
-    rows that may see it) meet wherever it lies, unless a blocker lies between (Cycles'
-    shadow_linking_intersect: such lamps are met by a dedicated ray, not the main path),
-    added as the ordinary lamp hits are (MIS when `mis`, shades, clamping; clamp_tp:
-    _add_lamp_light's); the paths go on."""
+def lamps_met(ctx, o, d, t, cls, link_prim=None, exempt=None):
+    """The lamps with a surface that the rays o, d (N,3) of classes cls ((N,) int64 or a
+    scalar; a lamp is seen by the classes of its Light.ray_kinds) meet before t (N,)
+    (inf: anywhere), as Cycles' main path meets them (light.h lights_intersect_impl:
+    with Light Linking a ray that left a surface skips a lamp with Shadow Linking, left
+    to the dedicated shadow-linking ray, and a lamp that does not light that surface,
+    both before its nearest-hit test): link_prim (N,) int64, the triangle each ray left
+    (-1: the camera), with ctx.links; None: no Light Linking here. exempt (N,) bool or
+    scalar: the rays to which neither applies (camera rays and their transparent
+    continuations, Cycles' PATH_RAY_CAMERA); None: none. Returns (met, linked): met,
+    first_at_each_distance of the (light index, light, rows (k,) int64, distances (k,),
+    L (k,3)) per lamp met, in light order (lamp_passes counts them); linked, the
+    shadow-linked lamps' (light index, light, rows, distances (N,), L) past their
+    blockers (shadow_linked_rows; no passes)."""
+    met, linked = [], []
+    links = ctx.links if link_prim is not None else None
+    for li, light in enumerate(ctx.lights):
+        if not light.has_surface:  # nothing to meet (many point lights: no cost)
+            continue
+        sees = (cls & light.ray_kinds) != 0
+        if not np.any(sees):
+            continue
+        past = links.blocker_accel(li) if links is not None else None
+        if past is not None:
+            # Shadow Linking: a ray that left a surface meets this lamp past its
+            # non-blockers (Cycles' dedicated shadow-linking ray), the path going on to
+            # its own hit.
+            got = shadow_linked_rows(ctx, li, light, past, o, d,
+                                     sees if exempt is None else sees & ~exempt, link_prim)
+            if got is not None:
+                linked.append((li, light) + got)
+            if exempt is None:
+                continue
+            sees = sees & exempt
+            if not sees.any():
+                continue
+        mask, tl, L = light.intersect(o, d, t)
+        if L is not None and mask.any():
+            mask &= sees
+            if links is not None:
+                # Seen from a surface the lamp does not light: not its light.
+                hit = links.lights_hit(li, ctx.geo, link_prim)
+                mask &= hit if exempt is None else exempt | hit
+            rows = np.nonzero(mask)[0]
+            if len(rows):
+                met.append((li, light, rows, np.take(tl, rows), L[rows]))
+    return first_at_each_distance(met), linked
+
+
+def shadow_linked_rows(ctx, li, light, past, o, d, sees, link_prim):
+    """The rays o, d (N,3) that meet lamp li, whose shadows only its blockers cast (past:
+    their lightlinking.BlockerAccel), wherever it lies (Cycles' dedicated shadow-linking
+    ray, intersect_dedicated_light.h): those of sees ((N,) bool or scalar) whose surface
+    left (link_prim (N,) int64) the lamp lights (links.lights_hit) with no blocker
+    between. Returns None (none) or (rows (k,) int64, distances (N,) inf where missed,
+    L (k,3) the lamp's radiance)."""
     mask, tl, L = light.intersect(o, d, np.full(len(o), np.inf))
     if L is None or not mask.any():
-        return
+        return None
     mask &= sees & ctx.links.lights_hit(li, ctx.geo, link_prim)
     rows = np.nonzero(mask)[0]
     if not len(rows):
-        return
+        return None
     o32 = np.ascontiguousarray(o[rows], np.float32)
     d32 = np.ascontiguousarray(d[rows], np.float32)
     t32 = np.ascontiguousarray(tl[rows] * (1.0 - 1e-5), np.float32)
@@ -860,10 +907,8 @@ def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b,
     keep = ~blocked
     rows, L = rows[keep], L[rows][keep]
     if not len(rows):
-        return
-    _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org_ns, org_p,
-                    link_prim, lamp_w, clamping, tp, chain, s, acc, target, pix, ftp, feat,
-                    clamp_tp)
+        return None
+    return rows, tl, L
 
 
 def _add_lamp_light(ctx, li, light, rows, L, o, d, tl, mis, passages, pdf_b, org_ns, org_p,
@@ -1177,9 +1222,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                        else glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
-    # Each ray's transparent bounces by hit row (None: no surface a ray may pass, or
-    # nothing to count), the limit and the volume-only surfaces (their pass is none).
-    t_limit, t_h, t_vol = _gather_pass_counts(ctx, n, passes)
+    # Each ray's transparent bounces by hit row (None: no surface or lamp a ray may
+    # pass, or nothing to count), the limit and the volume-only surfaces (their pass is
+    # none). The chains' lamps are passes (GatherChains.emission): counted on from step
+    # to step, as a camera path counts them.
+    t_limit, t_h, t_vol = _gather_pass_counts(
+        ctx, n, passes, lamps=chains is not None and any(
+            light.has_surface for light in ctx.lights))
     # The path's ray footprint at each ray's origin, by hit row (Cycles' dP: the hits', then
     # their chains' last vertex's), and its dD (the hits' spread): the ends' footprint for
     # Bump nodes (bump.transfer_footprint). None: the hits' is not known (the ends take the
@@ -1517,7 +1566,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                         counts=None if cnt is None else
                                         chaincounts.camera_counts(cnt[idx[keep]],
                                                                   chains.D_BOUNCE),
-                                        used=None if t_h is None else t_h[idx[keep]])
+                                        used=None if t_h is None else t_h[idx[keep]],
+                                        left=np.take(prim, keep))
                 if lamps is not None:
                     # The lamps the continued rays passed count as the camera chain's
                     # passes; a chain whose pass reached the limit ended at the lamp.
@@ -1554,18 +1604,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     return E
 
 
-def _gather_pass_counts(ctx, n, passes):
+def _gather_pass_counts(ctx, n, passes, lamps=False):
     """(t_limit, t_h, t_vol) for gather_indirect's chains: Light Paths > Max Bounces >
     Transparent (at least 1, as the camera chain's), t_h (n,) int64 each hit row's
     transparent bounces (filled per gather step from passes) or None where no chain can
-    reach the limit (no material a ray passes and no count given), t_vol (M,) bool the
-    volume-only materials (their pass is none, path_state_volume_next) or None."""
+    reach the limit (no material a ray passes, no lamp the chains pass (lamps: whether
+    they may meet one) and no count given), t_vol (M,) bool the volume-only materials
+    (their pass is none, path_state_volume_next) or None."""
     table = ctx.table
     t_limit = max(int(ctx.settings.transparent_max_bounces), 1)
     counted = passes is not None and np.any(passes)
     if not counted and not n:
         return t_limit, None, None
-    if not counted and not ShadowTransmittance.transparent_materials(table).any():
+    if (not counted and not lamps
+            and not ShadowTransmittance.transparent_materials(table).any()):
         return t_limit, None, None
     vol = getattr(table, "volume_only", None)
     t_vol = np.asarray(vol, bool) if vol is not None and np.any(vol) else None
@@ -2106,15 +2158,9 @@ def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv, t_limit, 
         # unless the passes through the lamps reach Max Bounces > Transparent (t_limit):
         # the path ends at the lamp, as lamp_passes.
         met = np.zeros(len(keep), np.int64) if used is None else np.take(used, keep)
-        lamps = []
-        for li, light in enumerate(ctx.lights):
-            if light.has_surface and light.ray_kinds & GLOSSY and escaped.any():
-                hit_lamp, tl, L = light.intersect(o, d, np.full(len(o), np.inf))
-                if L is not None and hit_lamp.any():
-                    on = np.flatnonzero(hit_lamp)
-                    lamps.append((li, light, on, tl[on]))
-        for entry in first_at_each_distance(lamps):
-            met[entry[2]] += 1
+        if escaped.any():
+            for entry in lamps_met(ctx, o, d, np.full(len(o), np.inf), GLOSSY)[0]:
+                met[entry[2]] += 1
         escaped &= met < t_limit
         sel = np.flatnonzero(escaped)
         r = keep[sel]
@@ -3389,40 +3435,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # behind it, unless the pass reaches Max Bounces > Transparent (lamp_passes).
         # (Ending there lost the world behind an area light in a smooth coat's
         # reflection: the donut's mug under a 0.001 W lamp, docs/accuracy.md "mis51".)
-        met_lamps = []
-        for li, light in enumerate(ctx.lights):
-            if not light.has_surface:  # nothing to meet (many point lights: no cost)
-                continue
-            sees = (ray_cls & light.ray_kinds) != 0
-            if not sees.any():
-                continue
-            past = (links.blocker_accel(li) if link_prim is not None and bounce > 0
-                    else None)
-            if past is not None:
-                # Shadow Linking: a ray that left a surface meets this lamp past its
-                # non-blockers (Cycles' dedicated shadow-linking ray): its light where
-                # no blocker lies between, the path going on to its own hit.
-                _shadow_linked_lamp(ctx, li, light, past, o, d, sees & (ray_cls != CAMERA),
-                                    link_prim, lamp_mis(modes, refl_only, li, ray_cls),
-                                    pdf_b, org_ns, org_p,
-                                    passages, lamp_w, clamping, tp, chain, acc, target, pix,
-                                    ftp, feat, s, sampleclamp.split_throughput(tp, cscale))
-                sees = sees & (ray_cls == CAMERA)
-                if not sees.any():
-                    continue
-            mask, tl, L = light.intersect(o, d, t)
-            if L is not None and mask.any():
-                mask &= sees
-                if link_prim is not None and bounce > 0:
-                    # Seen from a surface the lamp does not light: not its light
-                    # (camera rays and their transparent continuations see it).
-                    mask &= (ray_cls == CAMERA) | links.lights_hit(li, ctx.geo, link_prim)
-                rows = np.nonzero(mask)[0]
-                if len(rows):
-                    met_lamps.append((li, light, rows, np.take(tl, rows), L[rows]))
+        linking = link_prim is not None and bounce > 0
+        met_lamps, linked = lamps_met(ctx, o, d, t, ray_cls, link_prim if linking else None,
+                                      ray_cls == CAMERA)
+        for li, light, rows, tl, L in linked:
+            _add_lamp_light(ctx, li, light, rows, L, o, d, tl,
+                            lamp_mis(modes, refl_only, li, ray_cls), passages, pdf_b,
+                            org_ns, org_p, link_prim, lamp_w, clamping, tp, chain, s, acc,
+                            target, pix, ftp, feat, sampleclamp.split_throughput(tp, cscale))
         t_end = None
         if met_lamps:
-            met_lamps = first_at_each_distance(met_lamps)
             t_end, t_count = lamp_passes(met_lamps, len(o), t_count, t_limit)
         for li, light, rows, tl_rows, L in met_lamps:
             if t_end is not None:

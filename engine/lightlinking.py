@@ -42,7 +42,7 @@ non-blocker in their way receives them), then again keeping only those whose fir
 was a non-blocker, moved to the blocker behind it (past_non_blockers), so both are lit as
 in Cycles (a second non-blocker behind the first gets none). A ray leaving a surface
 meets such a lamp wherever it lies unless a blocker is between (integrator.
-_shadow_linked_lamp; Cycles' dedicated shadow-linking ray), and goes on to its own hit.
+shadow_linked_rows; Cycles' dedicated shadow-linking ray), and goes on to its own hit.
 """
 from __future__ import annotations
 

@@ -1409,12 +1409,11 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                 out_deeper["time_gather_guide"] = time.perf_counter() - t_guide
             out_deeper["regather_maps"] = level_maps(gather_map, level_of, secondary_of)
             if shot.bounces is not None:
-                # Lookups after a specular chain: which ones the map cannot serve.
-                # (the sums rounded to float32, as precise as the photons' float32
-                # channels: held as float32, 4 B a photon, where no palette serves)
+                # Lookups after a specular chain: which ones the map cannot serve
+                # (decided on the float64 sums; it keeps its classes' sums alone).
                 out_deeper["gather_counts"] = GatherCounts(
-                    np.take(shot.bounces, rows, axis=0),
-                    np.take(power, rows).astype(np.float32), limits, SUBSET_POWER_SHARE)
+                    np.take(shot.bounces, rows, axis=0), np.take(power, rows), limits,
+                    SUBSET_POWER_SHARE)
         return r_global, gather_map
 
     def other_maps(flag):

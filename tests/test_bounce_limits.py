@@ -368,9 +368,10 @@ def test_photons_usable_by_count_classes_is_bounce_usable():
 
 def test_gather_counts_decide_as_the_photons_own_sums():
     """GatherCounts.drops reads the photons by their distinct count rows; every decision
-    is the photon-by-photon one (the power of the level's usable photons that the key's
-    counts drop, against share of the level's), also at a share set on the margin, where
-    the class sums' rounding could decide and the photons' own sums are taken."""
+    is the photon-by-photon one on the correctly rounded float64 sums (the power of the
+    level's usable photons that the key's counts drop, against share of the level's),
+    also at a share set on one key's ratio and a rounding step either side of it."""
+    import math
     from engine.chaincounts import GatherCounts
     rng = np.random.default_rng(4)
     n = 20000
@@ -381,23 +382,71 @@ def test_gather_counts_decide_as_the_photons_own_sums():
     keys = [(a, b, c, d) for a in range(1, 5) for b in range(1, a + 1) for c in (0, 1)
             for d in (0, 2)]
 
-    def by_photons(level, key, share):
+    def sums(level, key):
         nominal = pk.bounce_usable(bounces, lim, (level + 1, level + 1, 0, 0))
         ok = pk.bounce_usable(bounces, lim, key)
-        return float(power[nominal & ~ok].sum()) > share * float(power[nominal].sum())
+        return math.fsum(power[nominal & ~ok]), math.fsum(power[nominal])
+
+    def by_photons(level, key, share):
+        dropped, kept = sums(level, key)
+        return dropped > share * kept
 
     g = GatherCounts(bounces, power, lim, 0.005)
     got = [g.drops(level, key) for level in (0, 1) for key in keys]
     assert got == [by_photons(level, key, 0.005) for level in (0, 1) for key in keys]
     assert 0 < sum(got) < len(got)
-    # A share exactly at one key's ratio: the decision is the photons' (False: not more).
     key = (3, 2, 1, 0)
-    nominal = pk.bounce_usable(bounces, lim, (1, 1, 0, 0))
-    ok = pk.bounce_usable(bounces, lim, key)
-    share = float(power[nominal & ~ok].sum()) / float(power[nominal].sum())
-    edge = GatherCounts(bounces, power, lim, share)
-    assert edge.drops(0, key) == by_photons(0, key, share)
-    assert ("mask",) + key in edge._cache  # decided by the photons' own sums
+    dropped, kept = sums(0, key)
+    ratio = dropped / kept
+    for share in (ratio, np.nextafter(ratio, 0.0), np.nextafter(ratio, 1.0)):
+        assert GatherCounts(bounces, power, lim, share).drops(0, key) == by_photons(
+            0, key, share)
+    assert GatherCounts(bounces, power, lim, np.nextafter(ratio, 0.0)).drops(0, key)
+    assert not GatherCounts(bounces, power, lim, np.nextafter(ratio, 1.0)).drops(0, key)
+    np.testing.assert_allclose(g.kept_share(0, key), 1.0 - ratio, rtol=1e-15)
+
+
+def test_the_renders_gather_counts_decide_on_float64_powers(monkeypatch):
+    """The render's GatherCounts decides on the gather photons' float64 powers (each a
+    float64 sum of three float32 channels): at a share a little either side of a key's
+    float64 ratio (1e-12 relative) its decisions are those of the float64 sums. It was
+    given them rounded to float32 (hdri52), which moved that ratio by ~1e-8 relative
+    and flipped one of the two (review53)."""
+    import importlib
+    import math
+    from engine.api import cornell_box
+    from engine.photons import CAUSTIC
+    render_mod = importlib.import_module("engine.render")  # (engine.render: a function too)
+    built = []
+    real = render_mod._build_maps
+
+    def record(ctx, shot, *args, **kwargs):
+        built.append(shot)
+        return real(ctx, shot, *args, **kwargs)
+    monkeypatch.setattr(render_mod, "_build_maps", record)
+    ctx = render_mod.prepare_context(cornell_box(16, 12), RenderSettings(
+        photons=20_000, caustic_photons=2_000, seed=1, workers=1, max_bounces=3))
+    try:
+        render_mod.shoot_photons(ctx, {})
+    finally:
+        ctx.accel.close()
+    g = ctx.gather_counts
+    assert g is not None and len(built) == 1
+    shot = built[0]
+    rows = np.flatnonzero(shot.kind != CAUSTIC)
+    power = shot.power.astype(np.float64).sum(axis=1)[rows]
+    bounces = shot.bounces[rows]
+    level, key = 0, (2, 2, 0, 0)
+    nominal = pk.bounce_usable(bounces, g.limits, (level + 1, level + 1, 0, 0))
+    ok = pk.bounce_usable(bounces, g.limits, key)
+    ratio = math.fsum(power[nominal & ~ok]) / math.fsum(power[nominal])
+    p32 = power.astype(np.float32).astype(np.float64)
+    ratio32 = math.fsum(p32[nominal & ~ok]) / math.fsum(p32[nominal])
+    assert 0.0 < ratio < 1.0 and abs(ratio32 / ratio - 1.0) > 1e-10  # (not vacuous)
+    for scale, want in ((1.0 - 1e-12, True), (1.0 + 1e-12, False)):
+        g.share = ratio * scale
+        g._cache.clear()
+        assert g.drops(level, key) == want, (scale, ratio, ratio32)
 
 
 def _lit_through(surface: str, floor=None):

@@ -130,29 +130,3 @@ def test_lookups_read_the_same_with_either_table(monkeypatch):
         assert np.array_equal(x, y)
     assert a[0].dtype == np.float64 and (a[2] >= 0).mean() > 0.9  # not vacuous
     assert np.array_equal(a[0][a[2] >= 0], g.E[a[2][a[2] >= 0]].astype(np.float64))
-
-
-def test_gather_counts_hold_float32_powers_as_float32():
-    """The render's summed powers rounded to float32 (many distinct: no palette) are held
-    as float32, the same values and decisions as a float64 copy; values that are not all
-    float32 stay float64."""
-    from engine import photonkernels as pk
-    from engine.chaincounts import GatherCounts
-    rng = np.random.default_rng(52)
-    n = 20000
-    bounces = rng.integers(0, 5, (n, 4)).astype(np.uint8)
-    bounces[::97] = pk.BOUNCE_SATURATED
-    power = (rng.random(n) * rng.random(n)).astype(np.float32)
-    lim = np.array([6, 4, 4, 4])
-    g = GatherCounts(bounces, power, lim, 0.005)
-    assert g._power.dtype == np.float32 and g._power.nbytes == 4 * n
-    assert g.power.dtype == np.float64 and np.array_equal(g.power, power)
-    ref = GatherCounts.__new__(GatherCounts)
-    ref.__dict__.update(g.__dict__ | {"_power": power.astype(np.float64), "_cache": {}})
-    keys = [(a, b, c, d) for a in range(1, 5) for b in range(1, a + 1) for c in (0, 1)
-            for d in (0, 2)]
-    got = [g.drops(level, key) for level in (0, 1) for key in keys]
-    assert got == [ref.drops(level, key) for level in (0, 1) for key in keys]
-    assert 0 < sum(got) < len(got)  # not vacuous
-    wide = GatherCounts(bounces, power.astype(np.float64) + 1e-12, lim, 0.005)
-    assert wide._power.dtype == np.float64

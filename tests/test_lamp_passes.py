@@ -281,3 +281,68 @@ def test_a_shadow_linked_lamp_is_no_pass_of_a_reflected_ray():
         return float(np.asarray(img, np.float64)[..., :3].mean())
     assert floor(True, 1) == pytest.approx(floor(True, 8), rel=1e-6)
     assert floor(False, 1) < 0.5 * floor(False, 8)
+
+
+def _chains_floor(limit, linked_twin=False, receivers=None, ceiling=False):
+    """_floor_under_a_lamp's chains' light (film.caustic at Filter Glossy 1) at Max
+    Bounces > Transparent `limit`. linked_twin: a lamp with Shadow Linking (its
+    non-blocker a card far aside) in the same place before it in light order;
+    receivers: the lamp's Light Linking receivers; ceiling: a rough metal ceiling of 8 m
+    at 6 m over the floor with a second 0.001 W lamp (200 x 200 m, facing up at 5 m), so
+    a chain's ray up from the floor meets the first lamp and one down from the ceiling
+    the second (an area lamp is one-sided: each is met only against its emission)."""
+    from engine.render import render
+    s = _floor_under_a_lamp(False)
+    if linked_twin:
+        s.add_plane((20, 20, 1), (0, 0, 1), 1.0, "white", name="card")
+        twin = s.add_rect_area_light((0, 0, 4.5), size=(200.0, 200.0), power=0.001,
+                                     direction=(0, 0, -1), name="twin")
+        twin.non_blockers = ["card"]
+    lamp = s.add_rect_area_light((0, 0, 4.5), size=(200.0, 200.0), power=0.001,
+                                 direction=(0, 0, -1), name="lamp")
+    if receivers is not None:
+        lamp.receivers = receivers
+    if ceiling:
+        s.add_plane((0, 0, 6.0), normal=(0, 0, -1), size=8.0, material="metal",
+                    name="Ceiling")
+        s.add_rect_area_light((0, 0, 5.0), size=(200.0, 200.0), power=0.001,
+                              direction=(0, 0, 1), name="up")
+    film = render(s, RenderSettings(photons=2_000, caustic_photons=2_000, spp=4, seed=1,
+                                    workers=1, cycles_filter_glossy=1.0,
+                                    transparent_max_bounces=limit))
+    return float(np.mean(film.caustic))
+
+
+def test_the_chains_tie_check_runs_on_the_lamps_met():
+    """integrator.lamps_met: a shadow-linked lamp is not met by an indirect ray (Cycles'
+    light.h lights_intersect_impl skips it before its `t >= isect->t` test), so a twin
+    with Shadow Linking first in light order at the same distance leaves the plain
+    lamp met: at Max Bounces > Transparent 1 the floor's reflections end there, as with
+    the plain lamp alone (review53 (a): the chains dropped the plain lamp as the
+    twin's tie, then left the twin out of the passes: no pass, the world's light)."""
+    alone, twin = _chains_floor(1), _chains_floor(1, linked_twin=True)
+    passed = _chains_floor(8)
+    assert alone < 0.02 * passed, (alone, passed)
+    assert twin < 0.02 * passed, (twin, passed)
+
+
+def test_the_chains_do_not_meet_a_lamp_that_does_not_light_the_floor():
+    """Light Linking: a ray that left the floor does not meet a lamp whose receivers
+    leave the floor out (light.h lights_intersect_impl: light_link_light_match on
+    indirect rays), so it is no pass: at Max Bounces > Transparent 1 the chains read
+    the world past it, as at 8 (review53 (a): the chains met it and ended there)."""
+    linked1 = _chains_floor(1, receivers=["Wall"])
+    linked8 = _chains_floor(8, receivers=["Wall"])
+    assert linked8 > 0 and abs(linked1 / linked8 - 1.0) < 0.02, (linked1, linked8)
+
+
+def test_the_chains_count_lamp_passes_from_step_to_step():
+    """A chain's ray up from the floor passes one lamp, down from the ceiling another:
+    at Max Bounces > Transparent 2 the second pass ends the path (Cycles counts every
+    transparent bounce along the path, path_state_next), so the light of the chains that
+    went on (floor, ceiling, floor, world) is lost against 8 (review53 (b): without a
+    transparent material the chains' passes were not carried from step to step, 2 read
+    the same bits as 8)."""
+    two, eight = _chains_floor(2, ceiling=True), _chains_floor(8, ceiling=True)
+    one = _chains_floor(1, ceiling=True)
+    assert one < two < 0.97 * eight, (one, two, eight)

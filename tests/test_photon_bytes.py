@@ -7,8 +7,8 @@ stats["photon_bytes"]; issue 13's "<= 64 bytes per stored photon", docs/performa
   to fill and estimating photons included;
 - a gather map keeps no (P,3) estimate of its drop bounds' masks (only their (P,) flags),
   eager or lazy;
-- GatherCounts keeps its photons' count classes (1 B a photon), not their (N,4) counts,
-  with the same masks;
+- GatherCounts keeps its photons' count classes and their power's sums, no array a
+  photon (review53; 1 B a photon of class indices and 1-8 B of power before);
 and the lossless cuts of docs/performance.md "mem48":
 - masks as bits (pack_masks: 1/8 B a photon and mask) give the estimates of the bool
   masks, bit for bit; a lazy gather map keeps its masks so, and counts_irradiance's
@@ -17,7 +17,6 @@ and the lossless cuts of docs/performance.md "mem48":
   the float64 copies' bits;
 - a kept mask without an estimating photon of nonzero power keeps no level of its own
   (one shared zero array: the zeros the estimate gives);
-- GatherCounts keeps a few distinct powers as a palette, the same values;
 - a map's per-key usable masks (chaincounts) are kept as bits.
 """
 import importlib
@@ -108,12 +107,11 @@ def test_gather_counts_keep_classes_not_counts():
     power = rng.random(n)
     lim = np.array([6, 4, 4, 4])
     g = GatherCounts(bounces, power, lim, 0.005)
-    # (626 classes here: 2 B a photon; a render's few hundred or fewer: 1-2 B)
-    assert g.which.dtype == np.uint16 and len(g.which) == n
-    for key in ((1, 1, 0, 0), (3, 2, 1, 0), (5, 1, 2, 2)):
-        np.testing.assert_array_equal(g._mask(key), pk.bounce_usable(bounces, lim, key))
+    # (626 classes here, each its count row and its power's exact partial sums; no
+    # array a photon: review53)
+    assert len(g.rows) == len(g.sums) == len(np.unique(bounces, axis=0))
     held = held_bytes(g)
-    assert held <= power.nbytes + 2 * n + g.rows.nbytes + g.limits.nbytes + 3 * (n // 8 + n)
+    assert held <= g.rows.nbytes + g.sums.nbytes + g.limits.nbytes + 4096
 
 
 def test_the_photon_pass_reports_what_its_maps_hold(monkeypatch):
@@ -254,29 +252,6 @@ def test_a_mask_without_power_keeps_no_level():
                                                 np.tile([0.0, 0.0, 1.0], (50, 1))),
                         (np.zeros((50, 3)),)):
             np.testing.assert_array_equal(a, b)
-
-
-def test_gather_counts_keep_few_powers_as_a_palette():
-    rng = np.random.default_rng(4)
-    n = 20000
-    bounces = rng.integers(0, 5, (n, 4)).astype(np.uint8)
-    levels = rng.random(12) * 3.0
-    power = levels[rng.integers(0, 12, n)]
-    power[::50] = 0.0
-    power[[7, 4711]] = (5.5, 6.5)  # (rare values, which a sample of the photons misses)
-    lim = np.array([6, 4, 4, 4])
-    g = GatherCounts(bounces, power, lim, 0.005)
-    plain = GatherCounts(bounces, rng.random(n), lim, 0.005)
-    assert np.array_equal(g.power.view(np.int64), power.view(np.int64))
-    assert isinstance(g._power, tuple) and len(g._power[0]) == 15
-    assert held_bytes(g) <= held_bytes(plain) - 7 * n + levels.nbytes + 64
-    # (a decision reads the same sums: against a counts object holding the plain array)
-    ref = GatherCounts.__new__(GatherCounts)
-    ref.__dict__.update(g.__dict__ | {"_power": power.copy(), "_cache": {}})
-    for key in ((1, 1, 0, 0), (3, 2, 1, 0), (5, 1, 2, 2)):
-        assert g.drops(0, key) == ref.drops(0, key)
-        assert g.kept_share(0, key) == ref.kept_share(0, key)
-    np.testing.assert_array_equal(g._classes()[1], ref._classes()[1])
 
 
 def test_a_maps_usable_masks_are_kept_as_bits():
