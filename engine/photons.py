@@ -407,7 +407,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
     make_next); coincident: the scene's CoincidentSurfaces or None; pane_tri: the
     next-event panes' triangle table for this light's photons (panelight.Panes.photon_tri)
-    or None; soft: soft_falloff_sources' (centre, r^2) per emission slot, or None;
+    or None; soft: soft_falloff_sources' (centre, r^2, ends) per light, or None;
     start_medium: the medium the light is in (_light_medium; -1: none known); link_row,
     mesh_links, past: _trace_chunk's; flat: the flat-passage tables its photons cross
     (photonkernels.flat_tables; None: the scene's)."""
@@ -797,25 +797,25 @@ _NO_BUMP = np.zeros(0)  # scatter: no bent normals, every photon's bump factor i
 
 
 def soft_falloff_sources(emitter, n):
-    """(centre (n,3), r^2 (n,)) float64 per emission slot of a photon job of n photons, for
-    point and spot lights with a radius and Blender's Soft Falloff (Cycles'
+    """(centre (L,3), r^2 (L,), ends (L,) int64) float64 per light of a photon job of n
+    photons, for point and spot lights with a radius and Blender's Soft Falloff (Cycles'
     point_light_sample without is_sphere: a disk of radius r through the centre facing the
     shading point, so a point at distance d receives I / (d^2 + r^2) face-on); r^2 = 0
-    for the job's other lights. None where no light of the job has it. emitter: a light,
-    a visual-importance RegionEmitter (its .light) or a LightGroup (its members' slots in
-    order)."""
+    for the job's other lights. Light k owns the emission slots ends[k - 1] (0 for k = 0)
+    up to ends[k]. None where no light of the job has it. emitter: a light, a
+    visual-importance RegionEmitter (its .light) or a LightGroup (its members' slots in
+    order). One row per light, not per slot: a chunk's (n,3) table cost ~2 ms a chunk."""
     members = (list(zip(emitter.lights, emitter.counts)) if hasattr(emitter, "counts")
                and hasattr(emitter, "lights") else [(getattr(emitter, "light", emitter), n)])
     if not any(_is_soft(li) for li, _ in members):
         return None
-    centre, r2 = np.zeros((n, 3)), np.zeros(n)
-    at = 0
-    for li, c in members:
+    centre, r2 = np.zeros((len(members), 3)), np.zeros(len(members))
+    ends = np.cumsum([int(c) for _, c in members], dtype=np.int64)
+    for k, (li, _) in enumerate(members):
         if _is_soft(li):
-            centre[at:at + c] = li.pos
-            r2[at:at + c] = float(li.radius) ** 2
-        at += c
-    return centre, r2
+            centre[k] = li.pos
+            r2[k] = float(li.radius) ** 2
+    return centre, r2, ends
 
 
 def _is_soft(light) -> bool:
@@ -829,18 +829,35 @@ def _soft_falloff_at_first_hit(soft, o32, d, t32, geom, slot, power):
     + r^2). So each photon's power at its first hit, at distance d from the light's
     centre, is scaled by d^2 / (d^2 + r^2): both passes then give the same irradiance
     (within a few radii of the light: a lamp shade read 1.19x Cycles without it,
-    newuser31). o32, d (M,3) the emitted rays, t32 (M,) their hit distances, geom (M,)
-    < 0 for a miss, slot (M,) each photon's emission slot; power (M,3) scaled in place."""
-    centre, r2 = soft
-    rows = np.nonzero(geom >= 0)[0]
+    newuser31). soft: soft_falloff_sources' rows; o32, d (M,3) the emitted rays, t32 (M,)
+    their hit distances, geom (M,) < 0 for a miss, slot (M,) each photon's emission slot;
+    power (M,3) scaled in place."""
+    centre, r2, ends = soft
+    rows = np.flatnonzero(geom >= 0)
     if not len(rows):
         return
-    s = slot[rows]
-    keep = r2[s] > 0.0
-    rows, s = rows[keep], s[keep]
-    p = o32[rows].astype(np.float64) + t32[rows].astype(np.float64)[:, None] * d[rows]
-    dist2 = np.einsum("ij,ij->i", p - centre[s], p - centre[s])
-    power[rows] *= (dist2 / (dist2 + r2[s]))[:, None].astype(power.dtype)
+    if len(ends) == 1:
+        # One light (soft, or there would be no table): its centre and r^2 for every
+        # slot, broadcast (the same values as a row per slot).
+        c, rr = centre[0], r2[0]
+    else:
+        k = np.searchsorted(ends, slot[rows], side="right")
+        keep = r2[k] > 0.0
+        rows, k = rows[keep], k[keep]
+        c, rr = centre[k], r2[k]
+    if len(rows) == len(geom):  # every photon hit: no gathers
+        p = o32.astype(np.float64)
+        p += t32.astype(np.float64)[:, None] * d
+    else:
+        p = np.take(o32, rows, axis=0).astype(np.float64)
+        p += np.take(t32, rows).astype(np.float64)[:, None] * np.take(d, rows, axis=0)
+    p -= c
+    dist2 = np.einsum("ij,ij->i", p, p)
+    f = (dist2 / (dist2 + rr))[:, None].astype(power.dtype)
+    if len(rows) == len(geom):
+        power *= f
+    else:
+        power[rows] *= f
 
 
 def _closest_hits(accel, o32, d32, tfar32, out):

@@ -269,3 +269,50 @@ def test_spot_cone_edge_softened_by_the_disk_as_in_cycles():
         print(f"{deg} degrees: {got:.5f} against {want:.5f}")
         assert want > 0.5  # each point sees part of the disk inside the cone
         assert got == pytest.approx(want, rel=0.02)
+
+
+def test_soft_falloff_at_first_hit_by_each_lights_rows():
+    """photons._soft_falloff_at_first_hit scales each photon that hit by d^2 / (d^2 +
+    r^2), d its first hit's distance from its own light's centre and r that light's
+    radius, for a group of lights (soft_falloff_sources: one row per light, each owning
+    its slots in order; a light without Soft Falloff leaves its photons as they are),
+    and leaves the photons that missed alone."""
+    from types import SimpleNamespace
+    from engine.photons import _soft_falloff_at_first_hit, soft_falloff_sources
+    from engine.scene import POINT, SPOT
+
+    def lamp(kind, radius, pos):
+        return SimpleNamespace(kind=kind, radius=radius, is_sphere=False,
+                               pos=np.array(pos, float))
+
+    lamps = [lamp(POINT, 0.5, (0, 1, 2)), lamp(SPOT, 0.0, (1, 1, 1)),
+             lamp(SPOT, 0.2, (3, 0, 1))]
+    counts = [300, 200, 500]
+    group = SimpleNamespace(lights=lamps, counts=counts)
+    m = sum(counts)
+    rng = np.random.default_rng(4)
+    o32 = rng.normal(size=(m, 3)).astype(np.float32)
+    d = rng.normal(size=(m, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    t32 = rng.uniform(0.01, 5.0, m).astype(np.float32)
+    geom = np.where(rng.uniform(size=m) < 0.3, -1, 0).astype(np.int32)
+    slot = np.arange(m)
+    power = rng.uniform(size=(m, 3)).astype(np.float32)
+    got = power.copy()
+    _soft_falloff_at_first_hit(soft_falloff_sources(group, m), o32, d, t32, geom, slot, got)
+    owner = np.repeat(np.arange(3), counts)
+    centre = np.array([lp.pos for lp in lamps])[owner]
+    r2 = np.array([lp.radius ** 2 for lp in lamps])[owner]
+    p = o32.astype(np.float64) + t32.astype(np.float64)[:, None] * d
+    dist2 = ((p - centre) ** 2).sum(axis=1)
+    want = np.where(((geom >= 0) & (r2 > 0))[:, None],
+                    power * (dist2 / (dist2 + r2))[:, None], power)
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    assert np.array_equal(got[geom < 0], power[geom < 0])
+    assert np.array_equal(got[owner == 1], power[owner == 1])
+    # one soft light alone: every photon of the chunk by that light's row
+    one = power.copy()
+    _soft_falloff_at_first_hit(soft_falloff_sources(lamps[0], m), o32, d, t32, geom, slot, one)
+    dist2 = ((p - lamps[0].pos) ** 2).sum(axis=1)
+    want = np.where((geom >= 0)[:, None], power * (dist2 / (dist2 + 0.25))[:, None], power)
+    np.testing.assert_allclose(one, want, rtol=1e-6)
