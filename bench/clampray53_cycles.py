@@ -18,7 +18,9 @@ SCENE:
           (--border 0.094 0.375 0.333 0.583 of 160 x 120). Regions: newuser52's
           "Plinth:PendantShadow" (where the pendant's caustic falls), "Pendant",
           "Plinth" (the region's other plinth pixels), "region". At Filter Glossy 1 and 0
-          (scene names jewel1, jewel0).
+          (scene names jewel1, jewel0). Needs newuser52's masks at 160 x 120 in
+          /tmp/newuser52/masks.npy (`bench/newuser52_jewellery.py x OUT.exr --masks
+          /tmp/newuser52/masks.npy`, docs/accuracy.md "newuser52").
 
 Both engines at Blender's Light Paths defaults otherwise (Filter Glossy 1 for ball and room,
 caustics on), Cycles' Clamp Direct 0; ours through the add-on at its defaults (128 spp),
