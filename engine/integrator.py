@@ -1095,7 +1095,8 @@ GUIDE_REGATHERS = False
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     level=0, should_cancel=None, lean=_UNSET, extra=None,
-                    glow_only=False, caustic=None, passes=None, d_pdf=None) -> np.ndarray:
+                    glow_only=False, caustic=None, passes=None, d_pdf=None,
+                    clamp=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -1128,7 +1129,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     next surface (its emission counted, no lookup, no continuation), and a regathered
     end's shadow rays and next gather start from its count (_gather_pass_counts).
     d_pdf: the hits' glossysplit.DiffusePdf at the split's Filter Glossy if the caller
-    has it (_photon_terms: the same object, built once; None: built here when needed)."""
+    has it (_photon_terms: the same object, built once; None: built here when needed).
+    clamp: (w (N,3), limit) at level 0: Cycles' Clamp Indirect held per gather ray, as
+    Cycles clamps each path's contribution (engine/sampleclamp.py): ray g's irradiance
+    E_g (its lookups, regathers and emission; its chain's light into caustic apart, a
+    contribution of its own) scaled so that |w x G x E_g|_1 <= limit, w the camera path's
+    clamp throughput x the gathering lobe's f (G x E_g x f: the radiance one path through
+    the ray carries); the result sums the held E_g. None: no clamp (the caller's)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -1222,6 +1229,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                        else glossysplit.DiffusePdf(ctx, hit, fg_split))
               if fg_split > 0.0 else None)
     E_chain = E if caustic is None else caustic
+    # Clamped per ray: each ray's shares go to rows of its own (E_rays[g], and the
+    # regathers' targets g x n + row), summed after the clamp below.
+    E_out, chain_out = E, caustic
+    if clamp is not None:
+        E_rays = np.zeros((G, n, 3))
+        chain_rays = None if caustic is None else np.zeros((G, n, 3))
     # Each ray's transparent bounces by hit row (None: no surface or lamp a ray may
     # pass, or nothing to count), the limit and the volume-only surfaces (their pass is
     # none). The chains' lamps are passes (GatherChains.emission): counted on from step
@@ -1240,6 +1253,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     else c(hit.spread, np.float64))  # (none known: no spread)
         fp_h = np.empty(n)
     for g in range(G):
+        if clamp is not None:
+            E = E_rays[g]
+            E_chain = E if chain_rays is None else chain_rays[g]
         idx, o, d, tp = buf.rays(n)
         if fp_start is not None:
             fp_h[:] = fp_start
@@ -1482,7 +1498,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                         ends = np.delete(ends, again[:n_again])
                     # Gathered again later, all in one batch (_regather).
                     rows = dsel[again[:n_again]]
-                    pending.append((idx[rows], np.take(tp, rows, axis=0),
+                    pending.append((idx[rows] + (0 if clamp is None else g * n),
+                                    np.take(tp, rows, axis=0),
                                     np.take(wd, rows, axis=0), prim[rows], u[rows],
                                     v[rows], np.take(d, rows, axis=0),
                                     None if cnt is None else cnt[idx[rows]],
@@ -1600,8 +1617,17 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 cnt_in = None if cnt is None else cnt.copy()
             cnt = _count_continuations(cnt, n, idx, pass_lobe, ray_cls)
     if pending:
-        _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
-    return E
+        _regather(ctx, E if clamp is None else E_rays.reshape(G * n, 3), pending, G, rng,
+                  counters, level, should_cancel, lean)
+    if clamp is None:
+        return E
+    w, limit = clamp
+    wG = w * G
+    for g in range(G):
+        E_out += sampleclamp.clamp(E_rays[g], wG, None, limit)
+        if chain_rays is not None:
+            chain_out += sampleclamp.clamp(chain_rays[g], wG, None, limit)
+    return E_out
 
 
 def _gather_pass_counts(ctx, n, passes, lamps=False):
@@ -2659,6 +2685,23 @@ def _secondary_per_pixel(ctx) -> int:
     return getattr(ctx, "secondary_per_pixel", 0) or SECONDARY_SAMPLES_PER_PIXEL
 
 
+# Clamp Indirect per gather ray (gather_indirect's clamp); False: on the mean of a camera
+# sample's G rays, as before clampray53 (an A/B diagnostic).
+CLAMP_PER_GATHER_RAY = True
+
+
+def _gather_clamp(s, clamp_tp, f):
+    """gather_indirect's clamp for the hits of _photon_terms (clamp_tp (K,3) their camera
+    paths' clamp throughput, None: no clamp; f (K,3) the diffuse lobe's albedo / pi):
+    (clamp_tp x f, Clamp Indirect's limit), or None."""
+    if clamp_tp is None:
+        return None
+    limit = sampleclamp.limits(s)[1]
+    if not CLAMP_PER_GATHER_RAY or not np.isfinite(limit):
+        return None
+    return (clamp_tp * f, limit)
+
+
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
                   scattered=None, extra=None, clamp_tp=None, used=None):
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
@@ -2692,15 +2735,21 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     if ctx.gather_map is not None:
         # (the gather chains' share of the maps' light, where Filter Glossy moves it to
         # them, into the caustic term: glossysplit)
+        # (Clamp Indirect per gather ray, as Cycles clamps each of its paths:
+        # gather_indirect's clamp; the mean of G rays was cut only above ~G x the limit)
         chained = np.zeros_like(f) if d_pdf is not None else None
+        gclamp = _gather_clamp(s, clamp_tp, f)
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
-                                       caustic=chained, passes=used, d_pdf=d_pdf)
-        if clamp_tp is not None:
+                                       caustic=chained, passes=used, d_pdf=d_pdf,
+                                       clamp=gclamp)
+        if clamp_tp is not None and gclamp is None:
+            # (the mean's clamp: Clamp Indirect off, only its non-finite rows zeroed, or
+            # CLAMP_PER_GATHER_RAY off)
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
         if chained is not None:
             chained *= f
-            if clamp_tp is not None:
+            if clamp_tp is not None and gclamp is None:
                 chained = sampleclamp.clamp(chained, clamp_tp, None,
                                             sampleclamp.limits(s)[1])
             caustic = caustic + chained
@@ -2730,9 +2779,11 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         # volume emission, as in Cycles; no photons from them): the gather runs for their
         # glow even without a photon map (it then looks nothing up: its rays add the
         # glow along their segments, engine/volumeemission.py).
+        gclamp = _gather_clamp(s, clamp_tp, f)
         glow = f * gather_indirect(ctx, hit, rng, counters, sampler,
-                                   should_cancel=should_cancel, extra=extra, passes=used)
-        if clamp_tp is not None:
+                                   should_cancel=should_cancel, extra=extra, passes=used,
+                                   clamp=gclamp)
+        if clamp_tp is not None and gclamp is None:
             glow = sampleclamp.clamp(glow, clamp_tp, None, sampleclamp.limits(s)[1])
         indirect = indirect + glow
     return caustic, indirect

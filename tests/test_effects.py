@@ -1245,7 +1245,7 @@ def test_clamping_line_says_the_caustics_as_the_filter_glossy_routes_them():
         line = _line(plan, "clamping: on - ")
         assert ("the caustics of 'Ball' reach the matte surfaces through the final "
                 "gather's paths here (Filter Glossy 1: see the glossy blur line), and "
-                "ours clamps those paths' light per camera sample as Cycles clamps its "
+                "ours clamps each of those paths' light as Cycles clamps its "
                 "own samples") in line, line
         assert "they can read brighter" not in line and plan.clamped_caustics == {}, line
         blur = _line(plan, "glossy blur: on - ")
