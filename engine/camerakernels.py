@@ -1003,7 +1003,9 @@ def diffuse_pdf_weights(albedo, sel, psum, wd, lambert):
     form: ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), added to 0.0); wd (N,)
     np.maximum(the diffuse albedo's mean as numpy's mean(axis=1): 0.0 + ((0.0 + a0) + a1)
     + a2, / 3, 0.0); lambert (N,) bool: no lobe but the diffuse and pass ones weighs > 0.
-    The numpy stage's bits (tests/test_hotspot_kernels.py); needs N_LOBES == 9."""
+    The numpy stage's bits (tests/test_hotspot_kernels.py; needs N_LOBES == 9), but for
+    the sign of a zero weight in sel (numpy's maximum of 0.0 and -0.0 is -0.0, _npmax's
+    0.0), which no reader sees: principled.bsdf_pdf weighs a lobe only where w > 0.0."""
     for i in range(albedo.shape[0]):
         sel[i, 0] = 0.0
         for j in range(1, pr.N_LOBES):
