@@ -9,7 +9,8 @@ the numbers hold on a machine other jobs share (wall time does not).
         [--blends figure6_box,figure7_blocker,figure8_caustic] [--repeat 2]
         [--percent 100] [--threads 0] [--profile OUT.prof] [--set module.NAME=value]
 
-Each render is a fresh child process that opens example_blends/NAME.blend with `bpy`,
+Each render is a fresh child process that opens example_blends/NAME.blend (or NAME itself
+where it ends in .blend: e.g. the donut bench/newuser51_donut.py --save writes) with `bpy`,
 registers the add-on of ROOT (the checkout named by --root, several allowed: this
 checkout by default) and renders with engine 'PHOTONMAP' at the blend's saved settings,
 as `python -m addon.batch NAME.blend -o X.png` does (the image is not written). Kernels
@@ -30,7 +31,8 @@ import json, os, sys, time
 ROOT, BLEND, PERCENT, THREADS, PROFILE, SETS = sys.argv[1:7]
 import importlib
 import bpy
-bpy.ops.wm.open_mainfile(filepath=os.path.join(ROOT, "example_blends", BLEND + ".blend"))
+bpy.ops.wm.open_mainfile(filepath=BLEND if BLEND.endswith(".blend")
+                         else os.path.join(ROOT, "example_blends", BLEND + ".blend"))
 sys.path.insert(0, ROOT)
 import addon
 import addon.export as export
@@ -156,7 +158,7 @@ def main():
                 got = run(root, blend, args.percent, args.threads, sets=sets)
                 m = got["marks"]
                 name = os.path.basename(root)
-                print(f"| {name} | {blend} | {got['load']:.1f} | "
+                print(f"| {name} | {os.path.basename(blend)} | {got['load']:.1f} | "
                       + " | ".join(f"{m.get(s, 0.0):.2f}" for s in STAGES) + " | "
                       + " | ".join(f"{got['stats'].get(r, 0) / 1e6:.2f}M" for r in RAYS)
                       + " |",
@@ -168,7 +170,7 @@ def main():
     print("| root | blend | " + " | ".join(STAGES) + " |")
     print("|---|---|" + "---:|" * len(STAGES))
     for (name, blend), b in best.items():
-        print(f"| {name} | {blend} | " + " | ".join(f"{b[s]:.2f}" for s in STAGES) + " |")
+        print(f"| {name} | {os.path.basename(blend)} | " + " | ".join(f"{b[s]:.2f}" for s in STAGES) + " |")
 
 
 if __name__ == "__main__":

@@ -309,7 +309,8 @@ def closures(table: MaterialTable, hit: SurfaceHit, geo=None):
     (camerakernels.hit_closures: the view cosine, Cycles' glossy normal, the closures'
     set-up). geo: the Geometry, for the tangents of anisotropic lobes (engine/anisotropy.py;
     None: those lobes stay isotropic)."""
-    if hit.prm is None or hit.lobe_albedo is None:
+    # (lobe_albedo first: a HitRows view without it then copies no prm rows it replaces)
+    if hit.lobe_albedo is None or hit.prm is None:
         n = len(hit.mat)
         per_hit = hit.params is not None  # texture-driven scalar inputs: a row per hit
         alpha = _NO_ALPHA if hit.alpha is None else np.ascontiguousarray(hit.alpha, np.float64)

@@ -32,6 +32,12 @@ two Embree calls for every hit of a camera, gather or specular ray.
 - `surface_lobes` (tenth slice): `hit_geometry`, `face_shading_normals` and `shade_lobes`
   in one call, block by block (a block's surface data is still in cache for its lobes),
   for scenes without per-hit material nodes.
+- `glossy_unguarded_rows` (hotspots53): turnedglossy.camera_unguarded's test (the
+  interpolated shading normal puts the viewer below it) in one pass, no (N,3) temporaries.
+- `diffuse_pdf_weights` (hotspots53): glossysplit.DiffusePdf's lobe weights, their sum,
+  the diffuse weight and the Lambert-only rows from the closures' albedos in one pass.
+- `bsdf_pdf_rows` (hotspots53): principled.bsdf_pdf_many reading the hits' rows in place
+  (glossysplit.DiffusePdf.pdf: no gathered copies of the packed lobes).
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
@@ -946,6 +952,91 @@ def gather_rays(u1, u2, ns, ng, p, offset, rows, o, d):
     return k
 
 
+@kernel
+def glossy_unguarded_rows(rows, trow, u, v, d, e1, e2, corner_normals, eps, out):
+    """turnedglossy.camera_unguarded's test on the hits rows (K,) int64 (those on its
+    materials): out[i] = True (out (N,) bool, False on entry) where the interpolated shading
+    normal puts the viewer wo = -d below it on the ray's side of the winding normal
+    ((side x ns . wo) <= eps) and that normal does not point into the surface (ns . ng >
+    0). trow (N,) the triangle table row of each hit (Geometry.hit_tables without shared
+    instances: prim); u, v (N,) barycentrics; d (N,3) ray directions; e1, e2 (T,3)
+    float64; corner_normals (T,3,3) float32, not empty. Returns the rows marked.
+
+    The numpy stage's operations in its order (tests/test_hotspot_kernels.py): ng as
+    geometry._ng_rows (np.cross, its norm), ns as Geometry.shading_normals (the corners'
+    lerp, normalised; ng where not finite or degenerate, as hit_geometry), and each dot
+    product as np.einsum("ij,ij->i") sums its three terms: (x + z) + y."""
+    count = 0
+    for j in range(rows.shape[0]):
+        i = rows[j]
+        t = trow[i]
+        cx, cy, cz = winding_normal(e1, e2, t)
+        ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+        gx, gy, gz = cx / ln, cy / ln, cz / ln
+        b1, b2 = u[i], v[i]
+        w = 1.0 - b1 - b2
+        sx = (w * np.float64(corner_normals[t, 0, 0]) + b1 * np.float64(corner_normals[t, 1, 0])
+              + b2 * np.float64(corner_normals[t, 2, 0]))
+        sy = (w * np.float64(corner_normals[t, 0, 1]) + b1 * np.float64(corner_normals[t, 1, 1])
+              + b2 * np.float64(corner_normals[t, 2, 1]))
+        sz = (w * np.float64(corner_normals[t, 0, 2]) + b1 * np.float64(corner_normals[t, 1, 2])
+              + b2 * np.float64(corner_normals[t, 2, 2]))
+        sl = max(math.sqrt(sx * sx + sy * sy + sz * sz), 1e-300)
+        sx, sy, sz = sx / sl, sy / sl, sz / sl
+        s = abs(sx) + abs(sy) + abs(sz)
+        if not math.isfinite(s) or s < 0.5:
+            sx, sy, sz = gx, gy, gz
+        d0, d1, d2 = d[i, 0], d[i, 1], d[i, 2]
+        side = 1.0 if (d0 * gx + d2 * gz) + d1 * gy < 0.0 else -1.0
+        view = (sx * -d0 + sz * -d2) + sy * -d1
+        if side * view <= eps and (sx * gx + sz * gz) + sy * gy > 0.0:
+            out[i] = True
+            count += 1
+    return count
+
+
+@kernel
+def diffuse_pdf_weights(albedo, sel, psum, wd, lambert):
+    """glossysplit.DiffusePdf's per-hit weights from the closures' albedos (N, N_LOBES, 3):
+    sel (N, N_LOBES) 0 then each non-diffuse lobe's max channel (np.maximum, NaN wins);
+    psum (N,) their sum as numpy's sum(axis=1) adds N_LOBES - 1 = 8 values (its pairwise
+    form: ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), added to 0.0); wd (N,)
+    np.maximum(the diffuse albedo's mean as numpy's mean(axis=1): 0.0 + ((0.0 + a0) + a1)
+    + a2, / 3, 0.0); lambert (N,) bool: no lobe but the diffuse and pass ones weighs > 0.
+    The numpy stage's bits (tests/test_hotspot_kernels.py; needs N_LOBES == 9), but for
+    the sign of a zero weight in sel (numpy's maximum of 0.0 and -0.0 is -0.0, _npmax's
+    0.0), which no reader sees: principled.bsdf_pdf weighs a lobe only where w > 0.0."""
+    for i in range(albedo.shape[0]):
+        sel[i, 0] = 0.0
+        for j in range(1, pr.N_LOBES):
+            sel[i, j] = _npmax(_npmax(albedo[i, j, 0], albedo[i, j, 1]), albedo[i, j, 2])
+        pw = (((sel[i, 1] + sel[i, 2]) + (sel[i, 3] + sel[i, 4]))
+              + ((sel[i, 5] + sel[i, 6]) + (sel[i, 7] + sel[i, 8])))
+        psum[i] = 0.0 + pw
+        m = 0.0 + ((0.0 + albedo[i, pr.L_DIFFUSE, 0]) + albedo[i, pr.L_DIFFUSE, 1]
+                   + albedo[i, pr.L_DIFFUSE, 2])
+        wd[i] = _npmax(m / 3.0, 0.0)
+        lam = True
+        for j in range(1, pr.N_LOBES):
+            if j != pr.L_PASS and sel[i, j] > 0.0:
+                lam = False
+        lambert[i] = lam
+
+
+@kernel
+def bsdf_pdf_rows(prm, sel, rows, ns, wo, wi, out):
+    """principled.bsdf_pdf_many on the hit rows rows (K,) int64 of prm (N, N_PACK), sel
+    (N, N_LOBES) and wo (N,3), read in place (bsdf_pdf_many takes the K rows gathered:
+    ~50 floats a pair copied, the larger part of glossysplit.DiffusePdf.pdf's CPU); ns,
+    wi (K,3) by pair; out (K,). Each pair the same operations: the same bits."""
+    for k in range(rows.shape[0]):
+        r = rows[k]
+        n0, n1, n2 = ns[k, 0], ns[k, 1], ns[k, 2]
+        ox, oy, oz = pr.frame_local(n0, n1, n2, wo[r, 0], wo[r, 1], wo[r, 2])
+        ix, iy, iz = pr.frame_local(n0, n1, n2, wi[k, 0], wi[k, 1], wi[k, 2])
+        out[k] = pr.bsdf_pdf(prm, sel, r, ox, oy, oz, ix, iy, iz)
+
+
 @register_warm_up
 def _warm_up():
     v0 = np.zeros((1, 3))
@@ -984,6 +1075,12 @@ def _warm_up():
                         np.empty((1, 3)), np.zeros(0))
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
                 np.empty((1, 3)))
+    glossy_unguarded_rows(np.zeros(1, np.int64), np.zeros(1, np.int64), one, one, d, e1, e2,
+                          np.ones((1, 3, 3), np.float32), 1e-6, np.zeros(1, np.bool_))
+    diffuse_pdf_weights(np.full((1, pr.N_LOBES, 3), 0.1), np.empty((1, pr.N_LOBES)),
+                        np.empty(1), np.empty(1), np.empty(1, np.bool_))
+    bsdf_pdf_rows(np.zeros((1, pr.N_PACK)), np.zeros((1, pr.N_LOBES)), np.zeros(1, np.int64),
+                  ns, -d, d, np.empty(1))
     i64 = np.zeros(1, np.int64)
     keep_path_hits(i64, p, d, base, i64, one, one, one, i64, one, i64, one)
     film_add(np.zeros((1, 3)), 0, i64, i64, base, base)

@@ -171,26 +171,32 @@ class DiffusePdf:
 
     def __init__(self, ctx, hit, fg: float):
         from .bsdf import closures
+        from .camerakernels import diffuse_pdf_weights
         from .closures import principled as pr
         # (the hit's cached lobes if it has them; else set up here and not cached, so
-        # the camera side's own set-up, blurred or not, is left as it would be)
-        had = (hit.prm, hit.lobe_albedo)
+        # the camera side's own set-up, blurred or not, is left as it would be. A HitRows
+        # view's fields not read yet stay so: reading them would copy its source's rows.)
+        state = vars(hit)
+        had = {k: state[k] for k in ("prm", "lobe_albedo") if k in state}
         prm, albedo = closures(ctx.table, hit, getattr(ctx, "geo", None))
-        hit.prm, hit.lobe_albedo = had
-        albedo = np.asarray(albedo, np.float64)
-        # (choose_lobes' order: SPEC_LOBES) Each lobe's max channel by two np.maximum:
-        # the same values as .max(axis=2), whose reduction over 3 strided channels took
-        # ~7 % of Figure 6's camera pass CPU (docs/performance.md "slow52").
-        a = albedo[:, 1:, :]
-        p = np.maximum(np.maximum(a[:, :, 0], a[:, :, 1]), a[:, :, 2])
+        for k in ("prm", "lobe_albedo"):
+            if k in had:
+                setattr(hit, k, had[k])
+            else:
+                state.pop(k, None)
+        albedo = np.ascontiguousarray(albedo, np.float64)
+        n = len(albedo)
         self.fg = float(fg)
-        self.prm = prm
-        self.sel = np.zeros((len(p), pr.N_LOBES))
-        self.sel[:, 1:] = p
-        self.psum = p.sum(axis=1)
-        self.wd = np.maximum(albedo[:, pr.L_DIFFUSE, :].mean(axis=1), 0.0)
-        others = [j for j in range(1, pr.N_LOBES) if j != pr.L_PASS]
-        self.lambert = ~(self.sel[:, others] > 0.0).any(axis=1)
+        self.prm = np.ascontiguousarray(prm, np.float64)
+        # (choose_lobes' order: SPEC_LOBES) Each lobe's max channel, their sum, the
+        # diffuse weight and the Lambert-only rows in one compiled pass, numpy's bits:
+        # the numpy stage took ~2 % of Figure 6's camera pass (docs/performance.md,
+        # "slow52", "hotspots53"). (A zero weight may differ in sign from numpy's
+        # maximum, which no reader sees: bsdf_pdf weighs a lobe only where w > 0.0.)
+        self.sel = np.empty((n, pr.N_LOBES))
+        self.psum, self.wd = np.empty(n), np.empty(n)
+        self.lambert = np.empty(n, bool)
+        diffuse_pdf_weights(albedo, self.sel, self.psum, self.wd, self.lambert)
         self.plain = self.lambert & ~(self.psum > 0.0)  # (cos / pi exactly)
         with np.errstate(invalid="ignore", divide="ignore"):
             share = np.where(self.plain, 1.0, self.wd / (self.wd + self.psum))
@@ -203,7 +209,7 @@ class DiffusePdf:
         if self.camera is not None:
             self.largest = np.minimum(self.largest, self.camera)
         self.ns = np.asarray(hit.ns, np.float64)
-        self.wo = np.asarray(hit.wo, np.float64)
+        self.wo = np.ascontiguousarray(hit.wo, np.float64)
 
     def none_unblurred(self) -> bool:
         """No row can count a photon (every largest < fg): the maps' estimates are
@@ -214,7 +220,7 @@ class DiffusePdf:
         """pdf_D (K,) of directions wi (K,3) (unit, leaving D) at hit rows rows (K,),
         at most the camera path's min_ray_pdf there; ns: the shading normals (N,3) by
         hit row (None: the hit's)."""
-        from .closures.principled import bsdf_pdf_many
+        from .camerakernels import bsdf_pdf_rows
         rows = np.asarray(rows, np.int64)
         wi = np.ascontiguousarray(wi, np.float64)
         nsr = np.take(self.ns if ns is None else ns, rows, axis=0)
@@ -225,10 +231,9 @@ class DiffusePdf:
             k = mix[a:a + PDF_BLOCK]
             r = rows[k]
             lobes = np.empty(len(k))
-            bsdf_pdf_many(np.ascontiguousarray(np.take(self.prm, r, axis=0)),
-                          np.ascontiguousarray(np.take(self.sel, r, axis=0)),
-                          np.ascontiguousarray(nsr[k]),
-                          np.ascontiguousarray(np.take(self.wo, r, axis=0)),
+            # (the hits' lobes read in place by row: the same bits as bsdf_pdf_many on
+            # their gathered rows, without the copies)
+            bsdf_pdf_rows(self.prm, self.sel, r, np.ascontiguousarray(nsr[k]), self.wo,
                           np.ascontiguousarray(wi[k]), lobes)
             wd = np.take(self.wd, r)
             with np.errstate(invalid="ignore", divide="ignore"):
@@ -490,7 +495,9 @@ class GatherChains:
                                          counts=np.ascontiguousarray(counts[rows]),
                                          used=None if used is None else used[rows])
         add = np.take(np.asarray(tp, np.float64), blurred, axis=0) * (math.pi / G) * L
-        np.add.at(E, rows_idx[blurred], add)
+        # (a gather step has one ray a gathering hit: rows_idx holds distinct rows, so the
+        # indexed add is np.add.at's sums, without its per-element loop)
+        E[rows_idx[blurred]] += add
         return choice
 
     # D's diffuse bounce: the counts (B_TOTAL order) of a chain's first hit past D on a

@@ -97,6 +97,17 @@ def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | N
     rows = np.flatnonzero(ok[mat])
     if not len(rows):
         return None
+    if getattr(geo, "shared", None) is None:
+        # One compiled pass, the same operations (camerakernels.glossy_unguarded_rows):
+        # the numpy stage below took ~3 % of Figure 6's camera pass (docs/performance.md,
+        # hotspots53). Shared instances keep it (their rows' world-space tables).
+        from .camerakernels import glossy_unguarded_rows
+        out = np.zeros(len(prim), bool)
+        n = glossy_unguarded_rows(rows, prim, np.ascontiguousarray(u, np.float64),
+                                  np.ascontiguousarray(v, np.float64),
+                                  np.ascontiguousarray(d, np.float64), geo.e1, geo.e2, cn,
+                                  _GUARD_EPS, out)
+        return out if n else None
     p = prim[rows]
     ns = geo.shading_normals(p, np.asarray(u, np.float64)[rows],
                              np.asarray(v, np.float64)[rows])

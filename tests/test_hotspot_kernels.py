@@ -1,0 +1,156 @@
+"""hotspots53's compiled stages against the numpy stages they replaced, kept here as
+oracles (docs/performance.md, hotspots53): camerakernels.glossy_unguarded_rows
+(turnedglossy.camera_unguarded's test) marks exactly the rows the numpy test marked, near
+its threshold too; camerakernels.diffuse_pdf_weights (glossysplit.DiffusePdf's lobe
+weights) gives numpy's values, NaN and infinities included, and numpy's bits for the sums,
+the diffuse weight and the Lambert rows (a lobe weight of zero may carry the other sign:
+numpy's maximum of 0.0 and -0.0 is its second argument; every reader tests w > 0.0 and
+psum's sum starts at 0.0, so no result bit depends on it); and
+camerakernels.bsdf_pdf_rows (DiffusePdf.pdf) gives principled.bsdf_pdf_many's bits on
+gathered rows."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from engine import turnedglossy
+from engine.camerakernels import (bsdf_pdf_rows, diffuse_pdf_weights,
+                                  glossy_unguarded_rows)
+from engine.closures import principled as pr
+from engine.geometry import Geometry, _ng_rows
+from engine.sampling import normalize, uniform_sphere
+
+
+def _unguarded_numpy(geo, prim, u, v, d, rows, eps=1e-6):
+    """The numpy stage of turnedglossy.camera_unguarded the kernel replaced, on rows."""
+    p = prim[rows]
+    ns = Geometry.shading_normals(geo, p, u[rows], v[rows])
+    ng = _ng_rows(geo, p)
+    dd = d[rows]
+    side = np.where(np.einsum("ij,ij->i", dd, ng) < 0.0, 1.0, -1.0)
+    below = ((side * np.einsum("ij,ij->i", ns, -dd) <= eps)
+             & (np.einsum("ij,ij->i", ns, ng) > 0.0))
+    out = np.zeros(len(prim), bool)
+    out[rows[below]] = True
+    return out
+
+
+def _triangles(rng, t):
+    """Random triangle tables (t triangles): edges, and float32 corner normals leaning
+    off the face, some zero (degenerate: the face's normal) or NaN."""
+    e1, e2 = rng.normal(size=(2, t, 3))
+    e1[:5] = 0.0  # degenerate triangles (ng 0)
+    cn = (np.cross(e1, e2)[:, None, :] / 3.0 + rng.normal(size=(t, 3, 3))).astype(np.float32)
+    cn[5:15] = 0.0
+    cn[15:20, 1] = np.nan
+    return SimpleNamespace(e1=e1, e2=e2, corner_normals=cn)
+
+
+def test_glossy_unguarded_kernel_marks_the_numpy_stages_rows():
+    rng = np.random.default_rng(53)
+    t, n = 500, 200_000
+    geo = _triangles(rng, t)
+    geo.ng = _ng_rows(geo, np.arange(t))
+    prim = rng.integers(0, t, n).astype(np.int64)
+    b = rng.random((n, 2))
+    b = np.where(b.sum(axis=1, keepdims=True) > 1.0, 1.0 - b, b)
+    u, v = b[:, 0].copy(), b[:, 1].copy()
+    d = uniform_sphere(rng.random(n), rng.random(n))
+    # Half the rays graze the shading normal: ns . wo within a few 1e-6 of the guard's
+    # threshold, on either side of the face.
+    ns = Geometry.shading_normals(geo, prim, u, v)
+    half = np.arange(n) % 2 == 0
+    tangent = normalize(np.cross(ns, rng.normal(size=(n, 3))))
+    lean = rng.uniform(-3e-6, 4e-6, n)[:, None]
+    d[half] = normalize(-(lean * ns + tangent))[half]
+    rows = np.flatnonzero(rng.random(n) < 0.9)  # (the rows on the test's materials)
+    want = _unguarded_numpy(geo, prim, u, v, d, rows)
+    got = np.zeros(n, bool)
+    count = glossy_unguarded_rows(rows, prim, u, v, d, geo.e1, geo.e2, geo.corner_normals,
+                                  turnedglossy._GUARD_EPS, got)
+    np.testing.assert_array_equal(got, want)
+    assert count == want.sum()
+    graze = want[half]
+    assert graze.any() and not graze.all()  # (the threshold is crossed both ways)
+
+
+def _weights_numpy(albedo):
+    """The numpy stage of DiffusePdf.__init__ the kernel replaced: sel, psum, wd, lambert."""
+    a = albedo[:, 1:, :]
+    p = np.maximum(np.maximum(a[:, :, 0], a[:, :, 1]), a[:, :, 2])
+    sel = np.zeros((len(p), pr.N_LOBES))
+    sel[:, 1:] = p
+    psum = p.sum(axis=1)
+    wd = np.maximum(albedo[:, pr.L_DIFFUSE, :].mean(axis=1), 0.0)
+    others = [j for j in range(1, pr.N_LOBES) if j != pr.L_PASS]
+    lambert = ~(sel[:, others] > 0.0).any(axis=1)
+    return sel, psum, wd, lambert
+
+
+def _same_bits(got, want):
+    """Equal values, the same zero signs, NaN where NaN."""
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+
+
+def test_diffuse_pdf_weights_kernel_gives_numpys_bits():
+    rng = np.random.default_rng(530)
+    n = 100_000
+    albedo = rng.random((n, pr.N_LOBES, 3)) * rng.choice([1e-12, 1.0, 1e12], (n, 1, 1))
+    for value, share in ((0.0, 0.3), (-0.0, 0.2), (-1e-3, 0.02), (np.nan, 0.002),
+                         (np.inf, 0.002), (-np.inf, 0.002)):
+        albedo[rng.random(albedo.shape) < share] = value
+    albedo[:200, 2:] = 0.0    # Lambert rows (diffuse and pass lobes alone)
+    albedo[200:300] = -0.0    # every weight -0.0
+    want = _weights_numpy(albedo)
+    got = (np.empty((n, pr.N_LOBES)), np.empty(n), np.empty(n), np.empty(n, bool))
+    with np.errstate(invalid="ignore"):
+        diffuse_pdf_weights(albedo, *got)
+    np.testing.assert_array_equal(got[0], want[0])  # (values: zeros of either sign)
+    for g, w in zip(got[1:], want[1:]):
+        _same_bits(g, w)
+    assert got[3][:200].all() and not got[3].all()
+    # The zero weights' sign changes no pdf (principled.bsdf_pdf reads sel only through
+    # w > 0.0): the numpy weights' and the kernel's give the same bits.
+    prm, _ = pr.setup_np(np.full((1, pr.N_MAT), 0.5), np.zeros(300, np.int64),
+                         np.full((300, 3), 0.5), np.full(300, 0.8), np.ones(300, bool))
+    ns = np.tile([0.0, 0.0, 1.0], (300, 1))
+    wo = normalize(np.tile([0.3, 0.0, 1.0], (300, 1)))
+    wi = normalize(np.tile([-0.2, 0.1, 1.0], (300, 1)))
+    pdfs = []
+    for sel in (got[0][200:500], want[0][200:500]):
+        out = np.empty(300)
+        pr.bsdf_pdf_many(prm, np.ascontiguousarray(sel), ns, wo, wi, out)
+        pdfs.append(out)
+    _same_bits(pdfs[0], pdfs[1])
+
+
+def test_bsdf_pdf_rows_kernel_gives_bsdf_pdf_manys_bits():
+    """Hits of materials with every lobe (principled's warm-up material, its weights
+    varied), pairs drawn with repeated rows: the in-place reads give the gathered rows'
+    pdfs bit for bit."""
+    rng = np.random.default_rng(5300)
+    m, n, k = 16, 3000, 40_000
+    params = np.zeros((m, pr.N_MAT))
+    params[:, [pr.M_ALPHA, pr.M_IOR, pr.M_LEVEL, pr.M_COAT_IOR, pr.M_MULTI]] = (
+        1.0, 1.5, 0.5, 1.5, 1.0)
+    for col in (pr.M_METALLIC, pr.M_ROUGH, pr.M_TRANS, pr.M_SPEC, pr.M_COAT_W,
+                pr.M_COAT_ROUGH, pr.M_SHEEN_W, pr.M_SHEEN_ROUGH, pr.M_TL):
+        params[:, col] = rng.random(m) * (rng.random(m) < 0.7)
+    for col in (pr.M_STINT, pr.M_CTINT, pr.M_SHEEN_TINT, pr.M_TTINT):
+        params[:, col:col + 3] = 1.0
+    mat = rng.integers(0, m, n)
+    prm, _ = pr.setup_np(params, mat, rng.random((n, 3)), rng.uniform(0.05, 1.0, n),
+                         rng.random(n) < 0.8)
+    sel = rng.random((n, pr.N_LOBES)) * (rng.random((n, pr.N_LOBES)) < 0.6)
+    ns = uniform_sphere(rng.random(n), rng.random(n))
+    wo = normalize(ns + 0.9 * uniform_sphere(rng.random(n), rng.random(n)))
+    rows = rng.integers(0, n, k).astype(np.int64)
+    nsr = np.take(ns, rows, axis=0)
+    wi = normalize(nsr + uniform_sphere(rng.random(k), rng.random(k)))
+    want = np.empty(k)
+    pr.bsdf_pdf_many(np.take(prm, rows, axis=0), np.take(sel, rows, axis=0), nsr,
+                     np.take(wo, rows, axis=0), wi, want)
+    got = np.empty(k)
+    bsdf_pdf_rows(prm, sel, rows, nsr, wo, wi, got)
+    _same_bits(got, want)
+    assert (want > 0).mean() > 0.5
