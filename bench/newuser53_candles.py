@@ -8,7 +8,7 @@ defaults) and Cycles.
     PYTHONPATH=. .venv/bin/python bench/newuser53_candles.py MODE OUT.exr [--res W H]
         [--masks MASKS.npy] [--save FILE.blend] [--set NAME=VALUE] [--no-clamp]
         [--cycles-seed S] [--drop NAME ...] [--only flames|moon] [--strength S]
-        [--border X0 X1 Y0 Y1]
+        [--plain-wood] [--border X0 X1 Y0 Y1]
 
 The set (metres; the table's top at z = 0): the table (a cube 0.9 x 0.6 x 0.04; Principled
 roughness 0.4, its Base Color a Wave Texture (Bands, Scale 3, Distortion 6, Detail 2, the
@@ -25,14 +25,16 @@ Smooth, an Emission shader (Color (1.0, 0.45, 0.1), Strength 40; --strength) in 
 the Principled. A glass tumbler (a lathed closed shell, wall 3 mm, bottom 6 mm, radius 35
 mm, 80 mm tall, Shade Smooth by Angle 30 degrees; Principled Transmission Weight 1,
 roughness 0, the node's IOR) in front of the candles, so CandleMid's flame throws its
-caustic onto the table towards the camera. Light besides the flames: the World a dark blue Background ((0.05,
-0.08, 0.2), Strength 0.1: moonlight) and one weak Area light in a "window" to the left
-(0.4 m square, 3 W, colour (0.6, 0.7, 1.0)). Camera 50 mm; AgX. MODE: ours | cycles:SPP
-(no denoise, no adaptive sampling, seed --cycles-seed; Cycles' Light Paths at their
-defaults, read by the add-on).
+caustic onto the table towards the camera. Light besides the flames: the World a dark
+blue Background ((0.05, 0.08, 0.2), Strength 0.1: moonlight) and one weak Area light in
+a "window" to the left (0.4 m square, 3 W, colour (0.6, 0.7, 1.0)). Camera 50 mm; AgX.
+MODE: ours | cycles:SPP (no denoise, no adaptive sampling, seed --cycles-seed; Cycles'
+Light Paths at their defaults, read by the add-on).
 
---drop NAME removes objects whose names start with NAME; --only flames keeps the flames
-(the World black, the area light removed), --only moon the World and the area light;
+--drop NAME removes objects whose names start with NAME; --plain-wood gives the table a
+constant Base Color (0.28, 0.14, 0.06) in place of the Wave Texture; --only flames keeps
+the flames (the World black, the area light removed), --only moon the World and the area
+light;
 --border renders only that Render Region (fractions, y from the bottom; the EXR keeps the
 full frame, black outside). Prints `RESULT mode cpu_s=... wall_s=...`
 (bench/newuser44_table.py render) and, for ours, the add-on's warnings, export and stats.
@@ -107,11 +109,13 @@ def emission_material(name, color, strength):
     return m
 
 
-def candles_scene(strength=40.0, drop=(), only=None):
+def candles_scene(strength=40.0, drop=(), only=None, plain_wood=False):
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     scene.view_settings.view_transform = "AgX"
-    cube("Table", (0, 0.05, -0.02), (0.9, 0.6, 0.04), wood_material("Wood"))
+    wood = (principled("Wood", (0.28, 0.14, 0.06), 0.4) if plain_wood
+            else wood_material("Wood"))
+    cube("Table", (0, 0.05, -0.02), (0.9, 0.6, 0.04), wood)
     bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0, 0.35, 0.3),
                                      rotation=(1.5707963, 0, 0), scale=(1.6, 1.0, 1))
     wall = bpy.context.active_object
@@ -205,12 +209,14 @@ def main():
     ap.add_argument("--drop", nargs="*", default=[])
     ap.add_argument("--only", choices=("flames", "moon"))
     ap.add_argument("--strength", type=float, default=40.0, help="the flames' Strength")
+    ap.add_argument("--plain-wood", action="store_true",
+                    help="the table's Base Color a constant brown, no Wave Texture")
     ap.add_argument("--border", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
                     help="a Render Region (fractions; y from the bottom), not cropped")
     a = ap.parse_args()
     import addon
     addon.register()
-    scene = candles_scene(a.strength, a.drop, a.only)
+    scene = candles_scene(a.strength, a.drop, a.only, a.plain_wood)
     if a.border:
         r = scene.render
         r.use_border, r.use_crop_to_border = True, False
