@@ -351,6 +351,36 @@ def object_masks(scene, w, h):
     return ids, names
 
 
+def top_masks(scene, w, h, path, surface, classify):
+    """object_masks with the upward faces (normal z >= 0.9) of object `surface` split into
+    regions: classify(x, n, depsgraph) gives the region's name (e.g. "Table:Caustic") of
+    the point x with normal n (mathutils Vectors) that a pixel centre's camera ray meets
+    first, or None (the pixel stays the object's). Saves the (H, W) ids to path (.npy)
+    and their names to path + ".json"; prints each region's pixel count."""
+    import json
+    from pathlib import Path
+    ids, names = object_masks(scene, w, h)
+    dg = bpy.context.evaluated_depsgraph_get()
+    cam = scene.camera
+    tr, br, bl, tl = [cam.matrix_world @ v for v in cam.data.view_frame(scene=scene)]
+    origin = cam.matrix_world.translation
+    out = ids.copy()
+    names = list(names)
+    for j, i in zip(*np.nonzero(ids == names.index(surface))):
+        p = tl.lerp(tr, (i + 0.5) / w).lerp(bl.lerp(br, (i + 0.5) / w), (j + 0.5) / h)
+        hit, x, n, _, _, _ = scene.ray_cast(dg, origin, (p - origin).normalized())
+        if not hit or n.z < 0.9:  # the top only
+            continue
+        key = classify(x, n, dg)
+        if key:
+            if key not in names:
+                names.append(key)
+            out[j, i] = names.index(key)
+    np.save(path, out)
+    Path(path + ".json").write_text(json.dumps(names))
+    print("masks:", {n: int((out == k).sum()) for k, n in enumerate(names)})
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("scene", choices=sorted(SCENES))

@@ -44,11 +44,9 @@ bench/newuser45_artefacts.py and bench/newuser48_flip.py.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
-from pathlib import Path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
@@ -59,7 +57,7 @@ import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
-from newuser26_scenes import assign, camera, object_masks, principled  # noqa: E402
+from newuser26_scenes import assign, camera, principled, top_masks  # noqa: E402
 from newuser44_table import arguments, print_report, render  # noqa: E402
 from tools.canonical_mesh import canonical_faces  # noqa: E402
 from studio48_stilllife import revolve, studio_world, write_hdr  # noqa: E402
@@ -182,38 +180,20 @@ def jewellery_scene(hdr_path, drop=(), only=None):
 
 def caster_masks(scene, w, h, path):
     """object_masks with the plinth's top split by which caster's light falls there."""
-    ids, names = object_masks(scene, w, h)
-    dg = bpy.context.evaluated_depsgraph_get()
-    cam = scene.camera
-    tr, br, bl, tl = [cam.matrix_world @ v for v in cam.data.view_frame(scene=scene)]
-    origin = cam.matrix_world.translation
     light = Vector(SPOT_AT)
-    out = ids.copy()
-    names = list(names)
-    pl = names.index("Plinth")
     gold = Vector((*GOLD_AT, TOP))
-    for j, i in zip(*np.nonzero(ids == pl)):
-        p = tl.lerp(tr, (i + 0.5) / w).lerp(bl.lerp(br, (i + 0.5) / w), (j + 0.5) / h)
-        hit, x, n, _, ob, _ = scene.ray_cast(dg, origin, (p - origin).normalized())
-        if not hit or n.z < 0.9:  # the top only
-            continue
-        key = None
+    shadow = {"Gem": "Plinth:GemShadow", "Pendant": "Plinth:PendantShadow",
+              "SilverRing": "Plinth:SilverShadow"}
+
+    def classify(x, n, dg):
         if (x - gold).xy.length < 0.009 - 0.0014:
-            key = "Plinth:InGoldRing"
-        else:
-            x1 = x + n * 1e-5
-            d = light - x1
-            hit2, _, _, _, ob2, _ = scene.ray_cast(dg, x1, d.normalized(), distance=d.length)
-            if hit2 and ob2.name in ("Gem", "Pendant", "SilverRing"):
-                key = {"Gem": "Plinth:GemShadow", "Pendant": "Plinth:PendantShadow",
-                       "SilverRing": "Plinth:SilverShadow"}[ob2.name]
-        if key:
-            if key not in names:
-                names.append(key)
-            out[j, i] = names.index(key)
-    np.save(path, out)
-    Path(path + ".json").write_text(json.dumps(names))
-    print("masks:", {n: int((out == k).sum()) for k, n in enumerate(names)})
+            return "Plinth:InGoldRing"
+        x1 = x + n * 1e-5
+        d = light - x1
+        hit2, _, _, _, ob2, _ = scene.ray_cast(dg, x1, d.normalized(), distance=d.length)
+        return shadow.get(ob2.name) if hit2 else None
+
+    top_masks(scene, w, h, path, "Plinth", classify)
 
 
 def main():

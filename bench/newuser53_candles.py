@@ -46,10 +46,8 @@ bench/newuser26_compare.py, bench/newuser45_artefacts.py and bench/newuser48_fli
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
-from pathlib import Path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
@@ -61,7 +59,7 @@ from mathutils import Vector  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import (assign, camera, cube, cylinder, new_material,  # noqa: E402
-                              object_masks, principled, world_colour)
+                              principled, top_masks, world_colour)
 from newuser44_table import arguments, print_report, render  # noqa: E402
 from studio48_stilllife import revolve  # noqa: E402
 from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
@@ -171,36 +169,21 @@ def candles_scene(strength=40.0, drop=(), only=None, plain_wood=False):
 
 
 def table_masks(scene, w, h, path):
-    """object_masks with the table's top split: Table:Caustic / Table:NearCandles."""
-    ids, names = object_masks(scene, w, h)
-    dg = bpy.context.evaluated_depsgraph_get()
-    cam = scene.camera
-    tr, br, bl, tl = [cam.matrix_world @ v for v in cam.data.view_frame(scene=scene)]
-    origin = cam.matrix_world.translation
+    """object_masks with the table's top split: Table:Caustic (the mid flame seen through
+    the glass) / Table:NearCandles (within 12 cm of a candle's axis)."""
     light = flame_centre("CandleMid")
-    out = ids.copy()
-    names = list(names)
-    tab = names.index("Table")
-    for j, i in zip(*np.nonzero(ids == tab)):
-        p = tl.lerp(tr, (i + 0.5) / w).lerp(bl.lerp(br, (i + 0.5) / w), (j + 0.5) / h)
-        hit, x, n, _, ob, _ = scene.ray_cast(dg, origin, (p - origin).normalized())
-        if not hit or n.z < 0.9:  # the top only
-            continue
+
+    def classify(x, n, dg):
         x1 = x + n * 1e-5
         d = light - x1
         hit2, _, _, _, ob2, _ = scene.ray_cast(dg, x1, d.normalized(), distance=d.length)
-        key = None
         if hit2 and ob2.name == "Glass":
-            key = "Table:Caustic"
-        elif min((x.xy - Vector(c[:2])).length for c in CANDLES.values()) < 0.12:
-            key = "Table:NearCandles"
-        if key:
-            if key not in names:
-                names.append(key)
-            out[j, i] = names.index(key)
-    np.save(path, out)
-    Path(path + ".json").write_text(json.dumps(names))
-    print("masks:", {n: int((out == k).sum()) for k, n in enumerate(names)})
+            return "Table:Caustic"
+        if min((x.xy - Vector(c[:2])).length for c in CANDLES.values()) < 0.12:
+            return "Table:NearCandles"
+        return None
+
+    top_masks(scene, w, h, path, "Table", classify)
 
 
 def main():
