@@ -421,6 +421,15 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         in_flight = min(threads, -(-samples // chunk))
         est.parts["camera chunks"] = int(in_flight * chunk * BYTES_PER_CAMERA_SAMPLE)
         est.drivers["camera chunks"] = "chunk_size"
+        if s.final_gather and s.photons and s.clamp_indirect > 0:
+            # Clamp Indirect per final-gather ray (integrator.gather_indirect's E_rays,
+            # and chain_rays with Filter Glossy's chains): (G, n, 3) float64 a chunk, G
+            # the most gather rays a sample casts (review of clampray53: 0.8 GB an
+            # array a thread at G = 256).
+            arrays = 2 if s.cycles_filter_glossy > 0 else 1
+            est.parts["clamped gather rays"] = int(in_flight * chunk * 24 * arrays
+                                                   * max(1, int(s.gather_rays)))
+            est.drivers["clamped gather rays"] = "gather_rays"
     per_pixel = BYTES_PER_PIXEL + (BYTES_PER_PIXEL_PROGRESSIVE if progressive else 0) \
         + (BYTES_PER_PIXEL_BLENDER if in_blender else 0)
     est.parts["image"] = pixels * per_pixel

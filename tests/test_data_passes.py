@@ -153,3 +153,21 @@ def test_memory_estimate_counts_data_passes():
     assert film_bytes + sums <= part <= 1.5 * (film_bytes + sums)
     assert "data passes" not in estimate_memory(scene, _settings()).parts
     assert estimate_memory(scene, settings, in_blender=True).parts["data passes"] > part
+
+
+def test_memory_estimate_counts_the_clamped_gather_rays():
+    """Clamp Indirect keeps each final-gather ray's light apart until it is clamped
+    (integrator.gather_indirect: (G, n, 3) float64, twice with Filter Glossy's chains):
+    the estimate counts it, growing with Gather Rays, and not without the clamp."""
+    from engine.parallel import chunk_length
+    from engine.resources import estimate_memory
+    scene = _plane_scene()
+    assert "clamped gather rays" not in estimate_memory(scene, _settings()).parts
+    few = estimate_memory(scene, _settings(clamp_indirect=10.0, gather_rays=2))
+    many = estimate_memory(scene, _settings(clamp_indirect=10.0, gather_rays=64))
+    samples = scene.width * scene.height * _settings().spp
+    chunk = chunk_length(samples, _settings().chunk_size)
+    assert few.parts["clamped gather rays"] >= chunk * 2 * 24
+    assert many.parts["clamped gather rays"] == 32 * few.parts["clamped gather rays"]
+    assert many.total > few.total
+
