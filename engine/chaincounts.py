@@ -253,9 +253,13 @@ def exact_class_sums(which, values, n_classes: int) -> np.ndarray:
     with sigma a power of two at least 2 N max|r|, q = (sigma + r) - sigma is r's part
     on sigma's ulp grid, exact, and r - q the exact rest; sums of such q are exact in
     any order (multiples of one ulp, below 2^53 of them), so np.bincount adds them
-    exactly."""
+    exactly. Non-finite values count as 0."""
     out = np.zeros((n_classes, EXACT_LEVELS + 1))
     r = np.array(values, np.float64)
+    # (A non-finite value, which the photon pass does not store (its scatter drops
+    # non-finite throughput), counts as 0: one inf would make sigma inf and every
+    # class's sums NaN.)
+    r[~np.isfinite(r)] = 0.0
     grow = math.ceil(math.log2(len(r) + 2)) + 1
     for j in range(EXACT_LEVELS):
         m = float(np.abs(r).max()) if len(r) else 0.0
