@@ -618,7 +618,15 @@ def _subsurface_line(plan: EffectPlan, geo: Geometry, table: MaterialTable, s,
             if m < len(params) and params[m] is not None]
     if not used:
         return
-    names = _quoted(sorted({table.names[m] for m in used}), most=REPORT_NAMES_MAX)
+    materials = _quoted(sorted({table.names[m] for m in used}), most=REPORT_NAMES_MAX)
+    names = materials
+    if getattr(geo, "shared", None) is None and getattr(geo, "object_names", None):
+        # The objects, as the report's other lines name them (newuser53: 'Wax' alone
+        # beside the caustics line's 'CandleTall'), with their material.
+        ids = np.unique(geo.object_id[np.isin(geo.material, used)])
+        objects = _quoted(sorted(geo.object_names[i] for i in ids), most=REPORT_NAMES_MAX)
+        plural = "s" if len(used) > 1 else ""
+        names = f"{objects} (material{plural} {materials})"
     stand_in = ("a diffuse surface of the albedo Cycles' random walk gives a thick object "
                 "of its Base Color")
     if not getattr(s, "subsurface_walk", True):

@@ -625,7 +625,11 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     report = (f"visual importance: {i_in:.0%} of the photon lookups the camera makes fall "
               f"in {K} small region{'s' if K != 1 else ''} that get "
               f"{p_in / (p_in + p_out):.0%} of the light, so {boost:.1f}x more photons "
-              "per watt are sent there: less noise where you look, the same brightness")
+              "per watt are sent there: less noise where you look, the same brightness "
+              "(the regions come from a pre-pass of camera rays, so their number and "
+              "shares vary with the seed)")
+    # (That last clause: two seeds of one donut read "32 small regions ... 4 %" and "8
+    # small regions ... 8 %", which a reader took for a property of the scene: newuser51.)
     return ShotPlan(emitters, counts.tolist(), report, region, boost)
 
 
