@@ -2185,6 +2185,7 @@ def world_probes(ctx, hit, tp, choice, rows, world, rng, counters, uv, t_limit, 
         # the path ends at the lamp, as lamp_passes.
         met = np.zeros(len(keep), np.int64) if used is None else np.take(used, keep)
         if escaped.any():
+            # (no Light Linking to apply: probed_world runs no probes with links)
             for entry in lamps_met(ctx, o, d, np.full(len(o), np.inf), GLOSSY)[0]:
                 met[entry[2]] += 1
         escaped &= met < t_limit
