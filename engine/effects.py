@@ -1335,8 +1335,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # its unclamped self in Cycles, 0.74 in ours).
         # At Filter Glossy above 1/pi (the split on: engine/glossysplit.py; a matte hit
         # reads no caustic photon, Lambert's pdf being at most 1/pi) the casters' light
-        # reaches the matte surfaces through the final gather's paths, each clamped as
-        # Cycles clamps each path (integrator.gather_indirect's clamp) (newuser52: under
+        # reaches the matte surfaces through the final gather's paths, clamped per camera
+        # sample (the mean of its gather rays; each ray apart, as Cycles clamps each path,
+        # with integrator.CLAMP_PER_GATHER_RAY) (newuser52: under
         # the pendant ours 1.000-1.004 of clamped Cycles at Filter Glossy 1), and the
         # probe, which follows sharp lobes, read 5.2 % or none by seed: said so, not
         # probed. At 0 (and partly up to 1/pi) ours takes it from the caustic photons:
@@ -1345,13 +1346,17 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         quiet = []  # what the probes found under the clamp
         gathered = settings_filter_glossy(s) > 1.0 / math.pi
         if (s.clamp_indirect > 0 and plan.caustics and plan.casters and gathered):
+            from . import integrator  # (lazy: integrator's imports reach this module)
             blur_line = any(d.effect == "glossy blur" for d in plan.decisions)
             glass_note += ("; the caustics of " + _quoted(plan.casters, most=REPORT_NAMES_MAX)
                            + " reach the matte surfaces through the final gather's paths "
                            f"here (Filter Glossy {s.cycles_filter_glossy:g}"
                            + (": see the glossy blur line" if blur_line else "")
-                           + "), and ours clamps each of those paths' light as "
-                           "Cycles clamps its own samples")
+                           + ("), and ours clamps each of those paths' light as Cycles "
+                              "clamps its own samples" if integrator.CLAMP_PER_GATHER_RAY
+                              else "), and ours clamps those paths' light per camera sample "
+                              "as Cycles clamps its own samples (ours the mean of a "
+                              "sample's gather rays: one bright path is cut a little less)"))
         elif (s.clamp_indirect > 0 and plan.caustics and plan.casters and probe_clamp
                 and has_tris):
             # Fixed streams: the answer is the scene's, not the seed's (clampblur52).

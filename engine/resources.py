@@ -421,7 +421,9 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         in_flight = min(threads, -(-samples // chunk))
         est.parts["camera chunks"] = int(in_flight * chunk * BYTES_PER_CAMERA_SAMPLE)
         est.drivers["camera chunks"] = "chunk_size"
-        if s.final_gather and s.photons and s.clamp_indirect > 0:
+        from . import integrator
+        if (s.final_gather and s.photons and s.clamp_indirect > 0
+                and integrator.CLAMP_PER_GATHER_RAY):
             # Clamp Indirect per final-gather ray (integrator.gather_indirect's E_rays,
             # and chain_rays with Filter Glossy's chains): (G, n, 3) float64 a chunk, G
             # the most gather rays a sample casts (review of clampray53: 0.8 GB an

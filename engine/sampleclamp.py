@@ -10,9 +10,9 @@ UI value v into limit = 3 v (the kernel sums three channels), and v = 0 into no 
 
 Here the same limits apply to the camera pass's contributions (engine/integrator.py
 _trace_paths): per camera sample and per contribution (an emitter or background hit, a
-hit's direct light, its caustic estimate, each of its final gather's rays apart (a ray's
-lookups and regathers, and its chain's light, as Cycles clamps each path: integrator.
-gather_indirect's clamp), its secondary caustic), with
+hit's direct light, its caustic estimate, its final gather (the mean of its rays; each
+ray apart, its lookups and regathers and its chain's light, as Cycles clamps each path,
+with integrator.CLAMP_PER_GATHER_RAY, off by default), its secondary caustic), with
 the camera chain's bent bounces standing for Cycles' bounce. A photon-map estimate is a
 smooth average, far below the spiky single-path values the clamp was made for, so the
 clamp rarely touches it; where the estimate is taken for one sample of a block and weighed

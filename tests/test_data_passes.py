@@ -155,13 +155,19 @@ def test_memory_estimate_counts_data_passes():
     assert estimate_memory(scene, settings, in_blender=True).parts["data passes"] > part
 
 
-def test_memory_estimate_counts_the_clamped_gather_rays():
-    """Clamp Indirect keeps each final-gather ray's light apart until it is clamped
-    (integrator.gather_indirect: (G, n, 3) float64, twice with Filter Glossy's chains):
-    the estimate counts it, growing with Gather Rays, and not without the clamp."""
+def test_memory_estimate_counts_the_clamped_gather_rays(monkeypatch):
+    """Clamp Indirect per gather ray (integrator.CLAMP_PER_GATHER_RAY) keeps each
+    final-gather ray's light apart until it is clamped (integrator.gather_indirect:
+    (G, n, 3) float64, twice with Filter Glossy's chains): the estimate counts it, growing
+    with Gather Rays, and not without the clamp or with the switch off."""
+    from engine import integrator
     from engine.parallel import chunk_length
     from engine.resources import estimate_memory
     scene = _plane_scene()
+    monkeypatch.setattr(integrator, "CLAMP_PER_GATHER_RAY", False)
+    assert "clamped gather rays" not in estimate_memory(
+        scene, _settings(clamp_indirect=10.0)).parts
+    monkeypatch.setattr(integrator, "CLAMP_PER_GATHER_RAY", True)
     assert "clamped gather rays" not in estimate_memory(scene, _settings()).parts
     few = estimate_memory(scene, _settings(clamp_indirect=10.0, gather_rays=2))
     many = estimate_memory(scene, _settings(clamp_indirect=10.0, gather_rays=64))

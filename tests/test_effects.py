@@ -1246,12 +1246,23 @@ def test_clamping_line_says_the_caustics_as_the_filter_glossy_routes_them():
         line = _line(plan, "clamping: on - ")
         assert ("the caustics of 'Ball' reach the matte surfaces through the final "
                 "gather's paths here (Filter Glossy 1: see the glossy blur line), and "
-                "ours clamps each of those paths' light as Cycles clamps its "
-                "own samples") in line, line
+                "ours clamps those paths' light per camera sample as Cycles clamps its "
+                "own samples (ours the mean of a sample's gather rays") in line, line
         assert "they can read brighter" not in line and plan.clamped_caustics == {}, line
         blur = _line(plan, "glossy blur: on - ")
         assert ("at Filter Glossy 0 both render sharp caustics, ours from the caustic "
                 "photons, whose smooth estimates Cycles' clamp does not cut") in blur, blur
+    # With each gather ray clamped apart (integrator.CLAMP_PER_GATHER_RAY, off by
+    # default), the clause says so.
+    from engine import integrator
+    old, integrator.CLAMP_PER_GATHER_RAY = integrator.CLAMP_PER_GATHER_RAY, True
+    try:
+        line = _line(_plan(scene, clamp_indirect=10.0, cycles_filter_glossy=1.0, seed=0),
+                     "clamping: on - ")
+    finally:
+        integrator.CLAMP_PER_GATHER_RAY = old
+    assert ("ours clamps each of those paths' light as Cycles clamps its own samples"
+            in line), line
     # Clamp Indirect off: no clamping line, so the blur line names no clamp (review52).
     plan = _plan(scene, clamp_indirect=0.0, cycles_filter_glossy=1.0, seed=0)
     blur = _line(plan, "glossy blur: on - ")

@@ -16,7 +16,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 
-def test_clamped_room_reads_the_same_at_one_and_two_gather_rays(bpy_addon):
+def test_clamped_room_reads_the_same_at_one_and_two_gather_rays(bpy_addon, monkeypatch):
+    from engine import integrator
+    monkeypatch.setattr(integrator, "CLAMP_PER_GATHER_RAY", True)  # (off by default)
     sys.path.insert(0, os.path.join(ROOT, "bench"))
     import bpy
     import clampray53_cycles as C
