@@ -1238,10 +1238,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Each ray's transparent bounces by hit row (None: no surface or lamp a ray may
     # pass, or nothing to count), the limit and the volume-only surfaces (their pass is
     # none). The chains' lamps are passes (GatherChains.emission): counted on from step
-    # to step, as a camera path counts them.
+    # to step, as a camera path counts them, where emission runs (continuation lights or
+    # unsampled mesh sides; elsewhere a chain counts no lamp: mis51's known gap).
     t_limit, t_h, t_vol = _gather_pass_counts(
-        ctx, n, passes, lamps=chains is not None and any(
-            light.has_surface for light in ctx.lights))
+        ctx, n, passes, lamps=chains is not None
+        and bool(chains.continuation_lights or chains.unsampled)
+        and any(light.has_surface for light in ctx.lights))
     # The path's ray footprint at each ray's origin, by hit row (Cycles' dP: the hits', then
     # their chains' last vertex's), and its dD (the hits' spread): the ends' footprint for
     # Bump nodes (bump.transfer_footprint). None: the hits' is not known (the ends take the
