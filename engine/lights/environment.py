@@ -42,7 +42,9 @@ the distribution's own, exactly, so the estimators stay unbiased.
 
 The lookups and the sampling are compiled kernels (engine/jit.py) shared by the
 direct-light kernel (engine/directlight.py), photon emission and escaped rays, so the
-three agree to the last bit.
+three agree to the last bit; but for photon emission's radiance, read at the drawn point
+of its texel (texel_radiance) rather than through the direction: the same value up to
+the direction's round trip's rounding.
 """
 from __future__ import annotations
 
@@ -686,6 +688,15 @@ def _find_interval(cdf, n, x):
 def env_sample(R, px, interp, rows, cols, pdf_uv, u1, u2):
     """A world direction drawn from the distribution with its solid-angle pdf:
     (d0, d1, d2, pdf); pdf 0 when the environment is black."""
+    d0, d1, d2, pdf, i, j, fx, fy = env_sample_texel(R, px, interp, rows, cols, pdf_uv, u1, u2)
+    return d0, d1, d2, pdf
+
+
+@kernel
+def env_sample_texel(R, px, interp, rows, cols, pdf_uv, u1, u2):
+    """env_sample's direction and pdf, and where in the map it was drawn: (d0, d1, d2,
+    pdf, i, j, fx, fy), texel row i, column j and the offsets (fx, fy) in [0,1]^2 inside
+    it (texel_radiance reads the radiance there without the direction's round trip)."""
     H = pdf_uv.shape[0]
     W = pdf_uv.shape[1]
     i = _find_interval(rows, H, u1)
@@ -697,7 +708,57 @@ def env_sample(R, px, interp, rows, cols, pdf_uv, u1, u2):
     fx = (u2 - cols[i, j]) / span if span > 0 else 0.5
     fx = min(max(fx, 0.0), 1.0)
     fx, fy, ratio = texel_warp(px, interp, i, j, fx, fy)
-    return texel_direction(i, j, fx, fy, H, W, R, pdf_uv[i, j] * ratio)
+    d0, d1, d2, pdf = texel_direction(i, j, fx, fy, H, W, R, pdf_uv[i, j] * ratio)
+    return d0, d1, d2, pdf, i, j, fx, fy
+
+
+@kernel
+def texel_radiance(stored, interp, scale, i, j, fx, fy):
+    """Radiance at the point (fx, fy) in [0,1]^2 of texel (row i, column j), as
+    env_radiance reads it along that point's direction (texel_direction), without the
+    direction: no rotation, square root, atan2 or acos (the photons of a map light,
+    issue 13: ~30 % of their emission). Closest: the texel itself; Linear: the bilinear
+    weights of env_lookup's four texels from the offsets (a neighbour row or column on
+    the offset's side of the centre, wrapped: Repeat); INTERP_LINEAR_SRGB decoded after
+    and times scale. Equal to env_radiance of texel_direction's direction up to the
+    round trip's rounding (the point's u, v recovered through atan2 and acos: relative
+    ~1e-15, at most ~1e-11 where a weight is nearly 0); at a texel's very edge the round
+    trip may land in the neighbour, where Closest reads the neighbour's value and this
+    the texel's own, the one the pdf was drawn from."""
+    H = stored.shape[0]
+    W = stored.shape[1]
+    if interp == 0:
+        return np.float64(stored[i, j, 0]), np.float64(stored[i, j, 1]), np.float64(stored[i, j, 2])
+    if fx < 0.5:
+        x0 = j - 1 if j > 0 else W - 1
+        x1 = j
+        ax = fx + 0.5
+    else:
+        x0 = j
+        x1 = j + 1 if j + 1 < W else 0
+        ax = fx - 0.5
+    if fy < 0.5:
+        y0 = i - 1 if i > 0 else H - 1
+        y1 = i
+        ay = fy + 0.5
+    else:
+        y0 = i
+        y1 = i + 1 if i + 1 < H else 0
+        ay = fy - 0.5
+    w00 = (1.0 - ax) * (1.0 - ay)
+    w10 = ax * (1.0 - ay)
+    w01 = (1.0 - ax) * ay
+    w11 = ax * ay
+    r = (w00 * stored[y0, x0, 0] + w10 * stored[y0, x1, 0] + w01 * stored[y1, x0, 0]
+         + w11 * stored[y1, x1, 0])
+    g = (w00 * stored[y0, x0, 1] + w10 * stored[y0, x1, 1] + w01 * stored[y1, x0, 1]
+         + w11 * stored[y1, x1, 1])
+    b = (w00 * stored[y0, x0, 2] + w10 * stored[y0, x1, 2] + w01 * stored[y1, x0, 2]
+         + w11 * stored[y1, x1, 2])
+    if interp == INTERP_LINEAR_SRGB:
+        return (srgb_decode_value(r) * scale[0], srgb_decode_value(g) * scale[1],
+                srgb_decode_value(b) * scale[2])
+    return r, g, b
 
 
 @kernel

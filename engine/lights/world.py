@@ -68,7 +68,7 @@ from ..jit import kernel, register_warm_up
 from ..sampling import dot
 from .emission import (f64, aim_origin, concentric_disk, disk_origin, emit_uniform, put,
                        uniform_sphere)
-from .environment import env_radiance, env_sample
+from .environment import env_sample_texel, texel_radiance
 from . import packing as pk
 from .area import MIN_SPHERICAL_SOLID_ANGLE, spherical_rectangle
 from .base import InfiniteLight
@@ -629,7 +629,8 @@ def emit_world(env_on, rotation, pixels, stored, scale, interp, rows, cols, pdf_
     direction). An environment map (env_on; its rotation, radiance texels, interpolation
     and distribution: environment.py): directions from the map's distribution, power
     L / pdf x pi R^2 / count (pixels: its linear texels, which the distribution samples;
-    stored, scale: what its lookup reads, Environment.stored / scale). Photons travel
+    stored, scale: what its lookup reads, Environment.stored / scale; L read at the drawn
+    point of its texel, environment.texel_radiance). Photons travel
     against the sampled direction, from the natural disk (emission.disk_origin) or,
     aimed, a caster's shadow disk (emission.aim_origin). Dimensions: 0, 1 the direction,
     2, 3 the origin; aimed: 2 the target, 3, 4 the origin."""
@@ -641,8 +642,11 @@ def emit_world(env_on, rotation, pixels, stored, scale, interp, rows, cols, pdf_
         u1 = emit_uniform(key, s, 0)
         u2 = emit_uniform(key, s, 1)
         if env_on:
-            w0, w1, w2, pdf = env_sample(rotation, pixels, interp, rows, cols, pdf_uv, u1, u2)
-            L0, L1, L2 = env_radiance(rotation, stored, interp, scale, w0, w1, w2)
+            w0, w1, w2, pdf, ti, tj, fx, fy = env_sample_texel(rotation, pixels, interp, rows,
+                                                                 cols, pdf_uv, u1, u2)
+            # The radiance at the drawn point of its texel, not looked up again through
+            # the direction (texel_radiance: the same value up to rounding).
+            L0, L1, L2 = texel_radiance(stored, interp, scale, ti, tj, fx, fy)
             inv = 1.0 / max(pdf, 1e-300) if pdf > 0 else 0.0
             g = inv * area / count
             p0, p1, p2 = L0 * g, L1 * g, L2 * g
