@@ -2468,7 +2468,14 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
     surface = hit_surfaces(ctx, None if getattr(hit, "prim", None) is None
                            else np.take(hit.prim, sel))
-    if PHOTON_VISIBILITY or blur is not None:
+    # Clamp Indirect per photon (engine/photonclamp.py): each photon weighed as the
+    # Cycles path it ends, at the rows' clamp throughput x albedo (f x pi).
+    pclamp = None
+    if (clamp_tp is not None and getattr(pmap.photons, "radiance", None) is not None
+            and np.isfinite(sampleclamp.limits(s)[1])):
+        pclamp = (np.take(clamp_tp, sel, axis=0) * (np.pi * np.take(f, sel, axis=0)),
+                  sampleclamp.limits(s)[1])
+    if PHOTON_VISIBILITY or blur is not None or pclamp is not None:
         # Only the photons each point can see (issue 14: a lamp shade piercing a wall);
         # one search a row for the estimate and its visibility rays.
         off = getattr(hit, "offset", None)
@@ -2481,7 +2488,7 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
             limits=s.bounce_limits,
             counts=None if counts is None else np.take(counts, sel, axis=0),
             geo=getattr(ctx, "geo", None), surface=surface,
-            reject=None if blur is None else blur.reject_for(pmap, sel))
+            reject=None if blur is None else blur.reject_for(pmap, sel), clamp=pclamp)
     else:
         E = chaincounts.irradiance(
             pmap, s.bounce_limits, None if counts is None else np.take(counts, sel, axis=0),
