@@ -12,7 +12,7 @@ Here the same limits apply to the camera pass's contributions (engine/integrator
 _trace_paths): per camera sample and per contribution (an emitter or background hit, a
 hit's direct light, its caustic estimate, its final gather (the mean of its rays; each
 ray apart, its lookups and regathers and its chain's light, as Cycles clamps each path,
-with integrator.CLAMP_PER_GATHER_RAY, off by default), its secondary caustic), with
+with integrator.CLAMP_PER_GATHER_RAY, on by default), its secondary caustic), with
 the camera chain's bent bounces standing for Cycles' bounce. A caustic, glow or
 secondary photon-map estimate is a smooth average of photons, each the end of a path
 Cycles samples as one bright path (the camera's diffuse bounce, the specular chain
