@@ -20,7 +20,7 @@ from .glossysplit import settings_filter_glossy, shots_unread
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
-from . import blurredpassage, raymaterials, shadelight, worldmedium
+from . import blurredpassage, photonclamp, raymaterials, shadelight, worldmedium
 from .shadelight import find_shades
 from .casterspheres import bounding_sphere, caster_spheres, per_caster
 from .casterspheres import corner_pieces as _corner_pieces
@@ -325,9 +325,11 @@ def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
                  "rays, their lobes blurred as Cycles', not from the caustic photons "
                  "(light off them after a further diffuse bounce stays unblurred); at "
                  "Filter Glossy 0 both render sharp caustics, ours from the caustic "
-                 "photons" + (", whose smooth estimates Cycles' clamp does not cut as it "
-                              "cuts its own rare bright samples (see the clamping line "
-                              "then)" if clamped else ""))
+                 "photons" + ((", each clamped as the Cycles path it ends (see the "
+                               "clamping line)" if photonclamp.PER_PHOTON else
+                               ", whose smooth estimates Cycles' clamp does not cut as it "
+                               "cuts its own rare bright samples (see the clamping line "
+                               "then)") if clamped else ""))
         return
     # (fgroom46: the camera paths' own lobes blur at any Filter Glossy, filterglossy.py;
     # only the maps' light named here stays unblurred without the split.)
@@ -1376,9 +1378,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                            for k, v in cut[:REPORT_NAMES_MAX])
                                + ": that share of the first diffuse bounce's light off the "
                                "surfaces in view, cut from their caustics by a probe of "
-                               "Cycles' samples here), while ours takes them from the "
-                               "caustic photons' smooth estimates: they can read brighter "
-                               "here")
+                               "Cycles' samples here), "
+                               + ("and ours clamps each caustic photon as the Cycles path "
+                                  "it ends" if photonclamp.PER_PHOTON else
+                                  "while ours takes them from the caustic photons' smooth "
+                                  "estimates: they can read brighter here"))
             else:
                 quiet.append("the caustics of " + casters)
         # A lamp (or the sky) seen through a closed glass object is indirect light to

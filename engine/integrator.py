@@ -2470,7 +2470,14 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
     surface = hit_surfaces(ctx, None if getattr(hit, "prim", None) is None
                            else np.take(hit.prim, sel))
-    if PHOTON_VISIBILITY or blur is not None:
+    # Clamp Indirect per photon (engine/photonclamp.py): each photon weighed as the
+    # Cycles path it ends, at the rows' clamp throughput x albedo (f x pi).
+    pclamp = None
+    if (clamp_tp is not None and getattr(pmap.photons, "radiance", None) is not None
+            and np.isfinite(sampleclamp.limits(s)[1])):
+        pclamp = (np.take(clamp_tp, sel, axis=0) * (np.pi * np.take(f, sel, axis=0)),
+                  sampleclamp.limits(s)[1])
+    if PHOTON_VISIBILITY or blur is not None or pclamp is not None:
         # Only the photons each point can see (issue 14: a lamp shade piercing a wall);
         # one search a row for the estimate and its visibility rays.
         off = getattr(hit, "offset", None)
@@ -2483,7 +2490,7 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
             limits=s.bounce_limits,
             counts=None if counts is None else np.take(counts, sel, axis=0),
             geo=getattr(ctx, "geo", None), surface=surface,
-            reject=None if blur is None else blur.reject_for(pmap, sel))
+            reject=None if blur is None else blur.reject_for(pmap, sel), clamp=pclamp)
     else:
         E = chaincounts.irradiance(
             pmap, s.bounce_limits, None if counts is None else np.take(counts, sel, axis=0),
@@ -2689,11 +2696,11 @@ def _secondary_per_pixel(ctx) -> int:
 
 
 # Clamp Indirect per gather ray (gather_indirect's clamp), as Cycles clamps each path;
-# False: on the mean of a camera sample's G rays. Off by default: at Blender's Clamp
-# Indirect 10 it took the smooth glass of water from 0.983 to 0.877 of unclamped Cycles
-# (its sunlight through the glass reaches the table by bright gather paths), and what
-# Cycles' own clamp leaves there was not measured yet (docs/accuracy.md "clampray53").
-CLAMP_PER_GATHER_RAY = False
+# False: on the mean of a camera sample's G rays. Off for a while (clampray53: it took
+# the smooth glass of water from 0.983 to 0.877 of *unclamped* Cycles); against Cycles'
+# own clamp there (0.54 of its unclamped image) it is the nearer: with the per-photon
+# clamp 1.14 of clamped Cycles, 1.33 without it (docs/accuracy.md "clampphoton54").
+CLAMP_PER_GATHER_RAY = True
 
 
 def _gather_clamp(s, clamp_tp, f):

@@ -168,7 +168,9 @@ class PhotonMap:
             np.take(a, source, axis=0) for a in (photons.direction, photons.normal,
                                                  photons.kind)), photons.emitted,
             surface=None if photons.surface is None else np.take(photons.surface, source),
-            blur_pdf=None if photons.blur_pdf is None else np.take(photons.blur_pdf, source))
+            blur_pdf=None if photons.blur_pdf is None else np.take(photons.blur_pdf, source),
+            # (|L|_1 is the path's, not the flux's: power_scale leaves it; photonclamp)
+            radiance=None if photons.radiance is None else np.take(photons.radiance, source))
         if photonlayout.COMPACT:
             # Direction, normal and power in 12 B instead of 36 (engine/photonlayout.py:
             # the kernels decode each photon they read).

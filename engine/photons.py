@@ -31,7 +31,7 @@ from .lights.group import photon_emitters
 from .lightlinking import (blocker_accel_of, link_row_of, mesh_photon_links,
                            mesh_photon_rows, past_non_blockers, unlinked_first_hits)
 from .parallel import Cancelled, chunk_length, ordered_map
-from . import blurredpassage, media, photonmedium, worldmedium
+from . import blurredpassage, media, photonclamp, photonmedium, worldmedium
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
@@ -82,6 +82,11 @@ class Photons:
     # towards the light (photonkernels.reverse_pdf; engine/glossysplit.py reads it).
     # None: not kept (every photon inf).
     blur_pdf: np.ndarray | None = None
+    # (N,) float32 |L|_1 of each photon: the radiance a Cycles path reversed along it
+    # carries (Le x its chain's throughput, W sr^-1 m^-2, summed over RGB; 0: none, a
+    # delta light's), for Clamp Indirect on the estimates (engine/photonclamp.py).
+    # None: not kept (no clamp).
+    radiance: np.ndarray | None = None
 
     @classmethod
     def empty(cls):
@@ -105,7 +110,8 @@ class Photons:
             self.position, self.power, self.direction, self.normal, self.kind)), self.emitted,
             None if self.bounces is None else np.take(self.bounces, rows, axis=0),
             None if self.surface is None else np.take(self.surface, rows),
-            None if self.blur_pdf is None else np.take(self.blur_pdf, rows))
+            None if self.blur_pdf is None else np.take(self.blur_pdf, rows),
+            None if self.radiance is None else np.take(self.radiance, rows))
 
     @property
     def nbytes(self) -> int:
@@ -113,7 +119,8 @@ class Photons:
                                       self.normal, self.kind)) + \
             (0 if self.bounces is None else self.bounces.nbytes) + \
             (0 if self.surface is None else self.surface.nbytes) + \
-            (0 if self.blur_pdf is None else self.blur_pdf.nbytes)
+            (0 if self.blur_pdf is None else self.blur_pdf.nbytes) + \
+            (0 if self.radiance is None else self.radiance.nbytes)
 
     def usable(self, limits, camera=(0, 0, 0, 0)) -> np.ndarray:
         """(N,) bool: the photons whose light read at a camera-side vertex reached with
@@ -190,6 +197,15 @@ def concat_blur_pdfs(*parts: Photons) -> np.ndarray | None:
                            else p.blur_pdf for p in parts])
 
 
+def concat_radiances(*parts: Photons) -> np.ndarray | None:
+    """The parts' Photons.radiance concatenated in order (a part without: 0, no clamp),
+    or None where no part keeps them."""
+    if all(p.radiance is None or len(p) == 0 for p in parts):
+        return None
+    return np.concatenate([np.zeros(len(p), np.float32) if p.radiance is None
+                           else p.radiance for p in parts])
+
+
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
                   should_cancel=None, targets=None, first_hit=None, label=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
@@ -224,7 +240,9 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     # one in flight), so each stores straight into the shot's arrays after the chunks
     # before it (no copy per chunk); on more, chunks finish out of order and are copied
     # in order (_Shot.append).
-    shot = _Shot(total, direct=threads <= 1)
+    make = (pk.store_arrays_radiance if photonclamp.keeps_radiance(settings)
+            else pk.store_arrays)
+    shot = _Shot(total, direct=threads <= 1, make=make)
     plain = pk.lobe_classes(ctx.table.closure_params)  # once a trace, not a chunk
 
     def job(item, stop):
@@ -327,7 +345,12 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     surf = pk.surface_arrays(m if given else 0)
     factors = pool.take(_factors, m)
     bump, tfar, hit_rows, hits = _factor_views(factors, m)
-    stored = _Stored(2 * m + 1024, pool, shot)
+    stored = _Stored(2 * m + 1024, pool, shot,
+                     pk.store_arrays_radiance if photonclamp.keeps_radiance(settings)
+                     else pk.store_arrays)
+    # Clamp Indirect (engine/photonclamp.py): each photon's |Le|_1 / |power|_1 by slot.
+    clamp0 = (photonclamp.emission_ratios(light, o, d, power, slot)
+              if photonclamp.keeps_radiance(settings) else None)
     # A sun's or the world's photons refracted through a next-event pane stay direct
     # (engine/panelight.py), and a lamp's through its Translucent BSDF or rough glass
     # shade (engine/shadelight.py).
@@ -341,7 +364,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
                  coincident, make_next, pane_tri, soft_falloff_sources(light, n),
                  start_medium=_light_medium(ctx, light), link_row=link_row,
-                 mesh_links=mesh_links, past=past, flat=flat)
+                 mesh_links=mesh_links, past=past, flat=flat, clamp0=clamp0)
     except BaseException:
         stored.release()
         raise
@@ -401,7 +424,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
              make_next, pane_tri=None, soft=None, start_medium=-1, link_row=None,
-             mesh_links=None, past=None, flat=None):
+             mesh_links=None, past=None, flat=None, clamp0=None):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
@@ -410,7 +433,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     or None; soft: soft_falloff_sources' (centre, r^2, ends) per light, or None;
     start_medium: the medium the light is in (_light_medium; -1: none known); link_row,
     mesh_links, past: _trace_chunk's; flat: the flat-passage tables its photons cross
-    (photonkernels.flat_tables; None: the scene's)."""
+    (photonkernels.flat_tables; None: the scene's); clamp0: photonclamp.emission_ratios'
+    (n_slots,) or None (no Clamp Indirect radiance kept)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     if flat is None:
         flat = pk.flat_tables(geo, table)
@@ -444,6 +468,11 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     # reverse-pdf state by slot (photonkernels._scatter's blur_slot; -1: none yet).
     blur_slot = (np.full(slots, -1.0)
                  if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR_SLOT)
+    # Clamp Indirect's |L|_1 / |power|_1 by slot (the blurred copies' set by the scatter).
+    clamp_slot = pk.NO_CLAMP_SLOT
+    if clamp0 is not None:
+        clamp_slot = np.zeros(slots)
+        clamp_slot[:len(clamp0)] = clamp0[:slots]
     # Cycles' blurred window glass (engine/blurredpassage.py): photons out of a flat
     # passage keep its factor (None: off, Filter Glossy 0, or no passage crossed).
     passage_blur = ((fg, blurredpassage.table(), blurredpassage.IOR)
@@ -574,7 +603,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 may_diffuse=may_diffuse, blur_slot=blur_slot,
                                 passage_blur=passage_blur,
                                 gather_blur=fg if BLUR_GATHER_PHOTONS else 0.0,
-                                split_slots=split_slots,
+                                split_slots=split_slots, clamp_slot=clamp_slot,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         if split_slots:
@@ -651,11 +680,14 @@ class _Stored:
     _Buffers and go back to it on release(). With a direct _Shot the photons go into the
     shot's arrays after its rows instead (count: this chunk's rows there; no blocks)."""
 
-    def __init__(self, capacity: int, pool: _Buffers | None = None, shot=None):
+    def __init__(self, capacity: int, pool: _Buffers | None = None, shot=None,
+                 make=None):
         self.pool = pool if pool is not None else _Buffers()
         self.shot = shot
+        # (pk.store_arrays, or store_arrays_radiance with Clamp Indirect's radiance)
+        self.make = make if make is not None else pk.store_arrays
         self.blocks = []  # full blocks: (arrays, rows used)
-        self.arrays = self.pool.take(pk.store_arrays, capacity) if shot is None else ()
+        self.arrays = self.pool.take(self.make, capacity) if shot is None else ()
         self.count = 0  # rows used in the current block
 
     def room(self, m: int):
@@ -664,7 +696,7 @@ class _Stored:
             return self.shot.room(self.count, m)
         if self.count + m > len(self.arrays[0]):
             self.blocks.append((self.arrays, self.count))
-            self.arrays = self.pool.take(pk.store_arrays, max(len(self.arrays[0]), m))
+            self.arrays = self.pool.take(self.make, max(len(self.arrays[0]), m))
             self.count = 0
         return tuple(a[self.count:] for a in self.arrays)
 
@@ -683,7 +715,7 @@ class _Stored:
     def release(self):
         """Give the blocks back to the pool (after the shot copied them)."""
         for arrays, _ in self.parts():
-            self.pool.give(arrays, pk.store_arrays)
+            self.pool.give(arrays, self.make)
         self.blocks, self.arrays, self.count = [], (), 0
 
 
@@ -702,8 +734,9 @@ class _Shot:
 
     DIRECT_ROWS = 2  # stored photons per emitted photon reserved up front (direct)
 
-    def __init__(self, total: int, direct: bool = False):
+    def __init__(self, total: int, direct: bool = False, make=None):
         self.total = total
+        self.make = make if make is not None else pk.store_arrays  # (as _Stored's)
         self.direct = direct
         self.arrays = None
         self.count = 0
@@ -718,7 +751,7 @@ class _Shot:
         expect = int(need * self.total / max(emitted, 1) * 1.05) + 1024
         if self.arrays is not None:
             expect = max(expect, len(self.arrays[0]) * 3 // 2)
-        grown = pk.store_arrays(max(need, expect) if emitted < self.total else need)
+        grown = self.make(max(need, expect) if emitted < self.total else need)
         if self.arrays is not None:
             for new, old in zip(grown, self.arrays):
                 new[:used] = old[:used]
@@ -729,7 +762,7 @@ class _Shot:
         first `rows`, at least m rows of them."""
         start = self.count + rows
         if self.arrays is None:
-            self.arrays = pk.store_arrays(max(self.DIRECT_ROWS * self.total + 1024, start + m))
+            self.arrays = self.make(max(self.DIRECT_ROWS * self.total + 1024, start + m))
         elif start + m > len(self.arrays[0]):
             self._grow(start + m, start, self.emitted + self.running)
         return tuple(a[start:] for a in self.arrays)
@@ -769,7 +802,8 @@ class _Shot:
         else:
             a = [x[:n] for x in self.arrays]
         self.arrays = None
-        return Photons(*a[:5], bounces=a[5], surface=a[6], blur_pdf=a[7])
+        return Photons(*a[:5], bounces=a[5], surface=a[6], blur_pdf=a[7],
+                       radiance=a[8] if self.make is pk.store_arrays_radiance else None)
 
 
 def _factors(m: int):

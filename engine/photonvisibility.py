@@ -36,7 +36,7 @@ import threading
 
 import numpy as np
 
-from . import chaincounts
+from . import chaincounts, photonclamp
 from .jit import kernel, register_warm_up
 # The pre-test (rows with no other surface near are not traced) lives in plain Python
 # (engine/onesurface.py), so that editing it does not recompile these kernels.
@@ -299,7 +299,8 @@ def _hidden_pairs(pmap, accel, p, n, lift, rows, slots, count, photons):
 
 
 def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator, r_floor,
-                     limits, counts, geo, visible=False, surface=None, reject=None):
+                     limits, counts, geo, visible=False, surface=None, reject=None,
+                     clamp=None):
     """(E (M,3), rows (H,), photons (H,)): the estimate at p / n (chaincounts.irradiance,
     counts (M,4) or None) and its hidden (row, photon) pairs, by row: the photons each
     row's estimate read (_estimate_read) traced from the row (_hidden_pairs), in blocks
@@ -311,8 +312,12 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     (PhotonMap.knn_irradiance) or None. reject: a callable (rows (H,) of p, map photons
     (H,)) -> (H,) bool, the read pairs to leave out of E as well (counted as hidden ones
     are, the same search and disc; not in the returned pairs), or None. accel None: no
-    pair is traced (reject's alone)."""
+    pair is traced (reject's alone). clamp: (scale (M,3), limit) or None: with visible,
+    each photon of E weighed by Clamp Indirect's w_p (photonclamp.clamp_rows; scale the
+    rows' clamp throughput x albedo), where the map keeps Photons.radiance."""
     m = len(p)
+    if clamp is not None and (not visible or pmap.photons.radiance is None):
+        clamp = None
     if surface is not None:
         surface = query_surfaces(surface, m)
     p = np.ascontiguousarray(p, dtype=np.float64)
@@ -335,7 +340,7 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
             pmap, limits, counts_here, p[a:b], n[a:b], radius, k, min_photons, estimator,
             None if floor is None else floor[a:b],
             None if surface is None else surface[a:b])
-        if accel is None and reject is None:
+        if accel is None and reject is None and clamp is None:
             continue
         here = (p[a:b], n[a:b], lift[a:b] if len(lift) else lift)
         listed = np.flatnonzero((count > 0) & (count <= photons.shape[1]))
@@ -351,6 +356,11 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
         if (visible or reject is not None) and len(rows):
             _visible_sums(pmap, limits, counts_here, E[a:b], rows, rows, hid,
                           (count, photons, weight, factor))
+        if clamp is not None:
+            # (Clamp Indirect per photon: the listed rows' sums again, each photon weighed)
+            photonclamp.clamp_rows(pmap, limits, counts_here, E[a:b], listed, listed,
+                                   (count, photons, weight, factor), rows, hid,
+                                   clamp[0][a:b], clamp[1])
         if len(wide):
             rows = hid = _NO_PAIRS
             if accel is not None:
@@ -366,6 +376,10 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
                 # (each wide row's slot: its place in wide, which is ascending)
                 _visible_sums(pmap, limits, counts_here, E[a:b], rows,
                               np.searchsorted(wide, rows), hid, wide_read)
+            if clamp is not None:
+                photonclamp.clamp_rows(pmap, limits, counts_here, E[a:b], wide,
+                                       np.arange(len(wide)), wide_read, rows, hid,
+                                       clamp[0][a:b], clamp[1])
     if not rows_out:
         return E, np.zeros(0, np.int64), np.zeros(0, np.int64)
     rows, photons = np.concatenate(rows_out), np.concatenate(photons_out)
@@ -416,7 +430,7 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None,
 
 def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
                        r_floor=None, limits=None, counts=None, geo=None, surface=None,
-                       reject=None):
+                       reject=None, clamp=None):
     """E (M,3) (W/m^2): the estimate pmap.irradiance (or chaincounts.irradiance with
     limits and counts (M,4) or None) at p / n (unit normals (M,3) facing the viewer;
     lift (M,) their ray offsets or None), with the rows that have hidden photons
@@ -425,7 +439,8 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     photons their camera-side counts cannot use, as chaincounts.irradiance does). Rows
     without a hidden photon keep the estimate's bits. accel None: the plain estimate.
     surface: the rows' (M,) object ids (PhotonMap.knn_irradiance) or None. reject:
-    _estimate_hidden's (pairs left out as hidden ones are; accel None: those alone)."""
+    _estimate_hidden's (pairs left out as hidden ones are; accel None: those alone).
+    clamp: (scale (M,3), limit) or None: _estimate_hidden's (Clamp Indirect per photon)."""
     if pmap is None or len(pmap) == 0 or pmap.tree is None or len(p) == 0 or radius <= 0:
         return chaincounts.irradiance(pmap, limits, counts, p, n, radius, k, min_photons,
                                       estimator, r_floor=r_floor, surface=surface)
@@ -434,7 +449,7 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     # (Figure 7: 2.4 CPU s of 35 were those searches, docs/performance.md "gatherspeed").
     E, _, _ = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
                                r_floor, limits, counts, geo, visible=True, surface=surface,
-                               reject=reject)
+                               reject=reject, clamp=clamp)
     return E
 
 

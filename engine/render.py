@@ -38,7 +38,7 @@ from .panelight import panes_for
 from .mortontree import KthTree
 from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
-                      concat_blur_pdfs,
+                      concat_blur_pdfs, concat_radiances,
                       trace_photons)
 from .resources import check_resources, held_bytes, regather_levels
 from .scene import Scene
@@ -885,7 +885,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
                                 for f in ("position", "power", "direction", "normal", "kind")),
                               bounces=np.concatenate([caustic.bounces, rest.bounces]),
                               surface=concat_surfaces(caustic, rest),
-                              blur_pdf=concat_blur_pdfs(caustic, rest))
+                              blur_pdf=concat_blur_pdfs(caustic, rest),
+                              radiance=concat_radiances(caustic, rest))
             caustic.emitted = emitted
     elif glow is not None:
         # Nothing focuses light (effects: glow only): the caustic map is the glow shot.
@@ -1106,7 +1107,8 @@ def _with_images(photons: Photons, images: Photons) -> Photons:
                    photons.emitted,
                    None if photons.bounces is None else
                    np.concatenate([photons.bounces, images.bounces]),
-                   concat_surfaces(photons, images), concat_blur_pdfs(photons, images))
+                   concat_surfaces(photons, images), concat_blur_pdfs(photons, images),
+                   concat_radiances(photons, images))
 
 
 def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:

@@ -12,12 +12,16 @@ Here the same limits apply to the camera pass's contributions (engine/integrator
 _trace_paths): per camera sample and per contribution (an emitter or background hit, a
 hit's direct light, its caustic estimate, its final gather (the mean of its rays; each
 ray apart, its lookups and regathers and its chain's light, as Cycles clamps each path,
-with integrator.CLAMP_PER_GATHER_RAY, off by default), its secondary caustic), with
-the camera chain's bent bounces standing for Cycles' bounce. A photon-map estimate is a
-smooth average, far below the spiky single-path values the clamp was made for, so the
-clamp rarely touches it; where the estimate is taken for one sample of a block and weighed
-up by the block's length, it is clamped before the weighing (as each of the block's
-samples would be).
+with integrator.CLAMP_PER_GATHER_RAY, on by default), its secondary caustic), with
+the camera chain's bent bounces standing for Cycles' bounce. A caustic, glow or
+secondary photon-map estimate is a smooth average of photons, each the end of a path
+Cycles samples as one bright path (the camera's diffuse bounce, the specular chain
+reversed, the emitter), so Clamp Indirect weighs each photon as that path is clamped
+(engine/photonclamp.py: w_p = min(1, limit / |tp x albedo x L_p|_1), L_p the radiance
+the photon's path carries, which the photon pass keeps while the clamp is on), then holds
+the estimate as a whole as well; where the estimate is taken for one sample of a block and
+weighed up by the block's length, it is clamped before the weighing (as each of the
+block's samples would be). The final gather's lookups are clamped as their ray's whole.
 
 Where our camera path splits at glass and Cycles' chooses (integrator.SPLIT_GLASS_HITS:
 the first glass hits continue both the reflection and the refraction, each weighted by

@@ -1246,23 +1246,23 @@ def test_clamping_line_says_the_caustics_as_the_filter_glossy_routes_them():
         line = _line(plan, "clamping: on - ")
         assert ("the caustics of 'Ball' reach the matte surfaces through the final "
                 "gather's paths here (Filter Glossy 1: see the glossy blur line), and "
-                "ours clamps those paths' light per camera sample as Cycles clamps its "
-                "own samples (ours the mean of a sample's gather rays") in line, line
+                "ours clamps each of those paths' light as Cycles clamps its own "
+                "samples") in line, line
         assert "they can read brighter" not in line and plan.clamped_caustics == {}, line
         blur = _line(plan, "glossy blur: on - ")
         assert ("at Filter Glossy 0 both render sharp caustics, ours from the caustic "
-                "photons, whose smooth estimates Cycles' clamp does not cut") in blur, blur
-    # With each gather ray clamped apart (integrator.CLAMP_PER_GATHER_RAY, off by
-    # default), the clause says so.
+                "photons, each clamped as the Cycles path it ends") in blur, blur
+    # With the clamp on the mean of a sample's gather rays (integrator.CLAMP_PER_GATHER_RAY
+    # False; on by default since clampphoton54), the clause says so.
     from engine import integrator
-    old, integrator.CLAMP_PER_GATHER_RAY = integrator.CLAMP_PER_GATHER_RAY, True
+    old, integrator.CLAMP_PER_GATHER_RAY = integrator.CLAMP_PER_GATHER_RAY, False
     try:
         line = _line(_plan(scene, clamp_indirect=10.0, cycles_filter_glossy=1.0, seed=0),
                      "clamping: on - ")
     finally:
         integrator.CLAMP_PER_GATHER_RAY = old
-    assert ("ours clamps each of those paths' light as Cycles clamps its own samples"
-            in line), line
+    assert ("ours clamps those paths' light per camera sample as Cycles clamps its "
+            "own samples (ours the mean of a sample's gather rays") in line, line
     # Clamp Indirect off: no clamping line, so the blur line names no clamp (review52).
     plan = _plan(scene, clamp_indirect=0.0, cycles_filter_glossy=1.0, seed=0)
     blur = _line(plan, "glossy blur: on - ")
@@ -1273,8 +1273,9 @@ def test_clamping_line_says_the_caustics_as_the_filter_glossy_routes_them():
         p.clamped_caustics for p in sharp]
     assert sharp[0].clamped_caustics["Sun"] > 0.002, sharp[0].clamped_caustics
     line = _line(sharp[1], "clamping: on - ")
-    assert ("while ours takes them from the caustic photons' smooth estimates: they can "
-            "read brighter here") in line, line
+    # (each caustic photon clamped as its path: engine/photonclamp.py, clampphoton54)
+    assert "and ours clamps each caustic photon as the Cycles path it ends" in line, line
+    assert "they can read brighter" not in line, line
     assert not any(r.startswith("glossy blur") for r in sharp[1].report())
 
 

@@ -188,7 +188,8 @@ def test_stored_blocks_hold_what_one_block_holds():
         for a in arrays:
             a[...] = rng.random(a.shape) * 200
         room = stored.room(m)
-        assert all(len(r) >= m for r in room)
+        # (the radiance array, Clamp Indirect's (photonclamp), has no rows without it)
+        assert all(len(r) >= m for r in room[:8]) and len(room[8]) == 0
         for r, a in zip(room, arrays):
             r[:rows] = a
         stored.count += rows
@@ -222,7 +223,7 @@ def test_a_direct_shot_grows_and_trims_and_holds_what_one_block_holds():
             for a in arrays:
                 a[...] = rng.random(a.shape) * 200
             room = stored.room(m)
-            assert all(len(r) >= m for r in room)
+            assert all(len(r) >= m for r in room[:8]) and len(room[8]) == 0
             for r, a in zip(room, arrays):
                 r[:rows] = a
             stored.count += rows

@@ -18,7 +18,7 @@ pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 def test_clamped_room_reads_the_same_at_one_and_two_gather_rays(bpy_addon, monkeypatch):
     from engine import integrator
-    monkeypatch.setattr(integrator, "CLAMP_PER_GATHER_RAY", True)  # (off by default)
+    monkeypatch.setattr(integrator, "CLAMP_PER_GATHER_RAY", True)  # (the default)
     sys.path.insert(0, os.path.join(ROOT, "bench"))
     import bpy
     import clampray53_cycles as C

@@ -1,0 +1,184 @@
+"""Cycles' Clamp Indirect on photon-map estimates: each photon clamped as the path it is.
+
+A caustic (glow, secondary) estimate at a camera hit sums photons, each the end of a path
+Cycles would sample as one bright path: the camera's diffuse bounce, the specular chain
+reversed, the emitter. Cycles (kernel/film/light_passes.h, film_clamp_light) scales that
+path's contribution C = tp x albedo x L_p (tp the camera path's throughput, albedo the
+diffuse lobe's f x pi, L_p = Le x T the radiance along the photon's last segment: the
+emitter's radiance Le times the chain's throughput T) so that |C|_1 <= limit. The
+estimate here weighs photon p by
+
+    w_p = min(1, limit / |tp x albedo x L_p|_1)
+
+(docs/accuracy.md, "clampray53" and "clampphoton54"). L_p is not the photon's flux
+(which shrinks with the photon count): flux = L_p x cos / (pdf_pos pdf_dir N) x prod
+1/q_i (q_i the roulette's pick probabilities, eta^2 at refractions), so the photon pass
+keeps c = |L|_1 / |flux|_1 per path (photonkernels._scatter's clamp_slot: set at
+emission by emission_ratios, divided by each scatter's scale) and stores |L_p|_1 =
+c x |flux|_1 (Photons.radiance, float32). L_p has the flux's colour, so
+|tp x albedo x L_p|_1 = |L_p|_1 x sum_c(tp_c albedo_c flux_c) / |flux|_1.
+
+Lights: area, spot and point lights with a radius (Cycles' sphere / disk lights) and a
+sun with an angle: Le as their own intersect / seen_at_infinity give it; the world:
+the background's radiance along the photon's direction; emissive meshes: their radiance
+where every emissive triangle has the same |L|_1. Delta lights (a point or spot of
+radius 0, a sun of angle 0): Cycles cannot sample a caustic path that ends on them, so
+no clamp (|L_p|_1 = 0, w = 1); likewise a mesh light of several radiances, which keeps
+0 for now. Grouped lights (lights/group.py) take each member's.
+Not followed: a volume scatter's rescale (photonmedium) and a flat passage's path state
+keep c as it was.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import sampleclamp
+from .photonlayout import decode_power
+
+# Per-photon Clamp Indirect (above). False: the estimates are clamped as a whole only
+# (sampleclamp: each sample's estimate), the photon pass keeps no radiance.
+PER_PHOTON = True
+
+
+def keeps_radiance(settings) -> bool:
+    """Whether the photon pass keeps each photon's |L|_1: PER_PHOTON and Clamp Indirect
+    on (a finite limit)."""
+    return PER_PHOTON and np.isfinite(sampleclamp.limits(settings)[1])
+
+
+def emitted_radiance(light, o, d) -> np.ndarray:
+    """(M,) float64 |Le|_1 (W sr^-1 m^-2, summed over RGB) of the light `light` along
+    photons leaving o (M,3) in unit directions d (M,3): the radiance a Cycles path
+    meeting the light along -d reads (0: a delta light or one not handled, module
+    docstring)."""
+    from .scene import AREA, POINT, SPOT, SUN
+    from .lights.mesh import MESH
+    from .lights.world import WORLD
+    m = len(d)
+    zero = np.zeros(m)
+    kind = getattr(light, "kind", None)
+    d = np.asarray(d, np.float64)
+    if kind == SUN:
+        if not light.has_size:
+            return zero
+        return np.full(m, float(np.abs(light.sun_radiance).sum()))
+    if kind == WORLD:
+        env = light.environment
+        if env is not None:
+            return np.abs(env.radiance(-d)).sum(axis=1)
+        return np.full(m, float(np.abs(np.asarray(light.radiance, np.float64)).sum()))
+    if kind in (POINT, SPOT):
+        if not light.radius > 0:
+            return zero
+        # A ray from beyond the light back along -d: the radiance its shape (sphere or
+        # facing disk) shows that way, the spot's mask included (PointLight.intersect).
+        r = float(light.radius)
+        start = np.asarray(light.pos, np.float64)[None, :] + d * (4.0 * r)
+        mask, _, L = light.intersect(start, -d, np.full(m, 8.0 * r))
+        return np.where(mask, np.abs(np.asarray(L, np.float64)).sum(axis=1), 0.0)
+    if kind == AREA:
+        # (one-sided: a ray travelling against the emission, from just in front of o)
+        eps = 1e-4 * max(float(light.size_x), float(light.size_y), 1e-6)
+        start = np.asarray(o, np.float64) + d * eps
+        mask, _, L = light.intersect(start, -d, np.full(m, 2.0 * eps))
+        out = np.abs(np.broadcast_to(np.asarray(L, np.float64), (m, 3))).sum(axis=1)
+        # (a photon from the rim the short ray misses still left the light: its Le)
+        return np.where(mask, out, float(np.abs(np.asarray(light.radiance)).sum()))
+    if kind == MESH:
+        sums = np.abs(np.asarray(light.tri_L, np.float64)).sum(axis=1)
+        if len(sums) and np.allclose(sums, sums[0], rtol=1e-6, atol=0.0):
+            return np.full(m, float(sums[0]))
+        return zero
+    return zero
+
+
+def emission_ratios(light, o, d, power, slot) -> np.ndarray:
+    """(S,) float64 c = |Le|_1 / |power|_1 by slot (S = slot.max() + 1; 0 where no
+    photon or no power) for the photons just emitted: origins o (M,3), unit directions d
+    (M,3), power (M,3) W, slots (M,) int (photonkernels._scatter's clamp_slot)."""
+    slot = np.asarray(slot, np.int64)
+    out = np.zeros(int(slot.max()) + 1 if len(slot) else 0)
+    if not len(slot):
+        return out
+    flux = np.abs(np.asarray(power, np.float64)).sum(axis=1)
+    if hasattr(light, "counts") and hasattr(light, "lights"):
+        # A LightGroup (lights/group.py): each member's photons take the slots after the
+        # members' before it, in order.
+        Le, lo = np.zeros(len(slot)), 0
+        for member, c in zip(light.lights, light.counts):
+            sel = np.flatnonzero((slot >= lo) & (slot < lo + c))
+            Le[sel] = emitted_radiance(member, np.asarray(o)[sel], np.asarray(d)[sel])
+            lo += c
+    else:
+        Le = emitted_radiance(light, o, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = np.where(flux > 0, Le / flux, 0.0)
+    out[slot] = np.where(np.isfinite(c), c, 0.0)
+    return out
+
+
+def photon_weights(radiance, power, scale, limit) -> np.ndarray:
+    """(...) float64 w_p = min(1, limit / |scale x L_p|_1) for photons with |L_p|_1
+    `radiance` (...) and flux `power` (..., 3) (L_p of the flux's colour) at rows whose
+    clamp throughput x albedo is `scale` (..., 3) (broadcast); limit: Clamp Indirect's
+    (sampleclamp.limits). |L_p|_1 = 0 or no flux: 1."""
+    power = np.asarray(power, np.float64)
+    flux = np.abs(power).sum(axis=-1)
+    c = np.abs(np.asarray(scale, np.float64) * power).sum(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        contrib = np.where(flux > 0, np.asarray(radiance, np.float64) * c / flux, 0.0)
+        w = np.where(contrib > limit, limit / contrib, 1.0)
+    return np.where(np.isfinite(w), w, 1.0)
+
+
+def clamp_rows(pmap, limits, counts, E, qrows, slots, read, pair_rows, pair_photons,
+               scale, limit) -> None:
+    """E[qrows] (E (B,3) a block's estimates) summed again with each photon weighed by
+    photon_weights, for the rows where some photon is over the limit (the others keep
+    their bits): qrows (Q,) rows of E whose read lists are whole, slots (Q,) their lists
+    in read = (count, photons, weight, factor) (photonvisibility._estimate_read's),
+    pair_rows / pair_photons (H,) the pairs (row of E, map photon) left out of E (hidden
+    or rejected, photonvisibility._visible_sums'), counts (B,4) or None with limits:
+    the photons unusable at a row's counts left out (chaincounts). scale (B,3): each
+    row's clamp throughput x albedo. Writes into E."""
+    radiance = pmap.photons.radiance
+    if radiance is None or not len(qrows):
+        return
+    count, photons, weight, factor = read
+    c = np.take(count, slots)
+    width = int(c.max()) if len(c) else 0
+    if width == 0:
+        return
+    lists = np.take(photons, slots, axis=0)[:, :width]
+    inside = np.arange(width)[None, :] < c[:, None]
+    ph = np.where(inside, lists, 0)
+    pw = pmap.photons.power
+    pw = decode_power(pw[ph.reshape(-1)]) if pw.dtype == np.uint8 else \
+        pw[ph.reshape(-1)].astype(np.float64)
+    pw = pw.reshape(len(qrows), width, 3)
+    w = photon_weights(radiance[ph], pw, np.take(scale, qrows, axis=0)[:, None, :], limit)
+    w = np.where(inside, w, 1.0)
+    over = np.flatnonzero((w < 1.0).any(axis=1))
+    if not len(over):
+        return
+    keep = inside[over].copy()
+    rows_o = np.asarray(qrows)[over]
+    if len(pair_rows):
+        # (the hidden / rejected pairs of these rows: their keys against the lists')
+        n_map = len(pmap) + 1
+        left = np.asarray(pair_rows, np.int64) * n_map + np.asarray(pair_photons, np.int64)
+        key = rows_o[:, None].astype(np.int64) * n_map + ph[over]
+        keep &= ~np.isin(key, left)
+    if (counts is not None and limits is not None
+            and getattr(pmap.photons, "bounces", None) is not None):
+        from . import chaincounts
+        keys, cls = chaincounts.unique_counts(np.asarray(counts)[rows_o])
+        cache = chaincounts.map_cache(pmap)
+        for j, k in enumerate(keys):
+            usable = chaincounts._usable(pmap.photons, limits, tuple(int(x) for x in k),
+                                         cache)
+            sel = np.flatnonzero(np.asarray(cls).reshape(-1) == j)
+            keep[sel] &= usable[ph[over][sel]]
+    wt = np.take(weight, np.take(slots, over), axis=0)[:, :width]
+    terms = np.where(keep, wt * w[over], 0.0)[:, :, None] * pw[over]
+    E[rows_o] = terms.sum(axis=1) * np.take(factor, np.take(slots, over))[:, None]

@@ -1,0 +1,148 @@
+"""Clamp Indirect per photon (engine/photonclamp.py): each photon of a caustic / glow /
+secondary estimate weighed by w_p = min(1, limit / |tp x albedo x L_p|_1), as Cycles
+clamps the path the photon ends; L_p (Photons.radiance) carried by the photon pass."""
+import math
+
+import numpy as np
+
+from engine import RenderSettings, photonclamp, photonvisibility
+from engine.accel import Accel
+from engine.api import PaperScene
+from engine.geometry import prepare
+from engine.lights import allocate_photons, prepare_lights
+from engine.photonmap import PhotonMap
+from engine.photons import CAUSTIC, INDIRECT, Photons, trace_photons
+from engine.render import Context
+from engine.scene import Material
+
+SUN_E, ANGLE = 3.0, 1.0  # W/m^2, degrees
+
+
+def test_photon_weight_is_the_limit_over_the_path_contribution():
+    power = np.array([[1.0, 2.0, 1.0], [1.0, 2.0, 1.0], [3.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    # |L_p|_1 = 60 at scale 1 against a limit of 30: half; 30: whole; 0 (a delta
+    # light's): whole; a coloured scale reads the flux's colour (a grey photon of 20 at a
+    # red scale 1.5: 10, under 15).
+    rad = np.array([60.0, 30.0, 0.0, 20.0])
+    w = photonclamp.photon_weights(rad, power, np.ones(3), 30.0)
+    assert np.array_equal(w[:3], [0.5, 1.0, 1.0])
+    w = photonclamp.photon_weights(rad[2:], power[2:], np.array([1.5, 0.0, 0.0]), 15.0)
+    assert np.array_equal(w, [1.0, 1.0])
+    # A red photon of |L_p|_1 20 at a red scale 3: 60 over a limit of 15.
+    w = photonclamp.photon_weights(np.array([20.0]), power[2:3], np.array([3.0, 0.0, 0.0]),
+                                   15.0)
+    assert np.array_equal(w, [0.25])
+
+
+def _flat_map(rad, n=400, seed=1):
+    """A map of n photons on the unit square at z = 0 (arriving straight down), each of
+    power (0.01, 0.02, 0.01) W and |L_p|_1 rad (None: not kept)."""
+    rng = np.random.default_rng(seed)
+    pos = np.c_[rng.random((n, 2)), np.zeros(n)].astype(np.float32)
+    up = np.tile(np.float32([0, 0, 1]), (n, 1))
+    ph = Photons(pos, np.tile(np.float32([0.01, 0.02, 0.01]), (n, 1)), -up, up.copy(),
+                 np.full(n, CAUSTIC, np.uint8),
+                 radiance=None if rad is None else np.full(n, rad, np.float32))
+    return PhotonMap(ph)
+
+
+def _estimate(pmap, clamp):
+    p = np.array([[0.5, 0.5, 0.0], [0.3, 0.6, 0.0], [0.7, 0.4, 0.0]])
+    n = np.tile([0.0, 0.0, 1.0], (3, 1))
+    return photonvisibility.visible_irradiance(pmap, None, p, n, None, 0.2, 50, 8,
+                                               "knn_simpson", clamp=clamp)
+
+
+def test_estimate_weighs_each_photon_and_keeps_bits_below_the_limit():
+    plain = _estimate(_flat_map(None), None)
+    assert (plain > 0).all()
+    scale = np.tile([0.5, 0.5, 0.5], (3, 1))  # clamp throughput x albedo
+    # |scale x L_p|_1 = 0.5 x 120 = 60 = 2 x the limit 30: every photon counts half.
+    half = _estimate(_flat_map(120.0), (scale, 30.0))
+    assert np.allclose(half, 0.5 * plain, rtol=1e-12, atol=0)
+    # At or below the limit (and without a clamp): the estimate's very bits.
+    assert np.array_equal(_estimate(_flat_map(60.0), (scale, 30.0)), plain)
+    assert np.array_equal(_estimate(_flat_map(120.0), None), plain)
+    # A row whose throughput is 0 reads nothing over any limit.
+    assert np.array_equal(_estimate(_flat_map(120.0), (0 * scale, 30.0)), plain)
+
+
+def _slab_scene():
+    """A sun of angle ANGLE straight down onto an 8 x 8 m floor (albedo 0.5) under a
+    4 x 4 m, 5 cm slab of clear glass (IOR 1.5) raised 0.5 m."""
+    s = PaperScene(width=8, height=8)
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_material(Material("glass", (1, 1, 1), transmission=1.0, ior=1.5))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    s.add_box((0, 0, 0.525), (4.0, 4.0, 0.05), "glass", name="slab")
+    s.add_sun((0, 0, -1), strength=SUN_E, angle_degrees=ANGLE)
+    s.set_camera((0, -5, 3), (0, 0, 0))
+    return s
+
+
+def _shot(settings, photons=60_000):
+    scene = _slab_scene()
+    geo, table = prepare(scene)
+    ctx = Context(scene, settings, geo, table, Accel(geo.vertices32, geo.faces32, 1),
+                  prepare_lights(scene, geo, table))
+    return trace_photons(ctx, ctx.lights, allocate_photons(ctx.lights, photons), False, 1)
+
+
+def test_photon_pass_carries_the_radiance_of_the_reversed_path():
+    # No clamp: nothing kept.
+    assert _shot(RenderSettings(photons=20_000, seed=3), 20_000).radiance is None
+    ph = _shot(RenderSettings(photons=60_000, seed=3, clamp_indirect=10))
+    # The sun's disc radiance E / (pi sin^2(angle / 2)), x 3 channels.
+    Le = 3 * SUN_E / (math.pi * math.sin(math.radians(ANGLE) / 2) ** 2)
+    # Every photon lies on the floor (the slab is clear glass): its centre's photons came
+    # through the slab, the rim's straight from the sun.
+    xy = ph.position[:, :2].astype(np.float64)
+    r = np.abs(xy - (xy.max(axis=0) + xy.min(axis=0)) / 2).max(axis=1)
+    ratio = ph.radiance / Le
+    first = ph.kind != INDIRECT
+    out = first & (r > 2.2)
+    assert out.sum() > 10_000
+    assert np.allclose(ratio[out], 1.0, rtol=1e-6)
+    # Through the slab: Cycles' path refracts twice, each side picked by its Fresnel
+    # share (throughput 1, eta^2 left to the photon's flux), as the photon's own
+    # pick: Le again; the roulette's probabilities and the refractions' eta^2 divide
+    # the flux alone. (Some reflect inside the slab: those too.)
+    under = first & (r < 1.8)
+    assert under.sum() > 5_000
+    assert np.allclose(ratio[under], 1.0, rtol=1e-5)
+    # Past a diffuse bounce (the floor, albedo 0.5, to the slab's underside and back,
+    # or further): Le x 0.5^k, the roulette's pick of the diffuse lobe the flux's alone.
+    k = np.log2(ratio[~first])
+    assert (~first).sum() > 100 and np.allclose(k, np.round(k), atol=1e-5), k
+    assert (np.round(k) <= -1).all()
+
+
+def test_emitted_radiance_is_each_light_kinds_own():
+    """|Le|_1 along emitted photons: an area light's flux / (pi A), a point / spot light
+    of radius r its intensity / (pi r^2) (x the spot's mask), a constant world's colour;
+    0 for a delta light (a point of radius 0: Cycles cannot meet it)."""
+    s = PaperScene(width=8, height=8)
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    s.add_rect_area_light((0, 0, 2), (0.5, 0.2), power=40.0, color=(1.0, 0.5, 0.25))
+    s.add_point_light((1, 0, 2), power=30.0, radius=0.1)
+    s.add_point_light((-1, 0, 2), power=30.0, radius=0.1, soft_falloff=False)
+    s.add_spot_light((0, 1, 2), (0, 1, 0), power=30.0, radius=0.05, blend=0.0)
+    s.add_point_light((0, -1, 2), power=30.0)
+    s.set_camera((0, -5, 3), (0, 0, 0))
+    geo, table = prepare(s)
+    lights = prepare_lights(s, geo, table)
+    rng = np.random.default_rng(2)
+    got = {}
+    for li in lights:
+        o, d, power = li.emit(2000, rng)
+        got[li.name] = photonclamp.emitted_radiance(li, o, d)
+    area, sphere, ball, spot, delta = got.values()
+    assert np.allclose(area, 1.75 * 40.0 / (math.pi * 0.1), rtol=1e-9)
+    for le, r in ((sphere, 0.1), (ball, 0.1)):
+        assert np.allclose(le, 3 * 30.0 / (4 * math.pi) / (math.pi * r * r), rtol=1e-9)
+    inside = spot > 0
+    assert inside.mean() > 0.9
+    assert np.allclose(spot[inside], 3 * 30.0 / (4 * math.pi) / (math.pi * 0.05 ** 2),
+                       rtol=1e-9)
+    assert not delta.any()
