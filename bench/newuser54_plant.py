@@ -6,7 +6,8 @@ defaults) and Cycles.
 
     PYTHONPATH=. .venv/bin/python bench/newuser54_plant.py MODE OUT.exr [--res W H]
         [--masks MASKS.npy] [--save FILE.blend] [--set NAME=VALUE] [--no-clamp]
-        [--cycles-seed S] [--leaves N] [--edge-colour black|green]
+        [--cycles-seed S] [--leaves N] [--edge-colour black|green] [--bounces N]
+        [--border X0 X1 Y0 Y1] [--opaque-leaves] [--leaf-specular S]
 
 The set (metres; the sill's top at z = 0): a windowsill (a cube 0.9 x 0.3 x 0.04;
 Principled (0.8, 0.8, 0.78), roughness 0.4) and a wall 0.15 m behind the pot (a plane
@@ -32,7 +33,9 @@ the sill, and the World a pale blue Background ((0.25, 0.32, 0.45), Strength 1).
 MODE: ours | cycles:SPP (no denoise, no adaptive sampling, seed --cycles-seed; Cycles'
 Light Paths at their defaults, read by the add-on). Prints `RESULT mode cpu_s=...
 wall_s=...` (bench/newuser44_table.py render) and, for ours, the add-on's warnings,
-export and stats.
+export and stats. --bounces sets Light Paths > Max Bounces (read by both; 0 renders
+direct light only); --border renders only that Render Region (fractions, y from the
+bottom; the EXR keeps the full frame, black outside).
 
 --masks writes an (H, W) int array of region ids (row 0 at the top; -1 the world) and a
 JSON of names, from Blender's scene.ray_cast through each pixel centre continued through
@@ -105,14 +108,16 @@ def leaf_image(edge="black"):
     return img
 
 
-def leaf_material(img):
+def leaf_material(img, alpha=True, specular=0.5):
     m = principled("Leaf", (0.2, 0.5, 0.1), 0.5)
     nt = m.node_tree
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = img
     p = nt.nodes["Principled BSDF"]
     nt.links.new(tex.outputs["Color"], p.inputs["Base Color"])
-    nt.links.new(tex.outputs["Alpha"], p.inputs["Alpha"])
+    if alpha:
+        nt.links.new(tex.outputs["Alpha"], p.inputs["Alpha"])
+    p.inputs["Specular IOR Level"].default_value = specular
     return m
 
 
@@ -169,7 +174,7 @@ def leaf_layout(count, seed=54):
     return out
 
 
-def plant_scene(leaves=36, edge="black"):
+def plant_scene(leaves=36, edge="black", alpha=True, specular=0.5):
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     scene.view_settings.view_transform = "AgX"
@@ -183,7 +188,7 @@ def plant_scene(leaves=36, edge="black"):
     revolve("Pot", [(0, 0), (0.055, 0), (0.075, 0.125), (0.078, POT_TOP), (0.07, POT_TOP),
                     (0.066, 0.11), (0, 0.11)], glazed_pot_material(), (0, 0, 0))
     cylinder("Soil", 0.068, 0.01, (0, 0, 0.117), soil_material())
-    mat = leaf_material(leaf_image(edge))
+    mat = leaf_material(leaf_image(edge), alpha, specular)
     for k, (m, size) in enumerate(leaf_layout(leaves)):
         bpy.ops.mesh.primitive_plane_add(size=1.0)
         o = bpy.context.active_object
@@ -285,10 +290,24 @@ def main():
     ap.add_argument("--leaves", type=int, default=36)
     ap.add_argument("--edge-colour", choices=("black", "green"), default="black",
                     help="the leaf image's RGB outside the leaf")
+    ap.add_argument("--opaque-leaves", action="store_true",
+                    help="the image's Alpha left unlinked: square opaque leaf cards")
+    ap.add_argument("--leaf-specular", type=float, default=0.5,
+                    help="the leaves' Specular IOR Level (the node's 0.5)")
+    ap.add_argument("--bounces", type=int,
+                    help="Light Paths > Max Bounces (both engines; 0: direct light only)")
+    ap.add_argument("--border", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
+                    help="a Render Region (fractions; y from the bottom), not cropped")
     a = ap.parse_args()
     import addon
     addon.register()
-    scene = plant_scene(a.leaves, a.edge_colour)
+    scene = plant_scene(a.leaves, a.edge_colour, not a.opaque_leaves, a.leaf_specular)
+    if a.bounces is not None:
+        scene.cycles.max_bounces = a.bounces
+    if a.border:
+        r = scene.render
+        r.use_border, r.use_crop_to_border = True, False
+        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = a.border
     if a.masks:
         scene.render.resolution_x, scene.render.resolution_y = a.res
         scene.render.resolution_percentage = 100
