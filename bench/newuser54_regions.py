@@ -26,10 +26,9 @@ from newuser48_flip import image  # noqa: E402
 
 def steps(lum, m):
     """Mean |luminance step| between neighbours (right, down) both inside mask m."""
-    a = [np.abs(np.diff(lum, axis=ax))[np.logical_and(*(np.take(m, r, axis=ax) for r in
-                                                         (slice(1, None), slice(None, -1))))]
-         for ax in (0, 1)]
-    s = np.concatenate(a)
+    down = np.abs(np.diff(lum, axis=0))[m[1:] & m[:-1]]
+    right = np.abs(np.diff(lum, axis=1))[m[:, 1:] & m[:, :-1]]
+    s = np.concatenate([down, right])
     return float(s.mean()) if s.size else float("nan")
 
 
