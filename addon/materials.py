@@ -2249,6 +2249,8 @@ class MaterialConverter:
             tex = self._image(n)
             if tex is None:
                 return None
+            if n.outputs["Alpha"].is_linked and getattr(tex, "associated", False):
+                tex = self._unassociated(n, tex)
             vec = self._vector(n, "Vector", depth)
             projection = getattr(n, "projection", "FLAT")
             output = "ALPHA" if oname == "Alpha" else "COLOR"
@@ -2593,9 +2595,14 @@ class MaterialConverter:
                 encode = _srgb_encoder(self.pm)
                 for px in ([pixels] if tiles is None else tiles.values()):
                     px[:, :, :3] = encode(px[:, :, :3])
+            associate = cycles_associates_alpha(img)
+            if str(getattr(img, "alpha_mode", "STRAIGHT")) == "NONE":
+                # Cycles ignores the alpha channel (IMAGE_ALPHA_IGNORE: alpha 1).
+                for px in ([pixels] if tiles is None else tiles.values()):
+                    px[:, :, 3] = 1.0
             tex = self.pm.ImageTexture(pixels, tiles=tiles, extension=extension,
                                        interpolation=interpolation, srgb=srgb,
-                                       name=img.name)
+                                       name=img.name, associate=associate)
         except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
             self._warn(f"material '{self._mat.name}': image '{img.name}' in node "
                        f"'{node.name}' could not be read ({exc}); it renders magenta, as "
@@ -2603,6 +2610,16 @@ class MaterialConverter:
             tex = self._missing_image()
         self.images[key] = tex
         return tex
+
+    def _unassociated(self, node, tex):
+        """The texture of an Image Texture node whose Alpha output is linked: Cycles
+        divides the filtered colour by the filtered alpha (svm/image.h
+        NODE_IMAGE_ALPHA_UNASSOCIATE); the pixels shared with the other lookups."""
+        key = (node.image.name, str(getattr(node, "extension", "REPEAT")),
+               str(getattr(node, "interpolation", "Linear")), "unassociate")
+        if key not in self.images:
+            self.images[key] = tex.unassociated()
+        return self.images[key]
 
     def _missing_image(self):
         """The texture Cycles shows for an image it cannot load (or no image): magenta
@@ -2663,6 +2680,19 @@ def cycles_builtin(img) -> bool:
                                      for t in img.tiles):
         return True
     return bool(img.packed_file) or img.source in ("GENERATED", "MOVIE")
+
+
+def cycles_associates_alpha(img) -> bool:
+    """Whether Cycles premultiplies the image's RGB by its alpha at load (associated
+    alpha; blender/image.cpp load_byte_pixels, "byte images are always straight for
+    Blender"): an 8-bit image (4 channels) whose colour space is not Non-Color and whose
+    alpha mode is not Channel Packed or None (scene/image.cpp). Float images are left as
+    Blender gives them."""
+    if img.is_float or img.channels < 4:
+        return False
+    if str(getattr(img, "alpha_mode", "STRAIGHT")) in ("CHANNEL_PACKED", "NONE"):
+        return False
+    return not bool(getattr(img.colorspace_settings, "is_data", False))
 
 
 def cycles_stores_srgb(img) -> bool:

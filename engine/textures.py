@@ -17,6 +17,17 @@ with the node's settings, and turns UV coordinates into linear RGBA:
                  so a float image's encoded 5.75 is 60), so a filtered edge between dark
                  and bright texels is darker than converting first (a checker at texel
                  scale: 1.68x too bright the other way round).
+  associate      the given pixels' alpha is straight (an 8-bit image in Blender): store
+                 RGB premultiplied by alpha, as Cycles' loader does for an image whose
+                 alpha it associates (blender/image.cpp load_byte_pixels: not a Non-Color
+                 image, alpha mode not Channel Packed or None), so the Color output of a
+                 lookup is premultiplied: where alpha is 0 it is black, whatever RGB the
+                 image stores there.
+  unassociate    divide a lookup's interpolated RGB by its interpolated alpha (neither 0
+                 nor 1) before the sRGB conversion: Cycles' NODE_IMAGE_ALPHA_UNASSOCIATE,
+                 set where the node's Alpha output is linked (svm/image.h
+                 svm_image_texture), so a cut-out's edge keeps its colour (alpha-weighted
+                 by the filter) rather than fading to the RGB beyond the outline.
   tiles          UDIM: {1001: pixels, 1002: ...}; a coordinate reads tile
                  1001 + floor(u) + 10 floor(v) at its fractional part; a coordinate with
                  no tile (u < 0, v < 0, u >= 10 or a tile not in the set) reads Cycles'
@@ -25,7 +36,7 @@ with the node's settings, and turns UV coordinates into linear RGBA:
 Texel centres sit at (i + 0.5) / width as in Cycles; UV (0, 0) is the image's bottom-left
 corner (Blender), the arrays here are stored top row first.
 Sources: Cycles kernel/image.h (interpolation, wrap modes, UDIM map) and
-svm/image.h (sRGB conversion after the lookup).
+svm/image.h (sRGB conversion after the lookup, alpha unassociated before it).
 """
 from __future__ import annotations
 
@@ -90,8 +101,9 @@ class ImageTexture:
 
     def __init__(self, pixels=None, *, extension: str = "REPEAT",
                  interpolation: str = "Linear", srgb: bool = False, tiles: dict | None = None,
-                 name: str = "image"):
+                 name: str = "image", associate: bool = False, unassociate: bool = False):
         self.name = name
+        self.associated, self.unassociate = bool(associate), bool(unassociate)
         who = f"texture '{name}'"
         extension = str(extension).upper()
         if extension not in EXTENSIONS:
@@ -115,6 +127,17 @@ class ImageTexture:
                 raise TextureError(f"{who}: no pixels and no UDIM tiles")
             self.tiles = None
             self.pixels = _as_rgba(pixels, who)
+        if associate:
+            for px in (self.tiles.values() if self.tiles else [self.pixels]):
+                px[:, :, :3] *= px[:, :, 3:4]
+
+    def unassociated(self) -> "ImageTexture":
+        """This texture (its pixels shared, not copied) with unassociate set: the lookup of
+        a node whose Alpha output is linked."""
+        import copy
+        out = copy.copy(self)
+        out.unassociate = True
+        return out
 
     @property
     def is_udim(self) -> bool:
@@ -161,6 +184,10 @@ class ImageTexture:
         return self.sample(geo.uvs(prim, u, v))
 
     def _to_linear(self, rgba: np.ndarray) -> np.ndarray:
+        if self.unassociate:  # Cycles: r /= alpha unless alpha is 0 or 1, then the sRGB
+            a = rgba[:, 3]
+            part = (a != 0.0) & (a != 1.0)
+            rgba[part, :3] /= a[part, None]
         if self.srgb:
             rgba[:, :3] = srgb_decode(rgba[:, :3])
         return rgba
