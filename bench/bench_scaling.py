@@ -533,6 +533,10 @@ def traced_render(scene, settings):
                     return fn(*args, **kw)
                 finally:
                     side["cpu"] += time.thread_time() - c0
+            if parallel._trace is not None:
+                # Inside a traced stage already (indirect_share in the map build's gather
+                # chain): its CPU is that stage's; a trace of its own counted it twice.
+                return fn(*args, **kw)
             trace = parallel.Trace()
             w0, p0, c0, q0 = (time.perf_counter(), time.process_time(), time.thread_time(),
                               _schedstat()[1])
@@ -547,6 +551,7 @@ def traced_render(scene, settings):
                     d = stages.setdefault(stage_of[name], dict(
                         wall=0.0, cpu=0.0, work=0.0, span=0.0, caller=0.0, leaf_cpu=0.0,
                         leaf_wall=0.0, caller_rq=0.0, system=0.0, faults=0))
+                    d.setdefault("traces", []).append(trace.root)
                     for k, v in (("wall", time.perf_counter() - w0),
                                  ("cpu", time.process_time() - p0),
                                  ("work", trace.root.work()),
@@ -575,7 +580,7 @@ def traced_render(scene, settings):
     rest_cpu = cpu - sum(d["cpu"] for d in stages.values())
     stages["other"] = dict(wall=rest_wall, cpu=rest_cpu, work=rest_cpu, span=rest_cpu,
                            caller=rest_cpu, leaf_cpu=0.0, leaf_wall=0.0, caller_rq=0.0,
-                           system=float("nan"), faults=-1)
+                           system=float("nan"), faults=-1, traces=[])
     return stages, film, wall, cpu
 
 
@@ -606,6 +611,49 @@ def _scene(name):
         with open(pk, "rb") as f:
             return pickle.load(f)
     return _export(name)
+
+
+def _group_rows(scene, stage, roots, threads):
+    """Where a stage's critical path goes (--groups): per traced call, the calling
+    thread's own CPU (serial), then its pools (ordered_map / run_tasks / run_cancellable
+    groups), nested pools indented below the pool whose jobs started them and summed
+    over those jobs by name: jobs, work (CPU s of the jobs and all they started), span
+    (their share of the critical path: the jobs dispatched in order to the pool's
+    threads, Task.span; summed over the pools of one name) and lost = span - work /
+    threads (idle thread time: uneven or too few jobs, a last job's tail, inline pools
+    0), own = the jobs' own CPU (their pools' jobs taken out)."""
+    rows = []
+
+    def span_of(g):
+        free = [0.0] * g.threads
+        for t in g.tasks:
+            i = free.index(min(free))
+            free[i] += t.span()
+        return max(free) if free else 0.0
+
+    def walk(groups, depth, call):
+        by = {}
+        for g in groups:
+            key = ((g.name or "?").replace("<locals>.", ""), g.threads, g.inline)
+            by.setdefault(key, []).append(g)
+        for (name, th, inl), gs in by.items():
+            tasks = [t for g in gs for t in g.tasks]
+            work = sum(t.work() for t in tasks)
+            span = sum(span_of(g) for g in gs)
+            rows.append(dict(scene=scene, stage=stage, call=call,
+                             group="  " * depth + name + (" (inline)" if inl else ""),
+                             threads=th, pools=len(gs), jobs=len(tasks), work_s=work,
+                             own_s=sum(t.own() for t in tasks), span_s=span,
+                             lost_s=0.0 if inl else max(
+                                 0.0, span - work / max(1, min(th, threads)))))
+            walk([h for t in tasks for h in t.groups], depth + 1, call)
+
+    for call, root in enumerate(roots):
+        rows.append(dict(scene=scene, stage=stage, call=call, group="(calling thread)",
+                         threads=1, pools=0, jobs=1, work_s=root.work(), own_s=root.own(),
+                         span_s=root.span(), lost_s=0.0))
+        walk(root.groups, 1, call)
+    return rows
 
 
 def _film_sha(film):
@@ -661,6 +709,13 @@ def sec_critical_path(a):
                         serial_s=d["caller"], leaf_wait_s=d["leaf_wall"] - d["leaf_cpu"],
                         system_s=d["system"], minor_faults=int(d["faults"]),
                         bound=d["work"] / d["span"] if d["span"] > 0 else 1.0))
+            if a.groups:
+                for w in (1, 2):
+                    grows = []
+                    for st, d in best[w][0][0].items():
+                        grows += _group_rows(f"{name} {size}", st, d.get("traces", []), w)
+                    table(f"{name} {size}, {w} worker(s): the critical path by pool "
+                          "(CPU s; lost = span - work / threads)", grows)
             one, two = best[1][0][0], best[2][0][0]
             work1 = sum(d["work"] for d in one.values())
             span2 = sum(d["span"] for d in two.values())
@@ -792,6 +847,8 @@ def main(argv=None):
                     help="camera_workers: example blends (exported through the add-on)")
     ap.add_argument("--sizes", default="160x120,320x240",
                     help="critical_path: image sizes WxH")
+    ap.add_argument("--groups", action="store_true",
+                    help="critical_path: also print each stage's pools (work, span, lost)")
     ap.add_argument("--plot", help="critical_path: write a PNG of the speed-ups (matplotlib)")
     ap.add_argument("--best", choices=("wall", "cpu"), default="wall",
                     help="critical_path with --repeat > 1: keep each worker count's run with "

@@ -36,7 +36,7 @@ from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .panelight import panes_for
 from .mortontree import KthTree
-from .parallel import Cancelled, run_cancellable, run_tasks, stop_array
+from .parallel import POLL_SECONDS, Cancelled, run_cancellable, run_tasks, stop_array
 from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
                       concat_blur_pdfs, concat_radiances,
                       trace_photons)
@@ -1261,8 +1261,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     global_photons. stop() is asked between the steps (raises Cancelled).
 
     Two chains run side by side on the workers (parallel.run_tasks): the global radius and
-    then the gather map, which needs it; the caustic map and the secondary (or, without
-    final gathering, the global) map beside them. Each map is gathered from the shot once,
+    then the gather map, which needs it; beside them the secondary (or, without final
+    gathering, the global) map, the gather counts' classes, and the caustic and glow maps
+    once the first chain has the shot's spacing (their radii's cap, handed over: a
+    _Handover), so no map waits for both chains. Each map is gathered from the shot once,
     straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
     what it computes alone, so the maps are the same for any thread count. pre_radius:
     global_search_radius's answer for this shot where the photon pass has it, else None.
@@ -1288,9 +1290,15 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
         if flag():
             raise Cancelled()
 
-    shot_radius = [0.0]  # the whole shot's spacing (gather_chain)
+    shot_radius = _Handover()  # the whole shot's spacing (gather_chain -> other_maps)
 
     def gather_chain(flag):
+        try:
+            return _gather_chain(flag)
+        finally:
+            shot_radius.close()  # (after an error or a cancel: other_maps stops waiting)
+
+    def _gather_chain(flag):
         # One Morton tree over the shot for the lookups' radius and the shot's own spacing
         # (the same distances as a tree each; a build was ~0.05 CPU s on Figure 6).
         # Built where a radius is measured over the shot here: not where the photon
@@ -1315,8 +1323,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
         # The caustic map's cap stays the whole shot's spacing (caustic_radius): a glow of
         # light through a rough metal ball under a low Multiple Scattering sun read 4x
         # noisier with the region's (0.24 m against 0.46 m).
-        shot_radius[0] = r_global if measured == len(shot) else auto_radius(
-            diffuse_area, len(shot), k, geo.extent, shot.position, tree, workers=workers)
+        shot_radius.set(r_global if measured == len(shot) else auto_radius(
+            diffuse_area, len(shot), k, geo.extent, shot.position, tree, workers=workers))
         del tree
         gather_map = None
         if final:
@@ -1407,15 +1415,9 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                 t_guide = time.perf_counter()
                 gather_map.guide = GatherGuide(gather_map.position, gather_map.normal, shot,
                                                gather_map.radius, k, s.gather_guide_share,
-                                               s.gather_guide_source)
+                                               s.gather_guide_source, workers=workers)
                 out_deeper["time_gather_guide"] = time.perf_counter() - t_guide
             out_deeper["regather_maps"] = level_maps(gather_map, level_of, secondary_of)
-            if shot.bounces is not None:
-                # Lookups after a specular chain: which ones the map cannot serve
-                # (decided on the float64 sums; it keeps its classes' sums alone).
-                out_deeper["gather_counts"] = GatherCounts(
-                    np.take(shot.bounces, rows, axis=0), np.take(power, rows), limits,
-                    SUBSET_POWER_SHARE)
         return r_global, gather_map
 
     def other_maps(flag):
@@ -1470,6 +1472,17 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                     last = (_counted_map(source, workers, rows), rows)
                 deeper.append(last[0])
             out["regather_secondary"] = tuple(deeper)
+            if shot.bounces is not None:
+                # Lookups after a specular chain: which ones the gather map cannot serve
+                # (decided on the float64 sums; it keeps its classes' sums alone). The
+                # gather map's rows and powers, as gather_chain computes them.
+                check(flag)
+                rows = np.flatnonzero(shot.kind != CAUSTIC)
+                power = shot.power.astype(np.float64).sum(axis=1) * (shot.kind != CAUSTIC)
+                out["gather_counts"] = GatherCounts(
+                    np.take(shot.bounces, rows, axis=0), np.take(power, rows), limits,
+                    SUBSET_POWER_SHARE)
+                del power
         elif plan.indirect and not s.final_gather:
             rows = _global_map_rows(shot, at_hit)
             out["global_map"] = pm = _counted_map(shot, workers, rows)
@@ -1481,9 +1494,46 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             out["global_radius"] = s.radius or measured or \
                 auto_radius(diffuse_area, len(pm), k, geo.extent, pm.photons.position,
                             pm.tree, workers=workers)
+        # The caustic and glow maps need the estimates' cap, from the whole shot's
+        # spacing, which gather_chain measures first (waited for here; on one thread
+        # gather_chain has run whole before this chain starts).
+        spacing = shot_radius.wait(flag)
+        # The caustic estimates' cap (photonmap.caustic_radius): each takes its k nearest
+        # caustic photons, so a focus is as narrow as its photons; the cap acts where they
+        # are sparse.
+        out["caustic_radius"] = s.radius or caustic_radius(spacing, len(shot), len(caustic),
+                                                           k, diffuse_area, geo.extent)
+        # What that cap comes from, for the report (_caustic_radius_words): the global
+        # radius is measured at the lookups, the cap from the shot's own spacing.
+        out["radius_spacing"] = spacing
+        if "caustic_source" in out:
+            # Images across the open edges the caustic photons lie near
+            # (engine/edgeimages.py): a disc hanging over a surface's edge keeps the light
+            # its photons brought. They need the estimates' cap (above), so the map is
+            # built here, once.
+            check(flag)
+            src, rows = out.pop("caustic_source")
+            photons = src.take(rows)
+            images = edge_images(photons, geo, diffuse_tris, ctx.accel, out["caustic_radius"])
+            photons = _with_images(photons, images)
+            out["caustic_map"] = _counted_map(photons, workers, None)
+            out["caustic_images"] = len(images)
+        if "glow_source" in out:
+            check(flag)
+            src, rows = out.pop("glow_source")
+            photons = src.take(rows)
+            out["glow_radius"] = s.radius or glow_radius(
+                out["caustic_radius"], diffuse_area, photons.position, k, geo.extent, workers)
+            images = (edge_images(photons, geo, diffuse_tris, ctx.accel, out["glow_radius"])
+                      if EDGE_IMAGES else None)
+            if images is not None:
+                photons = _with_images(photons, images)
+                out["glow_images"] = len(images)
+            out["glow_map"] = _counted_map(photons, workers, None)
         return out
 
     out_deeper = {}
+    # (gather_chain first: other_maps waits for its spacing)
     (r_global, gather_map), out = run_tasks([gather_chain, other_maps], workers, stop)
     out.update(out_deeper)
     check(stop)
@@ -1498,42 +1548,39 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     elif "global_map" in out:
         out["global_photons"] = len(out["global_map"])
     out["global_radius"] = global_radius
-    # The caustic estimates' cap (photonmap.caustic_radius): each takes its k nearest
-    # caustic photons, so a focus is as narrow as its photons; the cap acts where they
-    # are sparse.
-    out["caustic_radius"] = s.radius or caustic_radius(shot_radius[0], len(shot), len(caustic), k,
-                                                       diffuse_area, geo.extent)
-    # What that cap comes from, for the report (_caustic_radius_words): the global
-    # radius is measured at the lookups, the cap from the shot's own spacing.
-    out["radius_spacing"] = shot_radius[0]
-    if "caustic_source" in out:
-        # Images across the open edges the caustic photons lie near (engine/edgeimages.py):
-        # a disc hanging over a surface's edge keeps the light its photons brought. They
-        # need the estimates' cap (above), so the map is built here, once.
-        check(stop)
-        src, rows = out.pop("caustic_source")
-        photons = src.take(rows)
-        images = edge_images(photons, geo, diffuse_tris, ctx.accel, out["caustic_radius"])
-        photons = _with_images(photons, images)
-        out["caustic_map"] = _counted_map(photons, workers, None)
-        out["caustic_images"] = len(images)
-    if "glow_source" in out:
-        check(stop)
-        src, rows = out.pop("glow_source")
-        photons = src.take(rows)
-        out["glow_radius"] = s.radius or glow_radius(
-            out["caustic_radius"], diffuse_area, photons.position, k, geo.extent, workers)
-        images = (edge_images(photons, geo, diffuse_tris, ctx.accel, out["glow_radius"])
-                  if EDGE_IMAGES else None)
-        if images is not None:
-            photons = _with_images(photons, images)
-            out["glow_images"] = len(images)
-        out["glow_map"] = _counted_map(photons, workers, None)
     for name in ("caustic_map", "glow_map"):
         if out.get(name) is not None:
             out[name].lookup = s.caustic_lookup  # engine/causticcache.py
     out["diffuse_area"] = diffuse_area
     return out
+
+
+class _Handover:
+    """One value one map-build chain hands to another that runs beside it (_build_maps):
+    set() once by the first chain, wait(flag) in the second, which returns the value, or
+    raises parallel.Cancelled when flag() turns True or the first chain closed without
+    setting it (its error or cancel reaches the caller through run_tasks)."""
+
+    def __init__(self):
+        self._event = threading.Event()
+        self._value = None
+        self._set = False
+
+    def set(self, value):
+        self._value, self._set = value, True
+        self._event.set()
+
+    def close(self):
+        self._event.set()
+
+    def wait(self, flag):
+        # (polled: a cancel reaches the waiting chain within POLL_SECONDS)
+        while not self._event.wait(POLL_SECONDS):
+            if flag():
+                raise Cancelled()
+        if not self._set:
+            raise Cancelled()
+        return self._value
 
 
 # The gather map's points estimated when a lookup first takes them (GatherMap lazy: the
