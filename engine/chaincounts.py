@@ -422,7 +422,7 @@ def _estimate_counts(gmap, limits, keys, which, point) -> None:
     """Into gmap.counts_cache (GatherMap.counts_irradiance's store): the irradiance of
     the points point[which == j] not yet known at counts keys[j], for every count at once
     in one search (knn_irradiance's masks, one a count: each mask's sum the bits of its
-    own call), so that counts_irradiance then finds them all. A call a count cost ~1 ms
+    own call), so that counts_irradiance then finds them all. A call a count cost ~0.5 ms
     of Python around its k-NN kernel (1,751 calls on Figure 6, 1,373 on the candles;
     docs/performance.md "percost54"). Fewer than two counts with new points: nothing
     done (counts_irradiance's own call is the one search)."""

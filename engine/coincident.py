@@ -135,7 +135,7 @@ class CoincidentSurfaces:
         """(K,3) geo.ng[tri] for triangle rows tri (K,) int64: the paired triangles' (side
         not NONE: every row the probes ask for) from a table made once, any other from
         geo.ng. (geo.ng makes its rows on each read, a cross product and a norm per call:
-        ~1.8 of the candles' 53 CPU s under the profiler, docs/performance.md
+        ~1.3 of the candles' 51 camera-pass CPU s under the profiler, docs/performance.md
         "percost54"; a row's normal depends on its triangle alone: the same bits.)"""
         tri = np.asarray(tri, np.int64)
         got = self._paired_ng
