@@ -15,8 +15,10 @@ registers the add-on of ROOT (the checkout named by --root, several allowed: thi
 checkout by default) and renders with engine 'PHOTONMAP' at the blend's saved settings,
 as `python -m addon.batch NAME.blend -o X.png` does (the image is not written). Kernels
 are loaded before the clock starts (a checkout compiles its own once). Prints one table
-row a render (stages in CPU s, then the ray counts in millions), then each root's per-stage minimum over the repeats. --profile writes a
-cProfile of the (one) render's engine.render call, run with one thread.
+row a render (stages in CPU s, then the ray counts in millions, then the first 8 hex digits
+of the film's hash: tools/film_hashes.py's SHA-1 of its passes, for a bitwise check), then
+each root's per-stage minimum over the repeats. --profile writes a cProfile of the (one)
+render's engine.render call, run with one thread.
 """
 import argparse
 import json
@@ -93,6 +95,14 @@ def rendered(scene, settings=None, progress=None, **k):
         marks[a] = float(film.stats.get(b, 0.0))
     film_stats.update({k: v for k, v in film.stats.items()
                        if isinstance(v, (int, float)) and not isinstance(v, bool)})
+    # (tools/film_hashes.py's hash: the passes' bytes, so a row says whether a change
+    # kept this blend's image bitwise)
+    import hashlib
+    import numpy as np
+    h = hashlib.sha1()
+    for name in ("direct", "indirect", "caustic", "specular", "emission"):
+        h.update(np.ascontiguousarray(getattr(film, name)).tobytes())
+    marks["film"] = h.hexdigest()[:8]
     return film
 engine.render = rendered
 addon.register()
@@ -149,8 +159,9 @@ def main():
         got = run(roots[0], args.blends.split(",")[0], args.percent, 1, args.profile, sets)
         print(json.dumps(got["marks"]))
         return
-    print("| root | blend | load | " + " | ".join(STAGES) + " | " + " | ".join(RAYS) + " |")
-    print("|---|---|---:|" + "---:|" * (len(STAGES) + len(RAYS)))
+    print("| root | blend | load | " + " | ".join(STAGES) + " | " + " | ".join(RAYS)
+          + " | film |")
+    print("|---|---|---:|" + "---:|" * (len(STAGES) + len(RAYS)) + "---|")
     best = {}
     for blend in args.blends.split(","):
         for _ in range(args.repeat):
@@ -161,7 +172,7 @@ def main():
                 print(f"| {name} | {os.path.basename(blend)} | {got['load']:.1f} | "
                       + " | ".join(f"{m.get(s, 0.0):.2f}" for s in STAGES) + " | "
                       + " | ".join(f"{got['stats'].get(r, 0) / 1e6:.2f}M" for r in RAYS)
-                      + " |",
+                      + f" | {m.get('film', '')} |",
                       flush=True)
                 b = best.setdefault((name, blend), {})
                 for s in STAGES:

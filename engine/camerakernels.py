@@ -38,6 +38,9 @@ two Embree calls for every hit of a camera, gather or specular ray.
   the diffuse weight and the Lambert-only rows from the closures' albedos in one pass.
 - `bsdf_pdf_rows` (hotspots53): principled.bsdf_pdf_many reading the hits' rows in place
   (glossysplit.DiffusePdf.pdf: no gathered copies of the packed lobes).
+- `diffuse_reject_pairs` (percost54): glossysplit.DiffusePdf.reject_for's per-photon
+  test (the photon's direction normalised, pdf_D, the camera's and the photon's min pdf
+  against Filter Glossy) in one pass, no (K,3) temporaries.
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
@@ -1037,6 +1040,66 @@ def bsdf_pdf_rows(prm, sel, rows, ns, wo, wi, out):
         out[k] = pr.bsdf_pdf(prm, sel, r, ox, oy, oz, ix, iy, iz)
 
 
+@kernel
+def _npmin(a, b):
+    """np.minimum: NaN wins."""
+    if a != a or b != b:
+        return a + b
+    return a if a <= b else b
+
+
+@kernel
+def _npdiv(a, b):
+    """a / b as numpy divides two float64s (a zero divisor gives inf or NaN where numba's
+    default error model raises)."""
+    if b == 0.0:
+        if a == 0.0 or a != a:
+            return math.nan
+        return math.copysign(math.inf, a) * math.copysign(1.0, b)
+    return a / b
+
+
+@kernel
+def diffuse_reject_pairs(prm, sel, plain, wd, psum, largest, camera, ns, wo, fg, rows, v,
+                         stored, pid, out):
+    """glossysplit.DiffusePdf.reject_for's test of (hit row, photon) pairs in one pass:
+    out[k] (K,) bool True where Cycles blurs the photon's path at the hit row rows[k]:
+    largest[row] < fg, else min(pdf_D(wi), stored[pid[k]]) < fg (not >=: NaN rejects),
+    wi = -v[k] / max(|v[k]|, 1e-300) (v (K,3) the photon's stored direction, float64).
+    pdf_D is DiffusePdf.pdf's (cos / pi on its plain rows, else (bsdf_pdf + wd cos / pi)
+    / (psum + wd); at most camera[row], camera (N,) or empty; NaN read as inf); stored
+    (P,) float32 Photons.blur_pdf or empty. The numpy stage's operations in its order:
+    |v| as np.linalg.norm(axis=1) sums (x^2 + y^2) + z^2, the cosine as
+    np.einsum("ij,ij->i") (x + z) + y, np.maximum / np.minimum's NaN (the same bits:
+    tests/test_hotspot_kernels.py). prm, sel, plain, wd, psum, ns, wo: DiffusePdf's (N
+    rows); fg: Filter Glossy."""
+    cam = camera.shape[0] > 0
+    blur = stored.shape[0] > 0
+    for k in range(rows.shape[0]):
+        r = rows[k]
+        if not largest[r] >= fg:
+            out[k] = True
+            continue
+        x, y, z = -v[k, 0], -v[k, 1], -v[k, 2]
+        m = _npmax(math.sqrt((x * x + y * y) + z * z), 1e-300)
+        x, y, z = x / m, y / m, z / m
+        n0, n1, n2 = ns[r, 0], ns[r, 1], ns[r, 2]
+        d = _npmax((x * n0 + z * n2) + y * n1, 0.0) / math.pi
+        if not plain[r]:
+            ox, oy, oz = pr.frame_local(n0, n1, n2, wo[r, 0], wo[r, 1], wo[r, 2])
+            ix, iy, iz = pr.frame_local(n0, n1, n2, x, y, z)
+            lobes = pr.bsdf_pdf(prm, sel, r, ox, oy, oz, ix, iy, iz)
+            w = wd[r]
+            d = _npdiv(lobes + w * d, psum[r] + w)
+        if cam:
+            d = _npmin(d, camera[r])
+        if d != d:
+            d = math.inf
+        if blur:
+            d = _npmin(d, np.float64(stored[pid[k]]))
+        out[k] = not d >= fg
+
+
 @register_warm_up
 def _warm_up():
     v0 = np.zeros((1, 3))
@@ -1081,6 +1144,12 @@ def _warm_up():
                         np.empty(1), np.empty(1), np.empty(1, np.bool_))
     bsdf_pdf_rows(np.zeros((1, pr.N_PACK)), np.zeros((1, pr.N_LOBES)), np.zeros(1, np.int64),
                   ns, -d, d, np.empty(1))
+    for camera, stored in ((np.zeros(0), np.zeros(0, np.float32)),
+                           (np.ones(1), np.ones(1, np.float32))):
+        diffuse_reject_pairs(np.zeros((1, pr.N_PACK)), np.zeros((1, pr.N_LOBES)),
+                             np.zeros(1, np.bool_), one, one, np.full(1, np.inf), camera,
+                             ns, -d, 1.0, np.zeros(1, np.int64), d, stored,
+                             np.zeros(1, np.int64), np.empty(1, np.bool_))
     i64 = np.zeros(1, np.int64)
     keep_path_hits(i64, p, d, base, i64, one, one, one, i64, one, i64, one)
     film_add(np.zeros((1, 3)), 0, i64, i64, base, base)

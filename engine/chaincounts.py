@@ -410,7 +410,59 @@ def subset_irradiance(gmap, limits, counts, point) -> np.ndarray:
     if not len(counts):
         return out
     keys, which = unique_counts(counts)
+    if len(keys) > 1:
+        _estimate_counts(gmap, limits, keys, which, np.asarray(point, np.int64))
     for j, key in enumerate(keys):
         rows = np.flatnonzero(which == j)
         out[rows] = gmap.counts_irradiance(np.take(point, rows), limits, key)
     return out
+
+
+def _estimate_counts(gmap, limits, keys, which, point) -> None:
+    """Into gmap.counts_cache (GatherMap.counts_irradiance's store): the irradiance of
+    the points point[which == j] not yet known at counts keys[j], for every count at once
+    in one search (knn_irradiance's masks, one a count: each mask's sum the bits of its
+    own call), so that counts_irradiance then finds them all. A call a count cost ~0.5 ms
+    of Python around its k-NN kernel (1,751 calls on Figure 6, 1,373 on the candles;
+    docs/performance.md "percost54"). Fewer than two counts with new points: nothing
+    done (counts_irradiance's own call is the one search)."""
+    from .photonmap import LEVEL_DTYPE
+    if getattr(gmap, "estimating", None) is None:
+        return  # (counts_irradiance raises)
+    need = []
+    for j, key in enumerate(keys):
+        key = tuple(int(x) for x in key)
+        if key not in gmap.counts_cache:
+            gmap.counts_irradiance(_NO_POINTS, limits, key)  # (the count's mask)
+        _, known, _ = gmap.counts_cache[key]
+        pts = np.unique(point[which == j])
+        if len(known):
+            at = np.minimum(np.searchsorted(known, pts), len(known) - 1)
+            pts = pts[np.take(known, at) != pts]
+        if len(pts):
+            need.append((key, pts))
+    if len(need) < 2:
+        return
+    every = np.unique(np.concatenate([pts for _, pts in need]))
+    k, min_photons, estimator = gmap.estimate_args
+    surf = gmap.surface if len(gmap.surface) else None
+    _, masked = gmap.estimating.irradiance(
+        np.take(gmap.position, every, axis=0), np.take(gmap.normal, every, axis=0),
+        gmap.radius, k, min_photons, estimator,
+        masks=np.concatenate([gmap.counts_cache[key][0] for key, _ in need]),
+        surface=None if surf is None else np.take(surf, every))
+    for s, (key, new) in enumerate(need):
+        # (counts_irradiance's store: ascending points, their E as float32; another
+        # thread's points stored meanwhile are kept, a point stored twice the same bits)
+        bits, known, known_E = gmap.counts_cache[key]
+        if len(known):
+            at = np.minimum(np.searchsorted(known, new), len(known) - 1)
+            new = new[np.take(known, at) != new]
+        E = np.take(masked[s], np.searchsorted(every, new), axis=0).astype(LEVEL_DTYPE)
+        merged = np.concatenate([known, new])
+        order = np.argsort(merged, kind="stable")
+        gmap.counts_cache[key] = (bits, merged[order],
+                                  np.concatenate([known_E, E])[order])
+
+
+_NO_POINTS = np.zeros(0, np.int64)

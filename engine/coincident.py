@@ -129,6 +129,29 @@ class CoincidentSurfaces:
         self.is_glass = is_glass
         self.glass = glass
         self.others = others
+        self._paired_ng = None  # (_ng: the paired triangles' rows, their normals)
+
+    def _ng(self, tri) -> np.ndarray:
+        """(K,3) geo.ng[tri] for triangle rows tri (K,) int64: the paired triangles' (side
+        not NONE: every row the probes ask for) from a table made once, any other from
+        geo.ng. (geo.ng makes its rows on each read, a cross product and a norm per call:
+        ~1.3 of the candles' 51 camera-pass CPU s under the profiler, docs/performance.md
+        "percost54"; a row's normal depends on its triangle alone: the same bits.)"""
+        tri = np.asarray(tri, np.int64)
+        got = self._paired_ng
+        if got is None:
+            paired = np.flatnonzero(self.side != NONE).astype(np.int64)
+            got = self._paired_ng = (paired, np.asarray(self.geo.ng[paired]))
+        paired, ng = got
+        if not len(paired):
+            return self.geo.ng[tri]
+        at = np.minimum(np.searchsorted(paired, tri), len(paired) - 1)
+        known = np.take(paired, at) == tri
+        if known.all():
+            return np.take(ng, at, axis=0)
+        out = np.take(ng, at, axis=0)
+        out[~known] = self.geo.ng[tri[~known]]
+        return out
 
     @classmethod
     def for_context(cls, ctx) -> "CoincidentSurfaces | None":
@@ -257,7 +280,7 @@ class CoincidentSurfaces:
             if kind == GLASS:
                 # Only rays moving out of the glass (refracted out, or reflected off its
                 # outside) can meet what lies against its outside.
-                out_ = np.einsum("ij,ij->i", self.geo.ng[from_tri[rows]], dr) > 0.0
+                out_ = np.einsum("ij,ij->i", self._ng(from_tri[rows]), dr) > 0.0
                 rows, pr_, dr = rows[out_], pr_[out_], dr[out_]
                 if not len(rows):
                     continue
@@ -279,7 +302,7 @@ class CoincidentSurfaces:
             if kind == OTHER:
                 # Met from the glass's outside only: the ray goes into the glass (a ray
                 # leaving the floor downwards has no glass in front of it).
-                into = np.einsum("ij,ij->i", self.geo.ng[tri], np.take(d, rows, axis=0)) < 0.0
+                into = np.einsum("ij,ij->i", self._ng(tri), np.take(d, rows, axis=0)) < 0.0
                 rows, tri, up, vp = rows[into], tri[into], up[into], vp[into]
             out.append((rows, tri, up, vp))
         if not out:
@@ -311,7 +334,7 @@ class CoincidentSurfaces:
         inside = np.all((pr_ >= box[0]) & (pr_ <= box[1]), axis=1)
         rows, pr_ = rows[inside], pr_[inside]
         dr = np.take(d, rows, axis=0)
-        into = np.einsum("ij,ij->i", self.geo.ng[np.take(from_tri, rows)], dr) < 0.0
+        into = np.einsum("ij,ij->i", self._ng(np.take(from_tri, rows)), dr) < 0.0
         rows, pr_, dr = rows[into], pr_[into], dr[into]
         if not len(rows):
             return _NONE
@@ -362,7 +385,7 @@ class CoincidentSurfaces:
             return _NONE_T
         rows, tr, s, dr = rows[found], tr[found], s[found], dr[found]
         gtri, up, vp, tp = self.glass.tri[hp[found]], up[found], vp[found], tp[found]
-        out_ = np.einsum("ij,ij->i", self.geo.ng[gtri], dr) > 0.0
+        out_ = np.einsum("ij,ij->i", self._ng(gtri), dr) > 0.0
         return (rows[out_], gtri[out_], up[out_], vp[out_],
                 np.maximum(tr - s + tp, 0.0)[out_])
 
@@ -391,7 +414,7 @@ class CoincidentSurfaces:
         _, hp, _, _ = self.glass.accel.intersect(orow, -dr, s)
         found = hp >= 0
         rows, tri = rows[found], self.glass.tri[hp[found]]
-        into = np.einsum("ij,ij->i", self.geo.ng[tri], dr[found]) < 0.0
+        into = np.einsum("ij,ij->i", self._ng(tri), dr[found]) < 0.0
         return rows[into], tri[into]
 
     def meet(self, o, d, org_p, org_prim, t, prim, u, v, leaving=True,
@@ -531,7 +554,7 @@ class CoincidentSurfaces:
             tri = np.where(geom >= 0, np.take(starts, np.maximum(geom, 0)) + prim32, -1)
             at = np.nonzero((np.take(self.side, np.maximum(tri, 0)) == GLASS) & (tri >= 0))[0]
             if len(at):
-                out_ = np.einsum("ij,ij->i", self.geo.ng[tri[at]],
+                out_ = np.einsum("ij,ij->i", self._ng(tri[at]),
                                  np.take(d, at, axis=0)) > 0.0
                 arrived[np.take(slot, at[out_])] = True
         return n

@@ -109,6 +109,37 @@ def test_counts_irradiance_sparse_store_is_the_dense_maps_bits():
     assert g.counts_irradiance(np.zeros(0, np.int64), LIMITS, key).shape == (0, 3)
 
 
+def test_subset_irradiance_batches_the_counts_with_the_dense_maps_bits():
+    """chaincounts.subset_irradiance asks every count of a lookup at once
+    (GatherMap.counts_irradiance_many: one search, a mask per count, percost54): rows of
+    four counts, some points asked under several counts, some known from an earlier ask,
+    read the bits of maps built to keep each count's photons, and each count's store
+    holds exactly the points asked under it."""
+    from engine.chaincounts import subset_irradiance
+    ph, _ = _corner(np.random.default_rng(5))
+    g = _maps(ph)
+    keys = [(4, 2, 1, 1), (5, 3, 1, 1), (3, 2, 0, 0), (2, 2, 0, 0)]
+    dense = {key: GatherMap(ph, *ARGS, max_points=4000,
+                            keep=ph.usable(LIMITS, camera=key)).E for key in keys}
+    rng = np.random.default_rng(9)
+    P = len(g.position)
+    g.counts_irradiance(rng.integers(0, P, 100), LIMITS, keys[0])  # (known points)
+    asked = {key: [g.counts_cache[keys[0]][1]] if key == keys[0] else [] for key in keys}
+    for view in (g, g.subset_maps[0]):
+        which = rng.integers(0, len(keys), 800)
+        point = rng.integers(0, P, 800)
+        point[:200] = point[200:400]  # (the same points under other counts)
+        counts = np.array(keys, np.int64)[which]
+        got = subset_irradiance(view, LIMITS, counts, point)
+        want = np.array([dense[keys[w]][p] for w, p in zip(which, point)], np.float64)
+        assert got.dtype == np.float64 and np.array_equal(got, want)
+        for j, key in enumerate(keys):
+            asked[key].append(point[which == j])
+    for key in keys:
+        _, known, known_E = g.counts_cache[key]
+        assert np.array_equal(known, np.unique(np.concatenate(asked[key])))
+        assert np.array_equal(known_E, dense[key][known])
+
 
 def test_counts_irradiance_from_two_threads_reads_the_dense_maps_bits():
     """The camera pass's workers share a map's counts_cache (engine/parallel.py): two

@@ -157,3 +157,83 @@ def test_bsdf_pdf_rows_kernel_gives_bsdf_pdf_manys_bits():
     bsdf_pdf_rows(prm, sel, rows, nsr, wo, wi, got)
     _same_bits(got, want)
     assert (want > 0).mean() > 0.5
+
+
+def _reject_numpy(dp, pmap, sel, rows, photons):
+    """The numpy stage of DiffusePdf.reject_for's block the kernel replaced (percost54)."""
+    from engine.photonlayout import vectors
+    stored = pmap.photons.blur_pdf
+    r = np.take(sel, rows)
+    out = np.ones(len(r), bool)
+    test = np.flatnonzero(np.take(dp.largest, r) >= dp.fg)
+    pid = np.take(photons, test)
+    wi = -vectors(pmap.photons.direction, pid)
+    wi /= np.maximum(np.linalg.norm(wi, axis=1), 1e-300)[:, None]
+    pd = dp.pdf(r[test], wi)
+    if stored is not None:
+        pd = np.minimum(pd, np.take(stored, pid).astype(np.float64))
+    out[test] = ~(pd >= dp.fg)
+    return out, pd
+
+
+def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
+    """camerakernels.diffuse_reject_pairs (DiffusePdf.reject_for, percost54) against the
+    numpy stage: hits of every lobe, plain and Lambert rows, rows whose bound is below
+    Filter Glossy, zero-length and NaN photon directions, NaN and infinite stored and
+    camera min pdfs, with and without them; Filter Glossy set to pdfs the numpy stage
+    computed, so a pair exactly at the threshold flips with any change of its pdf's bits."""
+    from engine.glossysplit import DiffusePdf
+    rng = np.random.default_rng(5400)
+    m, n, k, p = 16, 2000, 30_000, 5000
+    params = np.zeros((m, pr.N_MAT))
+    params[:, [pr.M_ALPHA, pr.M_IOR, pr.M_LEVEL, pr.M_COAT_IOR, pr.M_MULTI]] = (
+        1.0, 1.5, 0.5, 1.5, 1.0)
+    for col in (pr.M_METALLIC, pr.M_ROUGH, pr.M_TRANS, pr.M_SPEC, pr.M_COAT_W,
+                pr.M_COAT_ROUGH, pr.M_SHEEN_W, pr.M_SHEEN_ROUGH, pr.M_TL):
+        params[:, col] = rng.random(m) * (rng.random(m) < 0.7)
+    for col in (pr.M_STINT, pr.M_CTINT, pr.M_SHEEN_TINT, pr.M_TTINT):
+        params[:, col:col + 3] = 1.0
+    mat = rng.integers(0, m, n)
+    prm, _ = pr.setup_np(params, mat, rng.random((n, 3)), rng.uniform(0.05, 1.0, n),
+                         rng.random(n) < 0.8)
+    albedo = rng.random((n, pr.N_LOBES, 3)) * (rng.random((n, pr.N_LOBES, 1)) < 0.6)
+    albedo[:300, 2:] = 0.0  # Lambert rows
+    albedo[:100, pr.L_PASS] = 0.0  # plain rows (cos / pi)
+    albedo[300:320, pr.L_DIFFUSE] = 0.0
+    albedo[300:310, 1:] = 0.0  # no weight at all: 0 / 0
+    dp = object.__new__(DiffusePdf)
+    dp.prm = np.ascontiguousarray(prm)
+    dp.sel, dp.psum, dp.wd = np.empty((n, pr.N_LOBES)), np.empty(n), np.empty(n)
+    dp.lambert = np.empty(n, bool)
+    diffuse_pdf_weights(albedo, dp.sel, dp.psum, dp.wd, dp.lambert)
+    dp.plain = dp.lambert & ~(dp.psum > 0.0)
+    dp.largest = np.where(rng.random(n) < 0.9, np.inf, rng.uniform(0.0, 2.0, n))
+    dp.ns = uniform_sphere(rng.random(n), rng.random(n))
+    dp.wo = normalize(dp.ns + 0.9 * uniform_sphere(rng.random(n), rng.random(n)))
+    direction = (uniform_sphere(rng.random(p), rng.random(p))
+                 * rng.uniform(0.5, 2.0, (p, 1))).astype(np.float32)
+    direction[:20] = 0.0
+    direction[20:25] = np.nan
+    blur = rng.uniform(0.0, 20.0, p).astype(np.float32)
+    blur[rng.random(p) < 0.3] = np.inf
+    blur[:40:3] = np.nan
+    camera = rng.uniform(0.0, 20.0, n)
+    camera[rng.random(n) < 0.4] = np.inf
+    camera[::97] = np.nan
+    sel = rng.integers(0, n, 3000).astype(np.int64)
+    rows = rng.integers(0, len(sel), k).astype(np.int64)
+    photons = rng.integers(0, p, k).astype(np.int64)
+    checked = 0
+    for cam, stored in ((None, None), (camera, blur), (None, blur), (camera, None)):
+        dp.camera = cam
+        pmap = SimpleNamespace(photons=SimpleNamespace(direction=direction, blur_pdf=stored))
+        dp.fg = 1.0
+        _, pd = _reject_numpy(dp, pmap, sel, rows, photons)
+        finite = np.unique(pd[np.isfinite(pd) & (pd > 0.0)])
+        for fg in np.concatenate([[1.0, 1e-3], rng.choice(finite, 25, replace=False)]):
+            dp.fg = float(fg)
+            want, _ = _reject_numpy(dp, pmap, sel, rows, photons)
+            got = dp.reject_for(pmap, sel)(rows, photons)
+            np.testing.assert_array_equal(got, want)
+            checked += int(want.sum()) * int((~want).sum()) > 0
+    assert checked >= 100  # (each threshold splits the pairs)
