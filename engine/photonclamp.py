@@ -30,6 +30,8 @@ keep c as it was.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import sampleclamp
@@ -51,7 +53,7 @@ def emitted_radiance(light, o, d) -> np.ndarray:
     photons leaving o (M,3) in unit directions d (M,3): the radiance a Cycles path
     meeting the light along -d reads (0: a delta light or one not handled, module
     docstring)."""
-    from .scene import AREA, POINT, SPOT, SUN
+    from .scene import AREA, POINT, SPOT, SUN, spread_attenuation
     from .lights.mesh import MESH
     from .lights.world import WORLD
     m = len(d)
@@ -77,13 +79,14 @@ def emitted_radiance(light, o, d) -> np.ndarray:
         mask, _, L = light.intersect(start, -d, np.full(m, 8.0 * r))
         return np.where(mask, np.abs(np.asarray(L, np.float64)).sum(axis=1), 0.0)
     if kind == AREA:
-        # (one-sided: a ray travelling against the emission, from just in front of o)
-        eps = 1e-4 * max(float(light.size_x), float(light.size_y), 1e-6)
-        start = np.asarray(o, np.float64) + d * eps
-        mask, _, L = light.intersect(start, -d, np.full(m, 2.0 * eps))
-        out = np.abs(np.broadcast_to(np.asarray(L, np.float64), (m, 3))).sum(axis=1)
-        # (a photon from the rim the short ray misses still left the light: its Le)
-        return np.where(mask, out, float(np.abs(np.asarray(light.radiance)).sum()))
+        # (the photon left the light's front: its radiance along d, Cycles' spread
+        # attenuation at the angle to the light's axis; no ray needed, which far from the
+        # origin could miss the light by float32 rounding)
+        Le = float(np.abs(np.asarray(light.radiance, np.float64)).sum())
+        if light.spread < math.pi:
+            cos_a = d @ np.asarray(light.dir, np.float64)
+            return Le * spread_attenuation(cos_a, light.spread)
+        return np.full(m, Le)
     if kind == MESH:
         sums = np.abs(np.asarray(light.tri_L, np.float64)).sum(axis=1)
         if len(sums) and np.allclose(sums, sums[0], rtol=1e-6, atol=0.0):

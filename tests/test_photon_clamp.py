@@ -13,7 +13,8 @@ from engine.lights import allocate_photons, prepare_lights
 from engine.photonmap import PhotonMap
 from engine.photons import CAUSTIC, INDIRECT, Photons, trace_photons
 from engine.render import Context
-from engine.scene import Material
+from engine.lights.world import WORLD
+from engine.scene import AREA, Material
 
 SUN_E, ANGLE = 3.0, 1.0  # W/m^2, degrees
 
@@ -146,3 +147,37 @@ def test_emitted_radiance_is_each_light_kinds_own():
     assert np.allclose(spot[inside], 3 * 30.0 / (4 * math.pi) / (math.pi * 0.05 ** 2),
                        rtol=1e-9)
     assert not delta.any()
+
+
+def test_emitted_radiance_of_a_narrow_area_light_and_a_constant_world():
+    """An area light of spread 60 degrees: |Le|_1 along each photon is what a ray meeting
+    the light against it reads (the light's own intersect, Cycles' spread attenuation),
+    wherever the light stands (no short ray from the float32 origin: a light 1 km out);
+    a constant world: its colour x strength along every direction."""
+    s = PaperScene(width=8, height=8, background=(0.2, 0.3, 0.5))
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    near = s.add_rect_area_light((0, 0, 2), (0.5, 0.2), power=40.0, name="near")
+    near.spread = math.radians(60.0)
+    far = s.add_rect_area_light((1000.0, 0, 2), (0.1, 0.1), power=40.0, name="far")
+    far.spread = math.radians(60.0)
+    s.set_camera((0, -5, 3), (0, 0, 0))
+    geo, table = prepare(s)
+    lights = prepare_lights(s, geo, table)
+    rng = np.random.default_rng(3)
+    seen = 0
+    for li in lights:
+        o, d, _ = li.emit(2000, rng)
+        le = photonclamp.emitted_radiance(li, o, d)
+        if li.kind == AREA:
+            seen += 1
+            start = np.asarray(o, np.float64) + 0.5 * d
+            mask, _, L = li.intersect(start, -d, np.full(len(d), 1.0))
+            hit = np.flatnonzero(mask)
+            assert len(hit) > 0.9 * len(d)
+            assert np.allclose(le[hit], np.abs(np.asarray(L)[hit]).sum(axis=1), rtol=1e-9)
+            assert le.min() > 0.0
+        elif li.kind == WORLD:
+            seen += 1
+            assert np.allclose(le, 1.0, rtol=1e-9)
+    assert seen == 3
