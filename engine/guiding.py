@@ -70,8 +70,10 @@ AUTO_GAIN = 0.2
 MAX_GAIN = CELLS - 1.0
 # Grid points: at most one per cube of this many gather radii (thin_points).
 SPACING = 2.0
-# Grid points a block of the build at least (GatherGuide: up to 8 blocks on the workers).
+# Grid points a block of the build at least, and blocks at most (GatherGuide: its blocks
+# on the workers).
 GRID_ROWS = 512
+GRID_BLOCKS = 8
 # A hit reads the grid of the nearest agreeing point within this many gather radii (the
 # night room: 0.3 % of its hits found none at 2 with SPACING 2, none at 3.5).
 SEARCH = 2.0
@@ -117,7 +119,7 @@ class GatherGuide:
             # Each point's grid from its own photons alone: blocks of points on the
             # workers (scipy's query and numpy's array kernels release the GIL), the same
             # numbers for any block size or thread count.
-            step = max(GRID_ROWS, -(-p // 8))
+            step = max(GRID_ROWS, -(-p // GRID_BLOCKS))
             blocks = [(i, min(i + step, p)) for i in range(0, p, step)]
 
             def job(block, stop):
