@@ -8,9 +8,10 @@ diffuse lobe's f x pi, L_p = Le x T the radiance along the photon's last segment
 emitter's radiance Le times the chain's throughput T) so that |C|_1 <= limit. The
 estimate here weighs photon p by
 
-    w_p = min(1, limit / |tp x albedo x L_p|_1)
+    w_p = min(1, Q x limit / |tp x albedo x L_p|_1)
 
-(docs/accuracy.md, "clampray53" and "clampphoton54"). L_p is not the photon's flux
+with Q the share of the limit Cycles' Russian roulette leaves such a path on average
+(roulette_share; docs/accuracy.md, "clampray53", "clampphoton54" and "roulette54"). L_p is not the photon's flux
 (which shrinks with the photon count): flux = L_p x cos / (pdf_pos pdf_dir N) x prod
 1/q_i (q_i the roulette's pick probabilities, eta^2 at refractions), so the photon pass
 keeps c = |L|_1 / |flux|_1 per path (photonkernels._scatter's clamp_slot: set at
@@ -36,10 +37,14 @@ import numpy as np
 
 from . import sampleclamp
 from .photonlayout import decode_power
+from .photonkernels import B_TOTAL
 
 # Per-photon Clamp Indirect (above). False: the estimates are clamped as a whole only
 # (sampleclamp: each sample's estimate), the photon pass keeps no radiance.
 PER_PHOTON = True
+# The limit x Cycles' Russian roulette share along the photon's path (roulette_share);
+# False: the whole limit (Cycles with Min Light Bounces past the path's length).
+ROULETTE = True
 
 
 def keeps_radiance(settings) -> bool:
@@ -120,14 +125,38 @@ def emission_ratios(light, o, d, power, slot) -> np.ndarray:
     return out
 
 
-def photon_weights(radiance, power, scale, limit) -> np.ndarray:
-    """(...) float64 w_p = min(1, limit / |scale x L_p|_1) for photons with |L_p|_1
+def roulette_share(scale, chain) -> np.ndarray:
+    """(...) float64 Q: the share of the limit a Cycles path along a photon keeps on
+    average once its Russian roulette is counted. Cycles (kernel/integrator/path_state.h,
+    path_state_continuation_probability) continues a path at each hit past bounce
+    min_light_bounces (0) with q = min(1, sqrt(max throughput)) and divides the
+    throughput by q (shade_surface.h, integrate_surface) before the light further on is
+    clamped: the clamped value L' = min(L / Q, limit) survives with probability Q = prod
+    q, so on average min(L, Q x limit). After the camera's diffuse bounce the throughput
+    is t0 = max(scale) (the camera path's throughput x albedo); each of the photon's
+    `chain` (...) scatters back to the light is a hit, and along a white chain (smooth
+    clear glass: Cycles' Fresnel pick keeps the throughput) the i-th takes q_i =
+    t^(2^-i): Q = t0^(1 - 2^-chain), 1 where t0 >= 1 (docs/accuracy.md
+    "### roulette54": measured against Cycles with the roulette off). scale (..., 3)
+    broadcast against chain."""
+    t0 = np.max(np.abs(np.asarray(scale, np.float64)), axis=-1)
+    k = np.asarray(chain, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        q = np.where((t0 > 0.0) & (t0 < 1.0), t0 ** (1.0 - np.exp2(-k)), 1.0)
+    return np.where(np.isfinite(q), q, 1.0)
+
+
+def photon_weights(radiance, power, scale, limit, chain=None) -> np.ndarray:
+    """(...) float64 w_p = min(1, Q x limit / |scale x L_p|_1) for photons with |L_p|_1
     `radiance` (...) and flux `power` (..., 3) (L_p of the flux's colour) at rows whose
     clamp throughput x albedo is `scale` (..., 3) (broadcast); limit: Clamp Indirect's
-    (sampleclamp.limits). |L_p|_1 = 0 or no flux: 1."""
+    (sampleclamp.limits); chain (...): each photon's scatters since the light (Q:
+    roulette_share; None: Q = 1). |L_p|_1 = 0 or no flux: 1."""
     power = np.asarray(power, np.float64)
     flux = np.abs(power).sum(axis=-1)
     c = np.abs(np.asarray(scale, np.float64) * power).sum(axis=-1)
+    if chain is not None and ROULETTE:
+        limit = limit * roulette_share(scale, chain)
     with np.errstate(divide="ignore", invalid="ignore"):
         contrib = np.where(flux > 0, np.asarray(radiance, np.float64) * c / flux, 0.0)
         w = np.where(contrib > limit, limit / contrib, 1.0)
@@ -159,7 +188,10 @@ def clamp_rows(pmap, limits, counts, E, qrows, slots, read, pair_rows, pair_phot
     pw = decode_power(pw[ph.reshape(-1)]) if pw.dtype == np.uint8 else \
         pw[ph.reshape(-1)].astype(np.float64)
     pw = pw.reshape(len(qrows), width, 3)
-    w = photon_weights(radiance[ph], pw, np.take(scale, qrows, axis=0)[:, None, :], limit)
+    bounces = getattr(pmap.photons, "bounces", None)
+    chain = None if bounces is None else bounces[ph, B_TOTAL]
+    w = photon_weights(radiance[ph], pw, np.take(scale, qrows, axis=0)[:, None, :], limit,
+                       chain)
     w = np.where(inside, w, 1.0)
     over = np.flatnonzero((w < 1.0).any(axis=1))
     if not len(over):

@@ -4,6 +4,7 @@ clamps the path the photon ends; L_p (Photons.radiance) carried by the photon pa
 import math
 
 import numpy as np
+import pytest
 
 from engine import RenderSettings, photonclamp, photonvisibility
 from engine.accel import Accel
@@ -34,6 +35,32 @@ def test_photon_weight_is_the_limit_over_the_path_contribution():
                                    15.0)
     assert np.array_equal(w, [0.25])
 
+
+
+def test_roulette_share_is_cycles_continuation_along_a_white_chain():
+    """Cycles continues at each hit past bounce 0 with q = min(1, sqrt(max throughput))
+    and divides by it: along a white chain from t0 the throughputs are t0, t0^(1/2),
+    t0^(1/4), ..., so Q = prod q = t0^(1 - 2^-k) after k hits; 1 from t0 >= 1 or k = 0.
+    The weight's limit is Q x the limit."""
+    t = 0.8
+    q, prod = t, 1.0
+    for _ in range(4):           # the chain's hits, as Cycles walks them
+        step = min(1.0, math.sqrt(q))
+        prod *= step
+        q /= step
+    share = photonclamp.roulette_share(np.array([0.2, t, 0.5]), 4)
+    assert share == pytest.approx(prod, rel=1e-12)
+    assert share == pytest.approx(t ** (15 / 16), rel=1e-12)
+    assert np.array_equal(photonclamp.roulette_share(
+        np.array([[1.5, 0.1, 0.1], [t, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.array([3, 0, 5])),
+        [1.0, 1.0, 1.0])
+    power = np.array([[1.0, 1.0, 1.0]])
+    # |C|_1 = 0.8 x 60 = 48 over 30 x Q(0.8, 2 hits) = 30 x 0.8^0.75
+    w = photonclamp.photon_weights(np.array([60.0]), power, np.full(3, t), 30.0,
+                                   np.array([2]))
+    assert w[0] == pytest.approx(30.0 * t ** 0.75 / 48.0, rel=1e-12)
+    assert photonclamp.photon_weights(np.array([60.0]), power, np.full(3, t), 30.0)[0] \
+        == pytest.approx(30.0 / 48.0, rel=1e-12)
 
 def _flat_map(rad, n=400, seed=1):
     """A map of n photons on the unit square at z = 0 (arriving straight down), each of
