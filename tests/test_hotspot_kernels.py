@@ -127,12 +127,9 @@ def test_diffuse_pdf_weights_kernel_gives_numpys_bits():
     _same_bits(pdfs[0], pdfs[1])
 
 
-def test_bsdf_pdf_rows_kernel_gives_bsdf_pdf_manys_bits():
-    """Hits of materials with every lobe (principled's warm-up material, its weights
-    varied), pairs drawn with repeated rows: the in-place reads give the gathered rows'
-    pdfs bit for bit."""
-    rng = np.random.default_rng(5300)
-    m, n, k = 16, 3000, 40_000
+def _random_principled(rng, m, n):
+    """(mat (n,), prm): n hits of m Principled materials with every lobe, their weights
+    drawn from rng (principled.setup_np's set-up of them)."""
     params = np.zeros((m, pr.N_MAT))
     params[:, [pr.M_ALPHA, pr.M_IOR, pr.M_LEVEL, pr.M_COAT_IOR, pr.M_MULTI]] = (
         1.0, 1.5, 0.5, 1.5, 1.0)
@@ -144,6 +141,16 @@ def test_bsdf_pdf_rows_kernel_gives_bsdf_pdf_manys_bits():
     mat = rng.integers(0, m, n)
     prm, _ = pr.setup_np(params, mat, rng.random((n, 3)), rng.uniform(0.05, 1.0, n),
                          rng.random(n) < 0.8)
+    return mat, prm
+
+
+def test_bsdf_pdf_rows_kernel_gives_bsdf_pdf_manys_bits():
+    """Hits of materials with every lobe (principled's warm-up material, its weights
+    varied), pairs drawn with repeated rows: the in-place reads give the gathered rows'
+    pdfs bit for bit."""
+    rng = np.random.default_rng(5300)
+    m, n, k = 16, 3000, 40_000
+    mat, prm = _random_principled(rng, m, n)
     sel = rng.random((n, pr.N_LOBES)) * (rng.random((n, pr.N_LOBES)) < 0.6)
     ns = uniform_sphere(rng.random(n), rng.random(n))
     wo = normalize(ns + 0.9 * uniform_sphere(rng.random(n), rng.random(n)))
@@ -185,17 +192,7 @@ def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
     from engine.glossysplit import DiffusePdf
     rng = np.random.default_rng(5400)
     m, n, k, p = 16, 2000, 30_000, 5000
-    params = np.zeros((m, pr.N_MAT))
-    params[:, [pr.M_ALPHA, pr.M_IOR, pr.M_LEVEL, pr.M_COAT_IOR, pr.M_MULTI]] = (
-        1.0, 1.5, 0.5, 1.5, 1.0)
-    for col in (pr.M_METALLIC, pr.M_ROUGH, pr.M_TRANS, pr.M_SPEC, pr.M_COAT_W,
-                pr.M_COAT_ROUGH, pr.M_SHEEN_W, pr.M_SHEEN_ROUGH, pr.M_TL):
-        params[:, col] = rng.random(m) * (rng.random(m) < 0.7)
-    for col in (pr.M_STINT, pr.M_CTINT, pr.M_SHEEN_TINT, pr.M_TTINT):
-        params[:, col:col + 3] = 1.0
-    mat = rng.integers(0, m, n)
-    prm, _ = pr.setup_np(params, mat, rng.random((n, 3)), rng.uniform(0.05, 1.0, n),
-                         rng.random(n) < 0.8)
+    mat, prm = _random_principled(rng, m, n)
     albedo = rng.random((n, pr.N_LOBES, 3)) * (rng.random((n, pr.N_LOBES, 1)) < 0.6)
     albedo[:300, 2:] = 0.0  # Lambert rows
     albedo[:100, pr.L_PASS] = 0.0  # plain rows (cos / pi)
