@@ -208,29 +208,31 @@ def lum(img):
     return np.asarray(img, np.float64)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scene", choices=("ball", "room", "jewel1", "jewel0"))
-    ap.add_argument("--out", default="/tmp/clampray53")
-    ap.add_argument("--cycles-spp", type=int, default=1024)
-    ap.add_argument("--seeds", default="0,1")
-    ap.add_argument("--clamps", default="10,1,0")
-    a = ap.parse_args(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else None)
-    os.makedirs(a.out, exist_ok=True)
-    import engine.integrator as I
-    seeds = [int(s) for s in a.seeds.split(",")]
-    clamps = [float(c) for c in a.clamps.split(",")]
-    if a.scene.startswith("jewel"):
+def scene_regions(name):
+    """(scene, regions) of one of main()'s scene choices, at its resolution."""
+    if name.startswith("jewel"):
         scene, w, h = jewel_scene()
-        scene.cycles.blur_glossy = float(a.scene[-1])
+        scene.cycles.blur_glossy = float(name[-1])
         regions, _ = jewel_masks(w, h)
     else:
-        scene, w, h = (ball_scene if a.scene == "ball" else room_scene)()
+        scene, w, h = (ball_scene if name == "ball" else room_scene)()
         r = scene.render
         r.resolution_x, r.resolution_y, r.resolution_percentage = w, h, 100
-        regions = masks(scene, a.scene, w, h)
+        regions = masks(scene, name, w, h)
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage = w, h, 100
+    return scene, regions
+
+
+def clamp_table(a, switch, cache_name, show_cpu=False):
+    """Print the table: per Clamp Indirect in a.clamps, Cycles at a.cycles_spp (cached),
+    then per seed ours with switch(False) and switch(True), as ratios to Cycles per
+    region. cache_name(on, seed, clamp) names ours' cached render (the same name twice:
+    one render)."""
+    scene, regions = scene_regions(a.scene)
+    seeds = [int(s) for s in a.seeds.split(",")]
+    clamps = [float(c) for c in a.clamps.split(",")]
+    r = scene.render
     print("pixels:", {k: int(v.sum()) for k, v in regions.items()}, flush=True)
     c = scene.cycles
     fg = c.blur_glossy
@@ -251,18 +253,44 @@ def main():
         r.engine = "PHOTONMAP"
         for seed in seeds:
             scene.photonmap.seed = seed
-            row = []
-            for per_ray in (False, True):
-                I.CLAMP_PER_GATHER_RAY = per_ray
-                # (unclamped, the switch changes nothing: one render)
-                img, cpu = A.render_rgb_cached(scene, os.path.join(
-                    a.out, f"{a.scene}_o{int(per_ray or not clamp)}_s{seed}"
-                    f"_clamp{clamp:g}.npy"))
+            row, cpus = [], []
+            for on in (False, True):
+                switch(on)
+                img, cpu = A.render_rgb_cached(
+                    scene, os.path.join(a.out, cache_name(on, seed, clamp)))
                 row.append([lum(img)[m].mean() for m in regions.values()])
-            print(f"| ours before / after | {clamp:g} | {seed} | "
+                cpus.append(cpu)
+            label = f"ours before / after ({cpus[1]:.0f} CPU s)" if show_cpu \
+                else "ours before / after"
+            print(f"| {label} | {clamp:g} | {seed} | "
                   + " | ".join(f"{b / x:.3f} / {p / x:.3f}"
                                for b, p, x in zip(*row, ref_m)) + " |", flush=True)
     assert fg == c.blur_glossy
+
+
+def parse(out, seeds, clamps, doc=__doc__):
+    """main()'s arguments (doc: the calling script's docstring, for --help)."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("scene", choices=("ball", "room", "jewel1", "jewel0"))
+    ap.add_argument("--out", default=out)
+    ap.add_argument("--cycles-spp", type=int, default=1024)
+    ap.add_argument("--seeds", default=seeds)
+    ap.add_argument("--clamps", default=clamps)
+    a = ap.parse_args(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else None)
+    os.makedirs(a.out, exist_ok=True)
+    return a
+
+
+def main():
+    a = parse("/tmp/clampray53", "0,1", "10,1,0")
+    import engine.integrator as I
+
+    def switch(per_ray):
+        I.CLAMP_PER_GATHER_RAY = per_ray
+
+    # (unclamped, the switch changes nothing: one render)
+    clamp_table(a, switch, lambda on, seed, clamp:
+                f"{a.scene}_o{int(on or not clamp)}_s{seed}_clamp{clamp:g}.npy")
 
 
 if __name__ == "__main__":
