@@ -121,7 +121,8 @@ def _png16(path, rgba):
         return (struct.pack(">I", len(data)) + kind + data
                 + struct.pack(">I", zlib.crc32(kind + data)))
     with open(path, "wb") as f:
-        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 4, 4, 16, 6, 0, 0, 0))
+        head = struct.pack(">IIBBBBB", 4, 4, 16, 6, 0, 0, 0)  # 16-bit RGBA
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", head)
                 + chunk(b"IDAT", zlib.compress(row * 4)) + chunk(b"IEND", b""))
     return str(path)
 
@@ -169,7 +170,8 @@ def _float_cases(bpy, scene, tmp_path):
 
 def test_float_images_read_as_cycles_reads_them(fresh_scene, bpy_addon, tmp_path):
     """One column per float image, in two rows: the Color output alone into an Emission
-    (top), and Color times Alpha into an Emission (bottom: the Alpha output linked). Closest, so each 8 x 8 block reads one texel."""
+    (top), and Color times Alpha into an Emission (bottom: the Alpha output linked).
+    Closest, so each 8 x 8 block reads one texel."""
     from blender_helpers import cheap, cycles_plain, looking_down_camera, read_rgba, render_exr
     bpy = bpy_addon
     scene = fresh_scene
