@@ -2589,20 +2589,19 @@ class MaterialConverter:
                 pixels = None
             else:
                 tiles, pixels = None, _pixels(img)
-            if srgb and img.is_float:
-                # Blender decoded the file's sRGB values at load; Cycles reads them as
-                # stored (cycles_stores_srgb): encode back (exact to float rounding).
-                encode = _srgb_encoder(self.pm)
+            if img.is_float:
                 for px in ([pixels] if tiles is None else tiles.values()):
-                    px[:, :, :3] = encode(px[:, :, :3])
+                    self._float_texels(img, px, srgb)
             associate = cycles_associates_alpha(img)
+            premultiplied = img.is_float and cycles_unassociates_alpha(img)
             if str(getattr(img, "alpha_mode", "STRAIGHT")) == "NONE":
                 # Cycles ignores the alpha channel (IMAGE_ALPHA_IGNORE: alpha 1).
                 for px in ([pixels] if tiles is None else tiles.values()):
                     px[:, :, 3] = 1.0
             tex = self.pm.ImageTexture(pixels, tiles=tiles, extension=extension,
                                        interpolation=interpolation, srgb=srgb,
-                                       name=img.name, associate=associate)
+                                       name=img.name, associate=associate,
+                                       premultiplied=premultiplied)
         except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
             self._warn(f"material '{self._mat.name}': image '{img.name}' in node "
                        f"'{node.name}' could not be read ({exc}); it renders magenta, as "
@@ -2610,6 +2609,44 @@ class MaterialConverter:
             tex = self._missing_image()
         self.images[key] = tex
         return tex
+
+    def _float_texels(self, img, px, srgb):
+        """In place: a float image's RGB as Blender holds it (`img.pixels`, px HxWx4) ->
+        the texels Cycles holds for it (measured: tests/blender/
+        test_image_alpha_association_cycles.py).
+
+        Read through Blender (packed, generated: cycles_builtin) Cycles copies Blender's
+        float buffer as it is (blender/image.cpp load_float_pixels), linear and, but for
+        Non-Color / Channel Packed / None, premultiplied. Read from its file (OIIO) Cycles
+        takes the file's values and premultiplies them itself only where the file says
+        its alpha is straight (scene/image_oiio.cpp: oiio:UnassociatedAlpha - PNG, a TIFF
+        so marked, TGA; not EXR): Image > Alpha Straight / Premultiplied do not change
+        what it reads. Blender, though, premultiplied a file it was told is straight
+        (IMB premultiply at load) and linearised the straight colour (a float PNG or TIFF
+        in sRGB). So: the straight colour P / a, encoded back to the file's sRGB where
+        Cycles keeps it so (srgb: cycles_stores_srgb), times a if Blender read the file as
+        premultiplied (that is how the file holds it), times a again if Cycles
+        premultiplies at load. Where a is 0 Blender's premultiplied buffer is 0 and the
+        file's colour there is lost: 0 (Cycles' lookups of the colour alone read the
+        file's value there)."""
+        encode = _srgb_encoder(self.pm) if srgb else None
+        if cycles_builtin(img):
+            return  # Blender's buffer, as Cycles copies it (srgb is False for these)
+        if not cycles_unassociates_alpha(img):
+            # Data, Channel Packed, None: Blender leaves RGB straight, as the file holds it
+            if encode is not None:
+                px[:, :, :3] = encode(px[:, :, :3])
+            return
+        a = px[:, :, 3:4]
+        seen = a > 0.0
+        rgb = np.where(seen, px[:, :, :3] / np.where(seen, a, 1.0), 0.0)
+        if encode is not None:
+            rgb = encode(rgb)
+        if str(getattr(img, "alpha_mode", "STRAIGHT")) == "PREMUL":
+            rgb = rgb * a
+        if file_alpha_unassociated(img):
+            rgb = rgb * a
+        px[:, :, :3] = rgb
 
     def _unassociated(self, node, tex):
         """The texture of an Image Texture node whose Alpha output is linked: Cycles
@@ -2658,6 +2695,7 @@ class MaterialConverter:
             one = bpy.data.images.load(fname, check_existing=False)
             try:
                 one.colorspace_settings.name = img.colorspace_settings.name
+                one.alpha_mode = img.alpha_mode  # how Blender premultiplies it at load
                 tiles[t.number] = _pixels(one)
             finally:
                 bpy.data.images.remove(one)
@@ -2693,6 +2731,70 @@ def cycles_associates_alpha(img) -> bool:
     if str(getattr(img, "alpha_mode", "STRAIGHT")) in ("CHANNEL_PACKED", "NONE"):
         return False
     return not bool(getattr(img.colorspace_settings, "is_data", False))
+
+
+def cycles_unassociates_alpha(img) -> bool:
+    """Whether Cycles holds the image's RGB premultiplied by its alpha and so divides a
+    lookup by the filtered alpha where the Image Texture node's Alpha output is linked
+    (scene/shader_nodes.cpp ImageTextureNode::compile NODE_IMAGE_ALPHA_UNASSOCIATE): any
+    image (8-bit or float) but a Non-Color one or one of alpha mode Channel Packed or
+    None."""
+    if str(getattr(img, "alpha_mode", "STRAIGHT")) in ("CHANNEL_PACKED", "NONE"):
+        return False
+    return not bool(getattr(img.colorspace_settings, "is_data", False))
+
+
+# File formats whose alpha OpenImageIO reports as straight (oiio:UnassociatedAlpha), or
+# which Cycles premultiplies anyway (scene/image_oiio.cpp: TGA, DDS, PSD). TIFF: per file.
+STRAIGHT_ALPHA_FORMATS = ("PNG", "TARGA", "TARGA_RAW", "DDS", "PSD")
+
+
+def file_alpha_unassociated(img) -> bool:
+    """Whether Cycles, reading the image from its file, premultiplies its RGB by alpha at
+    load (OIIOImageLoader::load_pixels): the format holds straight alpha (PNG, TGA), or a
+    TIFF whose ExtraSamples tag says unassociated alpha (Blender writes associated TIFFs).
+    EXR, HDR and the rest: never."""
+    fmt = str(getattr(img, "file_format", ""))
+    if fmt in STRAIGHT_ALPHA_FORMATS:
+        return True
+    if fmt == "TIFF":
+        return tiff_extra_sample(bpy.path.abspath(img.filepath_raw or img.filepath)) == 2
+    return False
+
+
+def tiff_extra_sample(path) -> int:
+    """The first value of a TIFF file's ExtraSamples tag (338) in its first image: 0
+    unspecified, 1 associated alpha, 2 unassociated alpha; 0 when the tag is absent or
+    the file cannot be read (TIFF 6.0 section 18; BigTIFF read too)."""
+    import struct
+    try:
+        with open(path, "rb") as f:
+            head = f.read(16)
+            e = {b"II": "<", b"MM": ">"}.get(head[:2])
+            if e is None:
+                return 0
+            big = struct.unpack(e + "H", head[2:4])[0] == 43
+            f.seek(struct.unpack(e + "Q", head[8:16])[0] if big
+                   else struct.unpack(e + "I", head[4:8])[0])
+            count = struct.unpack(e + ("Q" if big else "H"), f.read(8 if big else 2))[0]
+            size = 20 if big else 12
+            for _ in range(min(count, 4096)):
+                entry = f.read(size)
+                if len(entry) < size:
+                    return 0
+                tag = struct.unpack(e + "H", entry[:2])[0]
+                if tag != 338:
+                    continue
+                # SHORT values: inline in the entry when they fit, else at an offset
+                n = struct.unpack(e + ("Q" if big else "I"), entry[4:12] if big else entry[4:8])[0]
+                value = entry[12:20] if big else entry[8:12]
+                if 2 * n > len(value):
+                    f.seek(struct.unpack(e + ("Q" if big else "I"), value)[0])
+                    value = f.read(2)
+                return struct.unpack(e + "H", value[:2])[0]
+    except (OSError, struct.error):
+        return 0
+    return 0
 
 
 def cycles_stores_srgb(img) -> bool:

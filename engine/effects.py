@@ -1031,7 +1031,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # (grouped before the first four are taken: four copies of one instanced object
         # hid the rest; counted against the scene's copies, as only those in view are)
         in_view = _instance_totals(geo)
-        through = (" through " + _labelled(geo, table, sharp_seen, most=4, totals=in_view)
+        through = (" through " + _labelled(geo, table, sharp_seen, most=4, totals=in_view,
+                                           group_materials=SAME_MATERIAL_GROUP)
                    if sharp_seen
                    else ": no mirror, glass or sharp glossy surface in view")
         # Translucent surfaces are said apart: what they show is light through them.
@@ -1425,13 +1426,28 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # alpha there (newuser36: "alpha below 1 in 'Fog'" read as a mistake).
         vol = (np.asarray(table.volume_only, bool) if table.volume_only is not None
                else np.zeros(len(table.names), bool))
-        names = sorted({table.names[m] for m in seen if not vol[m]})
         volumes = sorted({table.names[m] for m in seen if vol[m]})
+        # A cut-out by an image's alpha says which image (newuser54's leaves read as
+        # "a Transparent BSDF, Alpha below 1 or an alpha texture" in 'Leaf').
+        cutouts: dict[tuple, set] = {}
+        for m in seen:
+            if not vol[m] and table.alpha_textures:
+                images = _alpha_images(table.alpha_textures[m])
+                if images:
+                    cutouts.setdefault(tuple(images), set()).add(table.names[m])
+        cut_names = set().union(*cutouts.values()) if cutouts else set()
+        names = sorted({table.names[m] for m in seen if not vol[m]} - cut_names)
         what = "; ".join(x for x in (
             # A Transparent BSDF (in an Add or Mix Shader) is alpha below 1 to the
             # engine, but the user set no Alpha there (newuser44's curtain card).
             "see-through (a Transparent BSDF, Alpha below 1 or an alpha texture) in "
             + _quoted(names, most=REPORT_NAMES_MAX) if names else "",
+            "; ".join("cut out by the alpha of image" + ("s " if len(images) > 1 else " ")
+                      + _quoted(images, most=REPORT_NAMES_MAX)
+                      + " (an Image Texture's Alpha output) in material"
+                      + ("s " if len(mats) > 1 else " ")
+                      + _quoted(sorted(mats), most=REPORT_NAMES_MAX)
+                      for images, mats in sorted(cutouts.items())),
             "the surfaces of volume-only " + _quoted(volumes, most=REPORT_NAMES_MAX)
             + " (invisible, as in Cycles)" if volumes else "") if x)
         cap = s.transparent_max_bounces
@@ -1719,6 +1735,26 @@ def _instance_totals(geo: Geometry) -> dict:
             if count > 1}
 
 
+def _alpha_images(node, depth: int = 0, seen=None) -> list[str]:
+    """Names of the images whose Alpha output an alpha node reads (an Image Texture's
+    Alpha, through whatever nodes are between: Math, Mix, a Principled's Alpha), sorted;
+    [] when the alpha comes from no image (a procedural texture, a constant)."""
+    from .shadernodes import BoxLookup, ImageLookup
+    seen = set() if seen is None else seen
+    if node is None or id(node) in seen or depth > 64:
+        return []
+    seen.add(id(node))
+    if isinstance(node, (ImageLookup, BoxLookup)):
+        return [node.texture.name] if node.output == "ALPHA" else []
+    found: set = set()
+    values = (vars(node).values() if hasattr(node, "__dict__") else
+              node if isinstance(node, (list, tuple)) else ())
+    for v in values:
+        if hasattr(v, "evaluate") or isinstance(v, (list, tuple)):
+            found.update(_alpha_images(v, depth + 1, seen))
+    return sorted(found)
+
+
 def _ordinal(n: int) -> str:
     """1 -> "1st", 2 -> "2nd", 8 -> "8th", 11 -> "11th", 22 -> "22nd"."""
     n = int(n)
@@ -1739,18 +1775,59 @@ def _quoted(names, most: int | None = 4, totals: dict | None = None) -> str:
             + (f" ... ({left:,} more)" if left else ""))
 
 
+# Objects of one kind and one material the specular line counts instead of naming, from
+# this many on: "36 transparent objects of material 'Leaf'" (newuser54 listed "transparent
+# 'Leaf00', transparent 'Leaf01', ... (33 more)").
+SAME_MATERIAL_GROUP = 3
+
+
+def _material_groups(geo: Geometry, table: MaterialTable, entries, at_least: int) -> list:
+    """entries (_instance_groups) with the single objects of one specular kind and one
+    material, `at_least` or more of them, replaced by one entry (None, count, (kind,
+    material name, first object)) where the first of them stood."""
+    ids = {n: i for i, n in enumerate(geo.object_names)}
+    key_of = {}
+    for shown, count, n in entries:
+        if count == 1 and n in ids:
+            mats = np.unique(geo.material[geo.object_id == ids[n]])
+            if len(mats) == 1:
+                key_of[n] = (specular_kind(geo, table, ids[n]), table.names[int(mats[0])])
+    sizes: dict = {}
+    for k in key_of.values():
+        sizes[k] = sizes.get(k, 0) + 1
+    out, done = [], set()
+    for e in entries:
+        k = key_of.get(e[2])
+        if k is None or sizes[k] < at_least:
+            out.append(e)
+        elif k not in done:
+            done.add(k)
+            out.append((None, sizes[k], (*k, e[2])))
+    return out
+
+
 def _labelled(geo: Geometry, table: MaterialTable, names, most: int | None = None,
-              totals: dict | None = None) -> str:
+              totals: dict | None = None, group_materials: int | None = None) -> str:
     """"glass 'ball', glossy 'vase'" for object names (a matte one with the specular
     layer that puts it in the list: "matte 'floor' (its rough specular layer)"); the
-    first `most` (None: all), then " ... (N more)" as _quoted (totals as there)."""
+    first `most` (None: all), then " ... (N more)" as _quoted (totals as there).
+    group_materials: count objects of one kind and one material from this many on
+    ("36 transparent objects of material 'Leaf'": _material_groups) instead of naming
+    each."""
     totals = totals or {}
     entries = _instance_groups(names)
+    if group_materials:
+        entries = _material_groups(geo, table, entries, group_materials)
     left = 0 if most is None else max(len(entries) - most, 0)
     entries = entries[:len(entries) - left]
     ids = {n: i for i, n in enumerate(geo.object_names)}
     out = []
     for shown, count, n in entries:
+        if shown is None:  # a group of objects sharing a material
+            kind, material, first = n
+            out.append(f"{count:,} {kind} objects of material '{material}'"
+                       + _closure_words(geo, table, ids[first], kind))
+            continue
         if n not in ids:
             out.append(_shown(shown, count, totals.get(shown, 0)))
             continue

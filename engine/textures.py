@@ -23,6 +23,11 @@ with the node's settings, and turns UV coordinates into linear RGBA:
                  image, alpha mode not Channel Packed or None), so the Color output of a
                  lookup is premultiplied: where alpha is 0 it is black, whatever RGB the
                  image stores there.
+  premultiplied  the given pixels' alpha is associated already (a float image as Cycles
+                 holds it: Blender's float buffer, or a float file's texels as Cycles
+                 reads them, addon/materials.py _float_texels): stored as given, and
+                 marked associated, so a lookup with the node's Alpha output linked
+                 divides by alpha (unassociated()) as for an associated 8-bit image.
   unassociate    divide a lookup's interpolated RGB by its interpolated alpha (neither 0
                  nor 1) before the sRGB conversion: Cycles' NODE_IMAGE_ALPHA_UNASSOCIATE,
                  set where the node's Alpha output is linked (svm/image.h
@@ -101,10 +106,15 @@ class ImageTexture:
 
     def __init__(self, pixels=None, *, extension: str = "REPEAT",
                  interpolation: str = "Linear", srgb: bool = False, tiles: dict | None = None,
-                 name: str = "image", associate: bool = False, unassociate: bool = False):
+                 name: str = "image", associate: bool = False, unassociate: bool = False,
+                 premultiplied: bool = False):
         self.name = name
-        self.associated, self.unassociate = bool(associate), bool(unassociate)
+        self.associated = bool(associate) or bool(premultiplied)
+        self.unassociate = bool(unassociate)
         who = f"texture '{name}'"
+        if associate and premultiplied:
+            raise TextureError(f"{who}: associate (straight pixels) and premultiplied "
+                               "(associated pixels) exclude each other")
         extension = str(extension).upper()
         if extension not in EXTENSIONS:
             raise TextureError(f"{who} extension: expected one of {EXTENSIONS}, got {extension!r}")

@@ -1452,3 +1452,35 @@ def test_clamp_caustic_probe_counts_a_sharp_pick_at_its_share(metallic):
     finally:
         ctx.accel.close()
     assert probe.total / n == pytest.approx(sharp, rel=1e-4), (probe.total / n, sharp)
+
+
+def test_cut_out_leaves_name_their_alpha_image_and_are_counted_by_material():
+    """newuser54's plant: the transparency line said "see-through (a Transparent BSDF,
+    Alpha below 1 or an alpha texture) in 'Leaf'" without naming the image whose alpha
+    cuts the leaves out, and the specular line listed "transparent 'Leaf00', transparent
+    'Leaf01', ... (33 more)". Now the image is named, and objects of one kind and one
+    material are counted (effects.SAME_MATERIAL_GROUP on); a card of Alpha 0.5 and a
+    pair of glass balls keep their wording."""
+    from engine.effects import SAME_MATERIAL_GROUP
+    from engine.shadernodes import ImageLookup
+    from engine.textures import ImageTexture
+    px = np.ones((2, 2, 4), np.float32)
+    px[0, 0, 3] = 0.0
+    cut = ImageLookup(ImageTexture(px, name="leaf.png"), output="ALPHA")
+    s = _room(Material("floor", (0.6, 0.6, 0.6)))
+    s.add_material(Material("Leaf", (0.2, 0.6, 0.1), alpha_texture=cut))
+    leaves = SAME_MATERIAL_GROUP + 2
+    for k in range(leaves):
+        s.add_plane((-1.5 + 0.6 * k, 0.8, 0.6), (0, -1, 0), (0.4, 0.4), "Leaf",
+                    name=f"Leaf{k:02d}")
+    s.add_material(Material("card", (0.8, 0.8, 0.8), alpha=0.5))
+    s.add_plane((1.6, 0.5, 1.4), (0, -1, 0), (0.4, 0.4), "card", name="Card")
+    plan = _plan(s)
+    line = _line(plan, "transparency")
+    assert ("cut out by the alpha of image 'leaf.png' (an Image Texture's Alpha output) in "
+            "material 'Leaf'" in line), line
+    assert ("see-through (a Transparent BSDF, Alpha below 1 or an alpha texture) in 'card'"
+            in line and "'Leaf';" not in line.split("cut out")[0]), line
+    spec = _line(plan, "specular reflection")
+    assert f"{leaves} transparent objects of material 'Leaf'" in spec, spec
+    assert "transparent 'Card'" in spec and "'Leaf00'" not in spec, spec

@@ -50,3 +50,25 @@ def test_unassociated_shares_the_pixels():
     tex = _edge(associate=True)
     other = tex.unassociated()
     assert other.pixels is tex.pixels and not tex.unassociate and other.unassociate
+
+
+def _float_edge(**kw):
+    """The same edge as a float image holds it: premultiplied, linear."""
+    px = np.array([[[*LEAF, 1.0], [0.0, 0.0, 0.0, 0.0]]], np.float32)
+    return ImageTexture(px, extension="EXTEND", **kw)
+
+
+def test_premultiplied_float_pixels_are_kept_and_divided_only_with_alpha_linked():
+    tex = _float_edge(premultiplied=True)
+    assert tex.associated and not tex.unassociate
+    assert np.allclose(_between(tex, 0.5)[:3], 0.5 * np.array(LEAF), rtol=1e-6)
+    linked = tex.unassociated()
+    for t in (0.25, 0.5, 0.9):
+        assert np.allclose(_between(linked, t)[:3], LEAF, rtol=1e-6)
+
+
+def test_associate_and_premultiplied_exclude_each_other():
+    import pytest
+    from engine.textures import TextureError
+    with pytest.raises(TextureError, match="exclude"):
+        _float_edge(premultiplied=True, associate=True)
