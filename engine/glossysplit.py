@@ -399,6 +399,14 @@ class GatherChains:
         self.window = window_glass(ctx)
         self.in_glass = np.zeros(n, bool)
         self.left_passage = np.zeros(n, bool)
+        # Per gathering hit row: whether its ray has crossed nothing but transparent
+        # passes since D (the pass lobe: alpha cut-outs, Transparent BSDFs). Light
+        # through those alone (L T* D) is D's direct light, carried by D's transparent
+        # shadow rays (docs/design.md, Transparent shadows): such a ray counts no
+        # emission of a light they sample, as a window passage's (leaves55: a constant
+        # world seen through cut-out leaves was counted twice, the leaves 1.08-1.20x
+        # Cycles).
+        self.clear = np.zeros(n, bool)
         self._depth = 0
         # At the current vertex: (carried bits (M,) or None, passage (M,) bool or None,
         # ng (M,3), wo (M,3)) by row of vertex()'s hits; None: nothing carried there.
@@ -409,6 +417,7 @@ class GatherChains:
         normals ns (n,3) by hit row): min_pdf = D's one-sample MIS pdf (DiffusePdf, the
         maps' own predicate; cos / pi on a Lambert-only D)."""
         self.min_pdf[idx] = self.d_pdf.pdf(idx, d, ns)
+        self.clear[idx] = True
 
     def carrier_bits(self, prim) -> np.ndarray:
         """(K,) int64: per triangle row of prim (K,), bit j set where it carries the light
@@ -531,16 +540,20 @@ class GatherChains:
         from . import chaincounts
         return chaincounts.within(counts, self.ctx.settings.bounce_limits)
 
-    def continued(self, rows_idx, pdf, rows_y=None, d=None):
+    def continued(self, rows_idx, pdf, rows_y=None, d=None, passed=None):
         """The continued rays' chains (hit rows rows_idx (K,), continuation pdfs (K,):
         continue_specular's want_pdf, inf for mirror-like lobes and refractions; rows_y
         (K,) the rows of the last vertex's y they left, d (K,3) their directions):
         whether the vertex they left was blurred, then min_pdf lowered by Cycles'
         one-sample MIS pdf of the continuation (filterglossy.mis_pdf, the form the
         photons' reverse pdfs take: one predicate on both sides). rows_y None: by pdf
-        itself."""
+        itself. passed: (K,) bool, the rays the transparent pass lobe made
+        (continue_specular's want_pass); a ray stays clear (self.clear) only through
+        those; None: none was a pass."""
         from .filterglossy import mis_pdf
         self.from_blurred[rows_idx] = self.min_pdf[rows_idx] < self.fg
+        self.clear[rows_idx] = (False if passed is None
+                                else np.take(self.clear, rows_idx) & np.asarray(passed, bool))
         # The rays refracted through a first vertex that carries lights (vertex(first)):
         # those lights' emission is panelight's / shadelight's.
         self.left_carrier[rows_idx] = 0
@@ -602,8 +615,9 @@ class GatherChains:
         # Rays refracted through a window passage: its light is D's shadow rays' only for
         # the lights they sample (shadow_carried); a light without shadow rays and the
         # mesh sides none samples stay the chains' (splitfix47: Emission Sampling None
-        # through a slab was lost, 0.037 for 1.46).
-        passage = np.take(self.left_passage, rows_idx)
+        # through a slab was lost, 0.037 for 1.46). So do the rays that crossed only
+        # transparent passes since D (self.clear: D's transparent shadow rays carry it).
+        passage = np.take(self.left_passage, rows_idx) | np.take(self.clear, rows_idx)
         k = len(go)
         cls = np.ascontiguousarray(np.broadcast_to(np.asarray(cls, np.int64), (len(d),))[go])
         o = np.ascontiguousarray(np.take(o, go, axis=0), np.float64)

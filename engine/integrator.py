@@ -1580,7 +1580,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     passed_k &= ~np.take(t_vol, np.take(y.mat, keep))
                 t_h[idx[keep]] += passed_k
             if chains is not None:
-                chains.continued(idx[keep], pdf[0], keep_f, d)
+                chains.continued(idx[keep], pdf[0], keep_f, d, passed=pass_lobe)
                 lamps = chains.emission(idx[keep], o, d, tp, ray_cls, E_chain, G,
                                         counts=None if cnt is None else
                                         chaincounts.camera_counts(cnt[idx[keep]],
