@@ -15,6 +15,7 @@ from engine.photonlayout import decode_power
 from engine.photonmap import PhotonMap
 from engine.photons import CAUSTIC, DIRECT, INDIRECT, Photons, trace_photons
 from engine.render import Context, prepare_context
+from engine.lights.mesh import MESH
 from engine.lights.world import WORLD
 from engine.scene import AREA, Material
 
@@ -292,7 +293,6 @@ def test_mesh_light_of_several_radiances_gives_each_photon_its_triangle():
     radiance of the card it left (emitted_triangles: emit_mesh's own choice); stored
     photons straight from a card carry it (before: 0, no clamp, for the whole light)."""
     from engine.lights.emission import EmissionBuffers
-    from engine.lights.mesh import MESH
     s = _two_lamps()
     ctx = prepare_context(s, RenderSettings(workers=1))
     mesh = [li for li in ctx.lights if getattr(li, "kind", None) == MESH][0]
@@ -365,3 +365,24 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums():
     assert np.allclose(got[over], want[over], rtol=1e-12, atol=0.0)
     assert np.array_equal(got[~over], plain[~over])
     assert np.allclose(plain[~over], want[~over], rtol=1e-12, atol=0.0)  # (the reference)
+
+
+def test_a_region_emitters_photons_take_its_lights_radiance():
+    """Visual importance's RegionEmitter (aimed and natural photons of one light): each
+    photon's c x |flux|_1 is its light's radiance, as the light's own photons' (it read
+    0: the emitter has no light kind of its own)."""
+    from engine.lights.emission import EmissionBuffers
+    from engine.visualimportance import Region, RegionEmitter
+    s = _two_lamps()
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    mesh = [li for li in ctx.lights if getattr(li, "kind", None) == MESH][0]
+    region = Region(np.array([[0.0, 0.0, 0.0]]) - ctx.geo.offset, np.array([0.5]), 1.0, 1)
+    emitter = RegionEmitter(mesh, region, 0.5)
+    out = EmissionBuffers(4000)
+    m = emitter.emit_into(np.uint64(5), 0, 4000, 4000, out, 0)
+    o32, _, d, power, slot = out.head(m)
+    le = photonclamp.emission_ratios(emitter, o32, d, power, slot, np.uint64(5)) \
+        * np.abs(power).sum(axis=1)
+    x = o32[:, 0].astype(np.float64) + ctx.geo.offset[0]
+    assert m > 2000 and (x < 0).sum() > 500 and (x > 0).sum() > 500
+    assert np.allclose(le, np.where(x < 0, 30.0, 12.0), rtol=1e-9)
