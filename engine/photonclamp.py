@@ -14,20 +14,22 @@ with Q the share of the limit Cycles' Russian roulette leaves such a path on ave
 (roulette_share; docs/accuracy.md, "clampray53", "clampphoton54" and "roulette54"). L_p is not the photon's flux
 (which shrinks with the photon count): flux = L_p x cos / (pdf_pos pdf_dir N) x prod
 1/q_i (q_i the roulette's pick probabilities, eta^2 at refractions), so the photon pass
-keeps c = |L|_1 / |flux|_1 per path (photonkernels._scatter's clamp_slot: set at
-emission by emission_ratios, divided by each scatter's scale) and stores |L_p|_1 =
+keeps c = |L|_1 / |flux|_1 per ray (photonkernels._scatter's clamp / nx_clamp: set at
+emission by emission_ratios, divided by each scatter's scale, kept by a copy passing
+behind a surface its kinds do not see; a volume scatter multiplies it by its roulette's
+survival probability, photonmedium.PhotonScattering.flights) and stores |L_p|_1 =
 c x |flux|_1 (Photons.radiance, float32). L_p has the flux's colour, so
 |tp x albedo x L_p|_1 = |L_p|_1 x sum_c(tp_c albedo_c flux_c) / |flux|_1.
 
 Lights: area, spot and point lights with a radius (Cycles' sphere / disk lights) and a
 sun with an angle: Le as their own intersect / seen_at_infinity give it; the world:
-the background's radiance along the photon's direction; emissive meshes: their radiance
-where every emissive triangle has the same |L|_1. Delta lights (a point or spot of
+the background's radiance along the photon's direction; emissive meshes: the radiance
+of the triangle each photon left (emitted_triangles). Delta lights (a point or spot of
 radius 0, a sun of angle 0): Cycles cannot sample a caustic path that ends on them, so
-no clamp (|L_p|_1 = 0, w = 1); likewise a mesh light of several radiances, which keeps
-0 for now. Grouped lights (lights/group.py) take each member's.
-Not followed: a volume scatter's rescale (photonmedium) and a flat passage's path state
-keep c as it was.
+no clamp (|L_p|_1 = 0, w = 1). Grouped lights (lights/group.py) take each member's, a
+visual-importance RegionEmitter its light's.
+Not followed: a flat passage's path state and a Soft Falloff light's first-hit scale
+(photons._soft_falloff_at_first_hit) keep c as it was.
 """
 from __future__ import annotations
 
@@ -53,16 +55,33 @@ def keeps_radiance(settings) -> bool:
     return PER_PHOTON and np.isfinite(sampleclamp.limits(settings)[1])
 
 
-def emitted_radiance(light, o, d) -> np.ndarray:
+def emitted_triangles(light, key, slot) -> np.ndarray:
+    """(M,) int64 the rows of mesh light `light`'s triangles (lights/mesh.py MeshLight)
+    its photons in `slot` (M,) int left under emission key `key` (uint64): emit_mesh's
+    choice, the triangle CDF at the photon's emission number 0 (emission.emit_uniform,
+    the same SplitMix64 number; emission.pick is searchsorted's right side)."""
+    from .lights.emission import EMIT_BOUNCE
+    from .photonkernels import uniforms
+    slot = np.ascontiguousarray(slot, np.int64)
+    u = np.empty(len(slot))
+    uniforms(np.uint64(key), slot, EMIT_BOUNCE, 0, u)
+    cdf = np.asarray(light.cdf)
+    return np.minimum(np.searchsorted(cdf, u, side="right"), len(cdf) - 1)
+
+
+def emitted_radiance(light, o, d, slot=None, key=None) -> np.ndarray:
     """(M,) float64 |Le|_1 (W sr^-1 m^-2, summed over RGB) of the light `light` along
     photons leaving o (M,3) in unit directions d (M,3): the radiance a Cycles path
     meeting the light along -d reads (0: a delta light or one not handled, module
-    docstring)."""
+    docstring). slot (M,) and key: the photons' emission slots and key, which a mesh
+    light of several radiances needs (emitted_triangles; without them: 0 there)."""
     from .scene import AREA, POINT, SPOT, SUN, spread_attenuation
     from .lights.mesh import MESH
     from .lights.world import WORLD
     m = len(d)
     zero = np.zeros(m)
+    if hasattr(light, "region") and hasattr(light, "light"):
+        light = light.light  # (a visualimportance.RegionEmitter: its light's photons)
     kind = getattr(light, "kind", None)
     d = np.asarray(d, np.float64)
     if kind == SUN:
@@ -96,18 +115,20 @@ def emitted_radiance(light, o, d) -> np.ndarray:
         sums = np.abs(np.asarray(light.tri_L, np.float64)).sum(axis=1)
         if len(sums) and np.allclose(sums, sums[0], rtol=1e-6, atol=0.0):
             return np.full(m, float(sums[0]))
-        return zero
+        if slot is None or key is None or not len(sums):
+            return zero
+        return sums[emitted_triangles(light, key, slot)]
     return zero
 
 
-def emission_ratios(light, o, d, power, slot) -> np.ndarray:
-    """(S,) float64 c = |Le|_1 / |power|_1 by slot (S = slot.max() + 1; 0 where no
-    photon or no power) for the photons just emitted: origins o (M,3), unit directions d
-    (M,3), power (M,3) W, slots (M,) int (photonkernels._scatter's clamp_slot)."""
+def emission_ratios(light, o, d, power, slot, key=None) -> np.ndarray:
+    """(M,) float64 c = |Le|_1 / |power|_1 (0 where no power) of the photons just
+    emitted (photonkernels._scatter's clamp): origins o (M,3), unit directions d (M,3),
+    power (M,3) W, emission slots (M,) int, key: the emission key (uint64; a mesh light
+    of several radiances needs it, emitted_radiance)."""
     slot = np.asarray(slot, np.int64)
-    out = np.zeros(int(slot.max()) + 1 if len(slot) else 0)
     if not len(slot):
-        return out
+        return np.zeros(0)
     flux = np.abs(np.asarray(power, np.float64)).sum(axis=1)
     if hasattr(light, "counts") and hasattr(light, "lights"):
         # A LightGroup (lights/group.py): each member's photons take the slots after the
@@ -115,14 +136,14 @@ def emission_ratios(light, o, d, power, slot) -> np.ndarray:
         Le, lo = np.zeros(len(slot)), 0
         for member, c in zip(light.lights, light.counts):
             sel = np.flatnonzero((slot >= lo) & (slot < lo + c))
-            Le[sel] = emitted_radiance(member, np.asarray(o)[sel], np.asarray(d)[sel])
+            Le[sel] = emitted_radiance(member, np.asarray(o)[sel], np.asarray(d)[sel],
+                                       slot[sel], key)
             lo += c
     else:
-        Le = emitted_radiance(light, o, d)
+        Le = emitted_radiance(light, o, d, slot, key)
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.where(flux > 0, Le / flux, 0.0)
-    out[slot] = np.where(np.isfinite(c), c, 0.0)
-    return out
+    return np.where(np.isfinite(c), c, 0.0)
 
 
 def roulette_share(scale, chain) -> np.ndarray:
@@ -163,24 +184,23 @@ def photon_weights(radiance, power, scale, limit, chain=None) -> np.ndarray:
     return np.where(np.isfinite(w), w, 1.0)
 
 
-def clamp_rows(pmap, limits, counts, E, qrows, slots, read, pair_rows, pair_photons,
-               scale, limit) -> None:
-    """E[qrows] (E (B,3) a block's estimates) summed again with each photon weighed by
-    photon_weights, for the rows where some photon is over the limit (the others keep
-    their bits): qrows (Q,) rows of E whose read lists are whole, slots (Q,) their lists
-    in read = (count, photons, weight, factor) (photonvisibility._estimate_read's),
-    pair_rows / pair_photons (H,) the pairs (row of E, map photon) left out of E (hidden
-    or rejected, photonvisibility._visible_sums'), counts (B,4) or None with limits:
-    the photons unusable at a row's counts left out (chaincounts). scale (B,3): each
-    row's clamp throughput x albedo. Writes into E."""
+def list_weights(pmap, read, qrows, slots, scale, limit):
+    """Clamp Indirect's photon_weights over an estimate's read lists, for
+    photonvisibility._visible_sums: read = (count, photons) (photonvisibility.
+    _estimate_read's lists, (L,) and (L, W)), qrows (Q,) the rows of the block whose
+    lists slots (Q,) are whole, scale (B,3) each row's clamp throughput x albedo, limit
+    Clamp Indirect's. Returns None where no listed photon is over the limit (every
+    weight 1: the estimates keep their bits), else (rows (V,), slots (V,), clamp_w (L,
+    W) float64): the rows with some photon over the limit, their lists, and each listed
+    photon's w_p (1 past a list's count and for lists not in slots)."""
     radiance = pmap.photons.radiance
     if radiance is None or not len(qrows):
-        return
-    count, photons, weight, factor = read
+        return None
+    count, photons = read
     c = np.take(count, slots)
     width = int(c.max()) if len(c) else 0
     if width == 0:
-        return
+        return None
     lists = np.take(photons, slots, axis=0)[:, :width]
     inside = np.arange(width)[None, :] < c[:, None]
     ph = np.where(inside, lists, 0)
@@ -195,25 +215,7 @@ def clamp_rows(pmap, limits, counts, E, qrows, slots, read, pair_rows, pair_phot
     w = np.where(inside, w, 1.0)
     over = np.flatnonzero((w < 1.0).any(axis=1))
     if not len(over):
-        return
-    keep = inside[over].copy()
-    rows_o = np.asarray(qrows)[over]
-    if len(pair_rows):
-        # (the hidden / rejected pairs of these rows: their keys against the lists')
-        n_map = len(pmap) + 1
-        left = np.asarray(pair_rows, np.int64) * n_map + np.asarray(pair_photons, np.int64)
-        key = rows_o[:, None].astype(np.int64) * n_map + ph[over]
-        keep &= ~np.isin(key, left)
-    if (counts is not None and limits is not None
-            and getattr(pmap.photons, "bounces", None) is not None):
-        from . import chaincounts
-        keys, cls = chaincounts.unique_counts(np.asarray(counts)[rows_o])
-        cache = chaincounts.map_cache(pmap)
-        for j, k in enumerate(keys):
-            usable = chaincounts._usable(pmap.photons, limits, tuple(int(x) for x in k),
-                                         cache)
-            sel = np.flatnonzero(np.asarray(cls).reshape(-1) == j)
-            keep[sel] &= usable[ph[over][sel]]
-    wt = np.take(weight, np.take(slots, over), axis=0)[:, :width]
-    terms = np.where(keep, wt * w[over], 0.0)[:, :, None] * pw[over]
-    E[rows_o] = terms.sum(axis=1) * np.take(factor, np.take(slots, over))[:, None]
+        return None
+    clamp_w = np.ones(photons.shape)
+    clamp_w[np.asarray(slots, np.int64)[:, None], np.arange(width)[None, :]] = w
+    return (np.asarray(qrows, np.int64)[over], np.asarray(slots, np.int64)[over], clamp_w)

@@ -438,7 +438,7 @@ def flat_tables(geo, table):
 _NO_ANISO_TAN = np.zeros((0, 3, 3))
 _NO_MAY_DIFFUSE = np.zeros(0, np.bool_)
 NO_BLUR_SLOT = np.zeros(0)  # scatter: no Filter Glossy state kept
-NO_CLAMP_SLOT = np.zeros(0)  # scatter: no Clamp Indirect radiance ratio kept
+NO_CLAMP = np.zeros(0)  # scatter: no Clamp Indirect radiance ratio kept
 
 # _scatter's argument `plain`: its position in the argument list.
 _PLAIN_ARG = 31
@@ -446,7 +446,8 @@ _PLAIN_ARG = 31
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
             may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur_slot=NO_BLUR_SLOT,
-            passage_blur=None, gather_blur=0.0, split_slots=0, clamp_slot=NO_CLAMP_SLOT):
+            passage_blur=None, gather_blur=0.0, split_slots=0, clamp=NO_CLAMP,
+            nx_clamp=NO_CLAMP):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -472,9 +473,10 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     > 0, the slot offset of the blurred copies of photons split at their first
     non-diffuse scatter (the chunk's slot count; nx_* then need room for one more copy
     per hit, blur_slot 2 x split_slots rows); 0 (the default): no split (_scatter).
-    clamp_slot (slots,) float64: each photon's |L|_1 / |power|_1 by slot (_scatter; set
-    at emission by engine/photonclamp.py), with the stored photons' radiance array
-    (store_arrays(m, True)); empty (the default): none kept."""
+    clamp (m,) float64: each photon's |L|_1 / |power|_1 (_scatter; set at emission by
+    engine/photonclamp.py), with the stored photons' radiance array (store_arrays(m,
+    True)) and nx_clamp (as many rows as nx_*) for the continued photons'; empty (the
+    default): none kept."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -487,7 +489,7 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
         else passage_blur
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
                     GLASS_ADJOINT_MODE, bend_cos, blur_slot, float(fg), ptab, pior,
-                    float(gather_blur), int(split_slots), clamp_slot)
+                    float(gather_blur), int(split_slots), clamp, nx_clamp)
 
 
 _NO_PASSAGE_TAB, _NO_PASSAGE_IOR = np.ones((2, 2, 2)), np.array([1.0, 2.0])
@@ -792,7 +794,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_rad, nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
              adjoint_mode, bend_cos, blur_slot, passage_fg, passage_tab, passage_ior,
-             gather_fg, split_slots, clamp_slot):
+             gather_fg, split_slots, clamp, nx_clamp):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -840,13 +842,15 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     Each stored photon writes that minimum to st_blur (float32; inf for -1), each
     continued one the state after its scatter (a diffuse bounce: -1; a pass: unchanged).
     Empty blur_slot: no state, st_blur inf.
-    Cycles' Clamp Indirect on photon estimates (engine/photonclamp.py): clamp_slot
-    (slots,) float64, each path's c = |L|_1 / |power|_1 (L the radiance a Cycles path
-    reversed along the photon carries, Le x the chain's throughput, of power's colour),
-    set at emission; a continuation's power takes f cos / pdf x scale (scale: 1 / the
-    roulette's pick probability, x eta^2 refracted) and L the f cos / pdf alone, so c
-    is divided by scale. A stored photon writes c x |power|_1 (its |L|_1) to st_rad
-    (float32). Empty clamp_slot: none kept, st_rad not written (may be empty).
+    Cycles' Clamp Indirect on photon estimates (engine/photonclamp.py): clamp (m,)
+    float64, each photon's c = |L|_1 / |power|_1 (L the radiance a Cycles path reversed
+    along the photon carries, Le x the chain's throughput, of power's colour), set at
+    emission; a continuation's power takes f cos / pdf x scale (scale: 1 / the
+    roulette's pick probability, x eta^2 refracted) and L the f cos / pdf alone, so its
+    nx_clamp is c / scale; a copy passing behind the surface keeps c (a ray's own, not
+    its slot's: the copy and the continuation share a slot). A stored photon writes c x
+    |power|_1 (its |L|_1) to st_rad (float32). Empty clamp: none kept, st_rad and
+    nx_clamp not written (may be empty).
 
     Filter Glossy on the gather map's light (gather_fg > 0: the render's Filter Glossy;
     0: off, the same bits): a photon that has made a diffuse bounce (F_DIFFUSE) can only
@@ -935,7 +939,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     wj = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
     blur_on = blur_slot.shape[0] > 0
-    clamp_on = clamp_slot.shape[0] > 0
+    clamp_on = clamp.shape[0] > 0
     # The alpha to which a gather-bound photon's lobes are raised (0: none).
     gather_alpha = blur_alpha(gather_fg, GATHER_PDF) if gather_fg > 0.0 else 0.0
     split_on = split_slots > 0 and gather_alpha > 0.0 and not caustic_only
@@ -1092,9 +1096,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 bs = blur_slot[slot[i]] if blur_on else -1.0
                 st_blur[ns_] = np.inf if bs < 0.0 else bs
                 if clamp_on:
-                    st_rad[ns_] = clamp_slot[slot[i]] * (abs(st_power[ns_, 0])
-                                                         + abs(st_power[ns_, 1])
-                                                         + abs(st_power[ns_, 2]))
+                    st_rad[ns_] = clamp[i] * (abs(st_power[ns_, 0]) + abs(st_power[ns_, 1])
+                                              + abs(st_power[ns_, 2]))
                 ns_ += 1
             # --- Russian roulette over the lobes ---
             xi = uniform(key, slot[i], bounce, 0)
@@ -1161,7 +1164,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 n_cp = 2
             lobe0 = lobe
             old_blur = blur_slot[slot[i]] if blur_on else -1.0
-            old_clamp = clamp_slot[slot[i]] if clamp_on else 0.0
+            old_clamp = clamp[i] if clamp_on else 0.0
             for copy in range(n_cp):
                 lobe = lobe0
                 sl = slot[i]
@@ -1397,7 +1400,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                             if rp < old:
                                 blur_slot[sl] = rp
                 if clamp_on:
-                    clamp_slot[sl] = old_clamp / scale  # (L takes f cos / pdf alone)
+                    nx_clamp[nn] = old_clamp / scale  # (L takes f cos / pdf alone)
                 # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
                 off = off_b[j] if ox * gx + oy * gy + oz * gz >= 0.0 else -off_b[j]
                 nx_o[nn, 0] = p_b[j, 0] + off * gx
@@ -1416,7 +1419,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 nn += 1
     if vis_on:
         # The kinds that do not see this surface pass on behind it in a split-off copy
-        # (same slot, so the same random numbers); the photon stopped here for the others.
+        # (same slot, so the same random numbers; its own clamp ratio); the photon
+        # stopped here for the others.
         for k in range(n_beh):
             i = beh_row[k]
             t = beh_tri[k]
@@ -1432,6 +1436,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             nx_kinds[nn] = kinds[i] & ~np.int64(visibility[t])
             nx_slot[nn] = slot[i]
             nx_bnc[nn] = bnc[i]
+            if clamp_on:
+                nx_clamp[nn] = clamp[i]  # (its path unscattered here)
             if keep_from:
                 nx_from[nn] = -1
                 nx_off[nn, 0], nx_off[nn, 1], nx_off[nn, 2] = 0.0, 0.0, 0.0

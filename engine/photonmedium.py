@@ -107,14 +107,19 @@ class PhotonScattering:
             return None
         return cls(tables, scatters, slots, settings.bounce_limits)
 
-    def flights(self, key, bounce: int, o32, d, tfar, geom, power, slot, bnc, medium):
+    def flights(self, key, bounce: int, o32, d, tfar, geom, power, slot, bnc, medium,
+                clamp=None):
         """Sample each photon's free flight on its segment (photons o32, d (m,3), d unit,
         segment lengths tfar (m,) float32, a miss's the unbounded tmax; geom (m,) int32
         Embree's, < 0 a miss; power (m,3) float64 W; slot (m,); bnc (m,) int64 packed
         bounce counts (photonkernels, B_TOTAL lowest); medium (slots,) each
         slot's medium, -1 none known). In place: the passing photons' power x 1 /
         P(pass); the scattering ones' geom set to -1 (the surface scatter treats them as
-        lost: no store, no continuation, no attenuation). Returns (rows (K,), origins
+        lost: no store, no continuation, no attenuation). clamp (m,) float64 or None: the
+        photons' Clamp Indirect ratio c = |L|_1 / |power|_1 (photonkernels._scatter's),
+        the scattered ones' rescaled as the surface scatter does: L takes the scatter's
+        weight w and the power w / p_keep, so c x p_keep (a passing photon's power and L
+        both take exp(-sigma_t S) / P(pass): c as it is). Returns (rows (K,), origins
         (K,3), directions (K,3), powers (K,3)) of the K photons that scattered and
         survived the roulette, or None."""
         if len(geom) == 0:
@@ -184,16 +189,20 @@ class PhotonScattering:
         m_live = medium[slots_r]
         w_new = sample_hg(dr, self.g[m_live], u1, u2)
         p_new = power[r] * (w / p_keep[:, None])
+        if clamp is not None and len(clamp):
+            clamp[r] *= p_keep
         return r, x, w_new, p_new
 
 
-def continue_scattered(nxt, n_nx: int, found, flags, kinds, bnc, slot) -> int:
+def continue_scattered(nxt, n_nx: int, found, flags, kinds, bnc, slot, clamp=None,
+                       nx_clamp=None) -> int:
     """Write the scattered photons found = flights(...) (rows into the bounce's arrays
     flags, kinds, bnc, slot) after the n_nx continued photons of the next-ray buffers nxt
     (photonkernels.next_arrays' order: o32, d32, d, power, flags, kinds, slot, bnc, from,
     off): their path is indirect (F_DIFFUSE, as a diffuse bounce: CAUSTIC_DIFFUSE after a
     specular path, its light one scatter later), every non-camera ray kind, B_TOTAL one
-    more. Returns the new count."""
+    more; clamp (m,) / nx_clamp (rows of nxt) the Clamp Indirect ratios (flights'
+    rescaled ones; None or empty: none kept). Returns the new count."""
     r, x, w_new, p_new = found
     k = len(r)
     end = n_nx + k
@@ -211,6 +220,8 @@ def continue_scattered(nxt, n_nx: int, found, flags, kinds, bnc, slot) -> int:
     fl_o[n_nx:end] = fl | pk.F_DIFFUSE
     kin_o[n_nx:end] = pk.SEGMENT_KINDS
     sl_o[n_nx:end] = np.asarray(slot)[r]
+    if clamp is not None and len(clamp):
+        nx_clamp[n_nx:end] = np.asarray(clamp)[r]
     b = np.asarray(bnc, np.int64)[r]
     bn_o[n_nx:end] = np.where((b & _B_MASK) == _B_MASK, b, b + _B_ONE)
     if len(frm):

@@ -187,23 +187,40 @@ def concat_surfaces(*parts: Photons) -> np.ndarray | None:
     return np.concatenate([p.surface for p in parts])
 
 
+def _concat_optional(parts, field: str, fill: float) -> np.ndarray | None:
+    """The parts' optional float32 per-photon field `field` concatenated in order (a
+    part without: `fill`), or None where no part with photons has it (Photons.empty()'s
+    zero-length array alone must not give every photon of the others 4 B: photon_bytes)."""
+    if all(getattr(p, field) is None or len(p) == 0 for p in parts):
+        return None
+    return np.concatenate([np.full(len(p), fill, np.float32) if getattr(p, field) is None
+                           else getattr(p, field) for p in parts])
+
+
 def concat_blur_pdfs(*parts: Photons) -> np.ndarray | None:
     """The parts' Photons.blur_pdf concatenated in order (a part without: inf, no
-    reverse pdf), or None where no part with photons has them (Photons.empty()'s zero-length
-    array alone must not give every photon of the others 4 B of inf: photon_bytes)."""
-    if all(p.blur_pdf is None or len(p) == 0 for p in parts):
-        return None
-    return np.concatenate([np.full(len(p), np.inf, np.float32) if p.blur_pdf is None
-                           else p.blur_pdf for p in parts])
+    reverse pdf), or None where no part with photons has them."""
+    return _concat_optional(parts, "blur_pdf", np.inf)
 
 
 def concat_radiances(*parts: Photons) -> np.ndarray | None:
     """The parts' Photons.radiance concatenated in order (a part without: 0, no clamp),
     or None where no part keeps them."""
-    if all(p.radiance is None or len(p) == 0 for p in parts):
-        return None
-    return np.concatenate([np.zeros(len(p), np.float32) if p.radiance is None
-                           else p.radiance for p in parts])
+    return _concat_optional(parts, "radiance", 0.0)
+
+
+def _store_maker(settings):
+    """The stored-photon buffers' maker: photonkernels.store_arrays_radiance where the
+    photon pass keeps each photon's |L|_1 (photonclamp.keeps_radiance), else
+    store_arrays."""
+    return (pk.store_arrays_radiance if photonclamp.keeps_radiance(settings)
+            else pk.store_arrays)
+
+
+def _clamp_ratios(m: int):
+    """A continued-ray set's Clamp Indirect ratios (photonkernels._scatter's nx_clamp)
+    for m rays, as a one-array set for _Buffers."""
+    return (np.empty(m),)
 
 
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
@@ -240,9 +257,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     # one in flight), so each stores straight into the shot's arrays after the chunks
     # before it (no copy per chunk); on more, chunks finish out of order and are copied
     # in order (_Shot.append).
-    make = (pk.store_arrays_radiance if photonclamp.keeps_radiance(settings)
-            else pk.store_arrays)
-    shot = _Shot(total, direct=threads <= 1, make=make)
+    shot = _Shot(total, direct=threads <= 1, make=_store_maker(settings))
     plain = pk.lobe_classes(ctx.table.closure_params)  # once a trace, not a chunk
 
     def job(item, stop):
@@ -345,11 +360,9 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     surf = pk.surface_arrays(m if given else 0)
     factors = pool.take(_factors, m)
     bump, tfar, hit_rows, hits = _factor_views(factors, m)
-    stored = _Stored(2 * m + 1024, pool, shot,
-                     pk.store_arrays_radiance if photonclamp.keeps_radiance(settings)
-                     else pk.store_arrays)
-    # Clamp Indirect (engine/photonclamp.py): each photon's |Le|_1 / |power|_1 by slot.
-    clamp0 = (photonclamp.emission_ratios(light, o, d, power, slot)
+    stored = _Stored(2 * m + 1024, pool, shot, _store_maker(settings))
+    # Clamp Indirect (engine/photonclamp.py): each photon's |Le|_1 / |power|_1.
+    clamp0 = (photonclamp.emission_ratios(light, o, d, power, slot, key)
               if photonclamp.keeps_radiance(settings) else None)
     # A sun's or the world's photons refracted through a next-event pane stay direct
     # (engine/panelight.py), and a lamp's through its Translucent BSDF or rough glass
@@ -434,7 +447,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     start_medium: the medium the light is in (_light_medium; -1: none known); link_row,
     mesh_links, past: _trace_chunk's; flat: the flat-passage tables its photons cross
     (photonkernels.flat_tables; None: the scene's); clamp0: photonclamp.emission_ratios'
-    (n_slots,) or None (no Clamp Indirect radiance kept)."""
+    (M,) (a ratio per emitted ray) or None (no Clamp Indirect radiance kept)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     if flat is None:
         flat = pk.flat_tables(geo, table)
@@ -468,11 +481,11 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     # reverse-pdf state by slot (photonkernels._scatter's blur_slot; -1: none yet).
     blur_slot = (np.full(slots, -1.0)
                  if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR_SLOT)
-    # Clamp Indirect's |L|_1 / |power|_1 by slot (the blurred copies' set by the scatter).
-    clamp_slot = pk.NO_CLAMP_SLOT
-    if clamp0 is not None:
-        clamp_slot = np.zeros(slots)
-        clamp_slot[:len(clamp0)] = clamp0[:slots]
+    # Clamp Indirect's |L|_1 / |power|_1 per ray (not per slot: a copy passing behind
+    # a surface shares its photon's slot, not its path); the scatter writes the
+    # continued rays' into the set of the bounce's output (clamp_sets[k], as nxt_sets).
+    clamp = pk.NO_CLAMP if clamp0 is None else np.ascontiguousarray(clamp0, np.float64)
+    clamp_sets = [None, None]
     # Cycles' blurred window glass (engine/blurredpassage.py): photons out of a flat
     # passage keep its factor (None: off, Filter Glossy 0, or no passage crossed).
     passage_blur = ((fg, blurredpassage.table(), blurredpassage.IOR)
@@ -568,7 +581,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # Free flights in scattering media: the photons that scatter before their
             # surface go on from the medium point (after the surface scatter's own).
             scattered = vol.flights(key, bounce, o, d, tfar[:m], geom, power, slot, bnc,
-                                    pmed.medium)
+                                    pmed.medium, clamp)
         if pmed is not None:
             # A photon that travelled inside an absorbing object's medium keeps
             # exp(-sigma_a s) of its power over the segment (Beer-Lambert), before the
@@ -593,6 +606,14 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 pool.give(nxt_sets[k], make_next)
             nxt_sets[k] = None
             nxt_sets[k] = pool.take(make_next, need)
+        nx_clamp = pk.NO_CLAMP
+        if clamp0 is not None:
+            if clamp_sets[k] is None or len(clamp_sets[k][0]) < need:
+                if clamp_sets[k] is not None:
+                    pool.give(clamp_sets[k], _clamp_ratios)
+                clamp_sets[k] = None
+                clamp_sets[k] = pool.take(_clamp_ratios, need)
+            nx_clamp = clamp_sets[k][0]
         n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim32,
                                 starts, u, v, v0, e1, e2, normals, material, table.base_color,
                                 table.alpha, given, *surf_m, bump[:m] if numpy_hits else _NO_BUMP,
@@ -603,22 +624,27 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 may_diffuse=may_diffuse, blur_slot=blur_slot,
                                 passage_blur=passage_blur,
                                 gather_blur=fg if BLUR_GATHER_PHOTONS else 0.0,
-                                split_slots=split_slots, clamp_slot=clamp_slot,
+                                split_slots=split_slots, clamp=clamp, nx_clamp=nx_clamp,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         if split_slots:
             _inherit_split(nxt_sets[k][6][:n_nx], split_slots, born, pmed, vol, arrived)
         if scattered is not None:
             n_nx = photonmedium.continue_scattered(nxt_sets[k], n_nx, scattered, flags, kinds,
-                                                   bnc, slot)
+                                                   bnc, slot, clamp, nx_clamp)
             if len(blur_slot):
                 # (a medium's scatter is a diffuse bounce to the reverse pdfs' state)
                 blur_slot[np.asarray(slot)[scattered[0]]] = -1.0
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
+        if len(nx_clamp):
+            clamp = nx_clamp[:n_nx]
         if pmed is not None:
             # refracted in or out of a medium; out of an object's medium into the world
             # volume's, if any (worldmedium.py)
             pmed.after_scatter(slot, d, outside=world_row)
+    for arrays in clamp_sets:
+        if arrays is not None:
+            pool.give(arrays, _clamp_ratios)
 
 
 def _inherit_split(nx_slot, split_slots, born, pmed, vol, arrived):

@@ -313,8 +313,10 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     (H,)) -> (H,) bool, the read pairs to leave out of E as well (counted as hidden ones
     are, the same search and disc; not in the returned pairs), or None. accel None: no
     pair is traced (reject's alone). clamp: (scale (M,3), limit) or None: with visible,
-    each photon of E weighed by Clamp Indirect's w_p (photonclamp.clamp_rows; scale the
-    rows' clamp throughput x albedo), where the map keeps Photons.radiance."""
+    each photon of E weighed by Clamp Indirect's w_p (photonclamp.list_weights; scale
+    the rows' clamp throughput x albedo), where the map keeps Photons.radiance: the rows
+    where some photon is over the limit are summed again (_visible_sums, with their
+    hidden photons left out), every other row keeps its bits."""
     m = len(p)
     if clamp is not None and (not visible or pmap.photons.radiance is None):
         clamp = None
@@ -353,14 +355,15 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
         if reject is not None:
             rows, hid = _with_rejected(rows, hid, listed, listed, count, photons, a,
                                        reject, len(pmap))
-        if (visible or reject is not None) and len(rows):
-            _visible_sums(pmap, limits, counts_here, E[a:b], rows, rows, hid,
-                          (count, photons, weight, factor))
+        over = None
         if clamp is not None:
-            # (Clamp Indirect per photon: the listed rows' sums again, each photon weighed)
-            photonclamp.clamp_rows(pmap, limits, counts_here, E[a:b], listed, listed,
-                                   (count, photons, weight, factor), rows, hid,
-                                   clamp[0][a:b], clamp[1])
+            # (Clamp Indirect per photon: each listed photon's weight, and the rows where
+            # some photon is over the limit, summed again with the hidden ones)
+            over = photonclamp.list_weights(pmap, (count, photons), listed, listed,
+                                            clamp[0][a:b], clamp[1])
+        if (visible or reject is not None) and (len(rows) or over is not None):
+            _visible_sums(pmap, limits, counts_here, E[a:b], rows, rows, hid,
+                          (count, photons, weight, factor), over)
         if len(wide):
             rows = hid = _NO_PAIRS
             if accel is not None:
@@ -372,14 +375,15 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
             if reject is not None:
                 rows, hid = _with_rejected(rows, hid, wide, np.arange(len(wide)),
                                            *wide_read[:2], a, reject, len(pmap))
-            if (visible or reject is not None) and len(rows):
+            over = None
+            if clamp is not None:
+                over = photonclamp.list_weights(pmap, wide_read[:2], wide,
+                                                np.arange(len(wide)), clamp[0][a:b],
+                                                clamp[1])
+            if (visible or reject is not None) and (len(rows) or over is not None):
                 # (each wide row's slot: its place in wide, which is ascending)
                 _visible_sums(pmap, limits, counts_here, E[a:b], rows,
-                              np.searchsorted(wide, rows), hid, wide_read)
-            if clamp is not None:
-                photonclamp.clamp_rows(pmap, limits, counts_here, E[a:b], wide,
-                                       np.arange(len(wide)), wide_read, rows, hid,
-                                       clamp[0][a:b], clamp[1])
+                              np.searchsorted(wide, rows), hid, wide_read, over)
     if not rows_out:
         return E, np.zeros(0, np.int64), np.zeros(0, np.int64)
     rows, photons = np.concatenate(rows_out), np.concatenate(photons_out)
@@ -453,7 +457,7 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     return E
 
 
-def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read):
+def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read, over=None):
     """E[rows] estimated again from each row's visible photons alone, from its read list:
     rows (H,) int64 the pairs' rows of E (M,3) (with repeats), photons (H,) the hidden
     map photons, slots (H,) each pair row's entry in read = (count, photons, weight,
@@ -462,7 +466,9 @@ def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read):
     neither hidden from the row nor unusable at its counts (counts (M,4) or None, with
     limits: chaincounts' masks): PhotonMap.knn_irradiance's masked sum over the same
     search (its other photons weigh 0 or are masked), so the bits of _reestimate.
-    Writes into E.
+    over: None, or photonclamp.list_weights' (rows (V,), slots (V,), clamp_w (lists,
+    width)): those rows of E summed again too (with or without hidden photons) and every
+    photon's weight times its clamp_w (Clamp Indirect per photon). Writes into E.
 
     _hidden_pairs lists each row's pairs together, in its read list's order: the sums
     walk both lists at once. Pairs in any other order are sorted (by row, then photon)
@@ -470,21 +476,34 @@ def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read):
     if len(rows) > 1 and (rows[1:] < rows[:-1]).any():
         order = np.argsort(rows, kind="stable")
         rows, photons, slots = rows[order], photons[order], slots[order]
-    args = _visible_args(pmap, limits, counts, rows, photons, slots, read, E)
+    args = _visible_args(pmap, limits, counts, rows, photons, slots, read, E, over)
     if _visible_rows(*args, False):
         # (some row's hidden photons not in its list's order) each row's hidden photons
         # ascending, bisected
         order = np.lexsort((photons, rows))
         rows, photons, slots = rows[order], photons[order], slots[order]
-        _visible_rows(*_visible_args(pmap, limits, counts, rows, photons, slots, read, E),
-                      True)
+        _visible_rows(*_visible_args(pmap, limits, counts, rows, photons, slots, read, E,
+                                     over), True)
 
 
-def _visible_args(pmap, limits, counts, rows, photons, slots, read, E):
-    """_visible_rows' arguments for _visible_sums' pairs (grouped by row)."""
-    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    hiding = rows[starts]
-    bounds = np.r_[starts, len(rows)].astype(np.int64)
+def _visible_args(pmap, limits, counts, rows, photons, slots, read, E, over=None):
+    """_visible_rows' arguments for _visible_sums' pairs (grouped by row; rows sorted)
+    and over's rows (each row once, its hidden photons the range bounds gives it,
+    empty for a row without)."""
+    rows = np.asarray(rows, np.int64)
+    if over is None:
+        starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+        hiding = rows[starts]
+        slot_of = np.asarray(slots)[starts]
+        bounds = np.r_[starts, len(rows)].astype(np.int64)
+        clamp_w = _NO_CLAMP_W
+    else:
+        o_rows, o_slots, clamp_w = over
+        # (the pairs' rows and over's, each once, ascending; a row's pairs are
+        # rows[bounds[r]:bounds[r + 1]], consecutive as the rows are sorted)
+        hiding, first = np.unique(np.r_[rows, o_rows], return_index=True)
+        slot_of = np.r_[np.asarray(slots, np.int64), np.asarray(o_slots, np.int64)][first]
+        bounds = np.r_[np.searchsorted(rows, hiding), len(rows)].astype(np.int64)
     if (counts is not None and limits is not None
             and getattr(pmap.photons, "bounces", None) is not None):
         # (chaincounts.unique_counts: np.unique(axis=0)'s arrays without its slow sort)
@@ -498,26 +517,30 @@ def _visible_args(pmap, limits, counts, rows, photons, slots, read, E):
         usable = _ALL_USABLE
         cls = np.zeros(len(hiding), np.int64)
     count, listed, weight, factor = read
-    return (pmap.photons.power, hiding, np.ascontiguousarray(slots[starts]), bounds,
-            np.ascontiguousarray(photons, dtype=np.int64), usable, cls, count, listed,
-            weight, factor, E)
+    return (pmap.photons.power, hiding, np.ascontiguousarray(slot_of, dtype=np.int64),
+            bounds, np.ascontiguousarray(photons, dtype=np.int64), usable, cls, count,
+            listed, weight, clamp_w, factor, E)
 
 
 _ALL_USABLE = np.zeros((0, 0), np.bool_)  # _visible_rows: every photon usable
+_NO_CLAMP_W = np.zeros((0, 0))  # _visible_rows: no Clamp Indirect weights
 
 
 @kernel
 def _visible_rows(power, rows, slots, bounds, hidden, usable, cls, count, photons, weight,
-                  factor, E, ascending):
+                  clamp_w, factor, E, ascending):
     """_visible_sums' sums: for each r, E[rows[r]] = factor[s] x the sum over the read
     list s = slots[r] (photons[s, :count[s]], weights weight[s]) of weight x
     float64(power) for its photons not in hidden[bounds[r]:bounds[r + 1]] and usable
     (usable[cls[r]], or usable empty: all), in the list's order:
     photonmap._irradiance_rows' masked sum (its float64 operations in its order).
+    clamp_w (lists, width) or (0, 0): each listed photon's Clamp Indirect weight
+    (photonclamp.list_weights), one more factor of its weight (x 1.0: the same bits).
     ascending: each row's hidden photons are ascending (bisected); else in the list's
     order (walked along it). Returns the rows whose hidden photons were not all met
     in the list's order (not ascending only; their E is then wrong: sort and ask again)."""
     bad = 0
+    clamped = clamp_w.shape[0] > 0
     for r in range(rows.shape[0]):
         i = rows[r]
         s = slots[r]
@@ -544,6 +567,8 @@ def _visible_rows(power, rows, slots, bounds, hidden, usable, cls, count, photon
             if usable.shape[0] and not usable[c, pj]:
                 continue
             w = weight[s, jj]
+            if clamped:
+                w = w * clamp_w[s, jj]
             f0, f1, f2 = read_power(power, pj)  # (photonlayout: float32 or RGBE)
             e0 += w * f0
             e1 += w * f1
@@ -620,4 +645,4 @@ def _warm_up():
     one = np.zeros(1, np.int64)
     _visible_rows(pmap.photons.power, one, one, np.int64([0, 1]), one, _ALL_USABLE, one,
                   np.ones(1, np.int64), np.zeros((1, 8), np.int64), np.ones((1, 8)),
-                  np.ones(1), np.zeros((1, 3)), False)
+                  _NO_CLAMP_W, np.ones(1), np.zeros((1, 3)), False)

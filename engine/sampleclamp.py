@@ -17,9 +17,10 @@ the camera chain's bent bounces standing for Cycles' bounce. A caustic, glow or
 secondary photon-map estimate is a smooth average of photons, each the end of a path
 Cycles samples as one bright path (the camera's diffuse bounce, the specular chain
 reversed, the emitter), so Clamp Indirect weighs each photon as that path is clamped
-(engine/photonclamp.py: w_p = min(1, limit / |tp x albedo x L_p|_1), L_p the radiance
-the photon's path carries, which the photon pass keeps while the clamp is on), then holds
-the estimate as a whole as well; where the estimate is taken for one sample of a block and
+(engine/photonclamp.py: w_p = min(1, Q x limit / |tp x albedo x L_p|_1), L_p the
+radiance the photon's path carries, which the photon pass keeps while the clamp is on, Q
+the share of the limit Cycles' Russian roulette leaves that path, roulette_share), then
+holds the estimate as a whole as well; where the estimate is taken for one sample of a block and
 weighed up by the block's length, it is clamped before the weighing (as each of the
 block's samples would be). The final gather's lookups are clamped as their ray's whole.
 

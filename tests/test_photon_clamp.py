@@ -11,9 +11,11 @@ from engine.accel import Accel
 from engine.api import PaperScene
 from engine.geometry import prepare
 from engine.lights import allocate_photons, prepare_lights
+from engine.photonlayout import decode_power
 from engine.photonmap import PhotonMap
-from engine.photons import CAUSTIC, INDIRECT, Photons, trace_photons
-from engine.render import Context
+from engine.photons import CAUSTIC, DIRECT, INDIRECT, Photons, trace_photons
+from engine.render import Context, prepare_context
+from engine.lights.mesh import MESH
 from engine.lights.world import WORLD
 from engine.scene import AREA, Material
 
@@ -208,3 +210,179 @@ def test_emitted_radiance_of_a_narrow_area_light_and_a_constant_world():
             seen += 1
             assert np.allclose(le, 1.0, rtol=1e-9)
     assert seen == 3
+
+
+# --- clampleft55: the ratio c = |L|_1 / |flux|_1 per ray, the mesh light's per triangle,
+# the weights folded into the visible sums ---
+
+def _sun_le():
+    """The sun's disc radiance |Le|_1 = 3 E / (pi sin^2(angle / 2))."""
+    return 3 * SUN_E / (math.pi * math.sin(math.radians(ANGLE) / 2) ** 2)
+
+
+def _traced(scene, settings, photons):
+    ctx = prepare_context(scene, settings)
+    ph = trace_photons(ctx, ctx.lights, allocate_photons(ctx.lights, photons), False, 1)
+    return ph, ph.position.astype(np.float64) + ctx.geo.offset
+
+
+def test_a_copy_passing_behind_a_surface_keeps_its_own_radiance():
+    """A sun straight down onto a 0.5 floor under a 0.5 card (4 x 4 m at 1 m) that shadow
+    rays do not see: the photons' shadow kind passes on behind the card in a copy (its
+    slot the photon's, whose diffuse continuation off the card takes c / 2). The copy's
+    path has not scattered: on the floor under the card it carries the sun's Le, as the
+    photons beside the card (it read Le / 2 where it shared the continuation's slot)."""
+    s = PaperScene(width=8, height=8)
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    card = s.add_plane((0, 0, 1.0), (0, 0, 1), 4.0, "floor", name="card")
+    card.visible_shadow = False
+    s.add_sun((0, 0, -1), strength=SUN_E, angle_degrees=ANGLE)
+    s.set_camera((0, -5, 3), (0, 0, 0))
+    ph, pos = _traced(s, RenderSettings(photons=30_000, seed=4, clamp_indirect=10,
+                                        workers=1), 30_000)
+    on_floor = np.abs(pos[:, 2]) < 1e-3
+    under = on_floor & (np.abs(pos[:, :2]).max(axis=1) < 1.8) & (ph.kind == DIRECT)
+    beside = on_floor & (np.abs(pos[:, :2]).max(axis=1) > 2.2) & (ph.kind == DIRECT)
+    assert under.sum() > 3_000 and beside.sum() > 3_000
+    assert np.allclose(ph.radiance[beside] / _sun_le(), 1.0, rtol=1e-5)
+    assert np.allclose(ph.radiance[under] / _sun_le(), 1.0, rtol=1e-5)
+
+
+def test_a_volume_scatter_takes_the_medium_albedo_into_the_radiance():
+    """A sun through a grey fog slab (albedo 0.8, Volume bounces 64) onto a near-black
+    floor: a photon scattered k times in the fog carries L = Le x 0.8^k (Cycles' path
+    reversed takes sigma_s Tr / pdf = the albedo at each scatter; the photon's power,
+    0.8 / p_keep with p_keep = 0.8, stays). It read Le: the fog's light over-clamped by
+    1 / 0.8^k."""
+    s = PaperScene(8, 8)
+    s.add_material(Material("fog", volume_only=True, absorption=(0.1, 0.1, 0.1),
+                            scattering=(0.4, 0.4, 0.4)))
+    s.add_material(Material("soot", (0.001, 0.001, 0.001)))
+    s.add_box((0, 0, 0.6), (40.0, 40.0, 1.0), "fog", name="slab")
+    s.add_plane((0, 0, 0), (0, 0, 1), 60.0, "soot", name="floor")
+    s.add_sun((0, 0, -1), strength=SUN_E, angle_degrees=ANGLE)
+    s.set_camera((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    ph, pos = _traced(s, RenderSettings(photons=20_000, seed=5, clamp_indirect=10,
+                                        workers=1, volume_bounces=64, max_bounces=256,
+                                        max_photon_depth=256), 20_000)
+    k = ph.bounces[:, 0].astype(np.int64)
+    ratio = ph.radiance / _sun_le()
+    # (a photon the floor sent on, one in a thousand, carries its 0.001: left out, as
+    # the fog's scatters alone are counted in k up to 15, 0.8^15 = 0.035)
+    fog = (np.abs(pos[:, 2]) < 1e-3) & (k <= 15) & (ratio > 0.01)
+    assert (k[fog] >= 1).sum() > 500 and (k[fog] >= 3).sum() > 50
+    assert np.allclose(ratio[fog], 0.8 ** k[fog], rtol=1e-4)
+
+
+def _two_lamps():
+    """Two emissive cards facing down 2 m over a floor, |L|_1 30 (x < 0) and 12 (x > 0)."""
+    s = PaperScene(width=8, height=8)
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_material(Material("white", (0.0, 0.0, 0.0), emission=(10.0, 10.0, 10.0)))
+    s.add_material(Material("blue", (0.0, 0.0, 0.0), emission=(2.0, 4.0, 6.0)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    s.add_plane((-1.0, 0, 2.0), (0, 0, -1), 0.5, "white", name="white")
+    s.add_plane((1.0, 0, 2.0), (0, 0, -1), 0.5, "blue", name="blue")
+    s.set_camera((0, -5, 3), (0, 0, 0))
+    return s
+
+
+def test_mesh_light_of_several_radiances_gives_each_photon_its_triangle():
+    """A mesh light of two radiances: each emitted photon's c x |power|_1 is the
+    radiance of the card it left (emitted_triangles: emit_mesh's own choice); stored
+    photons straight from a card carry it (before: 0, no clamp, for the whole light)."""
+    from engine.lights.emission import EmissionBuffers
+    s = _two_lamps()
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    mesh = [li for li in ctx.lights if getattr(li, "kind", None) == MESH][0]
+    out = EmissionBuffers(4000)
+    m = mesh.emit_into(np.uint64(21), 100, 4000, 4000, out, 0)
+    o32, _, d, power, slot = out.head(m)
+    c = photonclamp.emission_ratios(mesh, o32, d, power, slot, np.uint64(21))
+    le = c * np.abs(power).sum(axis=1)
+    x = o32[:, 0].astype(np.float64) + ctx.geo.offset[0]
+    assert (x < 0).sum() > 1000 and (x > 0).sum() > 1000
+    assert np.allclose(le[x < 0], 30.0, rtol=1e-9)
+    assert np.allclose(le[x > 0], 12.0, rtol=1e-9)
+    ph, pos = _traced(s, RenderSettings(photons=20_000, seed=2, clamp_indirect=10,
+                                        workers=1), 20_000)
+    direct = ph.radiance[(ph.kind == DIRECT) & (np.abs(pos[:, 2]) < 1e-3)]
+    assert np.isclose(direct, 30.0, rtol=1e-5).sum() > 1000
+    assert np.isclose(direct, 12.0, rtol=1e-5).sum() > 1000
+    assert (np.isclose(direct, 30.0, rtol=1e-5) | np.isclose(direct, 12.0, rtol=1e-5)).all()
+
+
+def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums():
+    """Clamp Indirect folded into photonvisibility._visible_rows: each row whose read
+    list holds a photon over the limit is factor x sum(weight x w_p x power) over its
+    photons not left out (here by a reject callable, as hidden ones are), the numpy
+    sum photonclamp.clamp_rows took before, within float64 reordering; every other row
+    keeps the plain estimate's bits."""
+    rng = np.random.default_rng(7)
+    n = 600
+    pos = np.c_[rng.random((n, 2)), np.zeros(n)].astype(np.float32)
+    up = np.tile(np.float32([0, 0, 1]), (n, 1))
+    power = (0.005 + 0.02 * rng.random((n, 3))).astype(np.float32)
+    # (|L_p|_1 20 is under the limit 30 x Q at any scale <= 1: the rows left of x 0.35
+    # read no photon over it)
+    rad = np.where((pos[:, 0] > 0.5) & (rng.random(n) < 0.3), 200.0, 20.0).astype(np.float32)
+    bounces = np.zeros((n, 4), np.uint8)
+    bounces[:, 0] = rng.integers(1, 5, n)
+    ph = Photons(pos, power, -up, up.copy(), np.full(n, CAUSTIC, np.uint8), bounces=bounces,
+                 radiance=rad)
+    pmap = PhotonMap(ph)
+    m = 40
+    p = np.c_[0.1 + 0.8 * rng.random((m, 2)), np.zeros(m)]
+    nrm = np.tile([0.0, 0.0, 1.0], (m, 1))
+    scale = 0.3 + 0.7 * rng.random((m, 3))
+    scale[:5] = 0.0  # (rows over no limit: their bits kept)
+
+    def reject(rows, photons):
+        return (np.asarray(rows) + np.asarray(photons)) % 5 == 0
+
+    args = (pmap, None, p, nrm, None, 0.15, 40, 8, "knn_simpson")
+    plain = photonvisibility.visible_irradiance(*args, reject=reject)
+    got = photonvisibility.visible_irradiance(*args, reject=reject, clamp=(scale, 30.0))
+    _, count, lists, weight, factor, wide = photonvisibility._estimate_read(
+        pmap, None, None, p, nrm, 0.15, 40, 8, "knn_simpson", None)
+    assert not len(wide[0]) and (count > 0).all()
+    want = np.empty((m, 3))
+    over = np.zeros(m, bool)
+    mp = pmap.photons  # (the map's own order)
+    for i in range(m):
+        js = lists[i, :count[i]]
+        keep = ~reject(np.full(len(js), i), js)
+        pw = (decode_power(mp.power[js]) if mp.power.dtype == np.uint8
+              else mp.power[js].astype(np.float64))  # (a compact map's RGBE)
+        w = photonclamp.photon_weights(mp.radiance[js].astype(np.float64), pw,
+                                       scale[i], 30.0,
+                                       None if mp.bounces is None else mp.bounces[js, 0])
+        over[i] = (w < 1).any()
+        want[i] = (np.where(keep, weight[i, :count[i]] * w, 0.0)[:, None]
+                   * pw).sum(axis=0) * factor[i]
+    assert 10 < over.sum() <= m - 10
+    assert np.allclose(got[over], want[over], rtol=1e-12, atol=0.0)
+    assert np.array_equal(got[~over], plain[~over])
+    assert np.allclose(plain[~over], want[~over], rtol=1e-12, atol=0.0)  # (the reference)
+
+
+def test_a_region_emitters_photons_take_its_lights_radiance():
+    """Visual importance's RegionEmitter (aimed and natural photons of one light): each
+    photon's c x |flux|_1 is its light's radiance, as the light's own photons' (it read
+    0: the emitter has no light kind of its own)."""
+    from engine.lights.emission import EmissionBuffers
+    from engine.visualimportance import Region, RegionEmitter
+    s = _two_lamps()
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    mesh = [li for li in ctx.lights if getattr(li, "kind", None) == MESH][0]
+    region = Region(np.array([[0.0, 0.0, 0.0]]) - ctx.geo.offset, np.array([0.5]), 1.0, 1)
+    emitter = RegionEmitter(mesh, region, 0.5)
+    out = EmissionBuffers(4000)
+    m = emitter.emit_into(np.uint64(5), 0, 4000, 4000, out, 0)
+    o32, _, d, power, slot = out.head(m)
+    le = photonclamp.emission_ratios(emitter, o32, d, power, slot, np.uint64(5)) \
+        * np.abs(power).sum(axis=1)
+    x = o32[:, 0].astype(np.float64) + ctx.geo.offset[0]
+    assert m > 2000 and (x < 0).sum() > 500 and (x > 0).sum() > 500
+    assert np.allclose(le, np.where(x < 0, 30.0, 12.0), rtol=1e-9)
