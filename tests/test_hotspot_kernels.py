@@ -187,8 +187,10 @@ def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
     """camerakernels.diffuse_reject_pairs (DiffusePdf.reject_for, percost54) against the
     numpy stage: hits of every lobe, plain and Lambert rows, rows whose bound is below
     Filter Glossy, zero-length and NaN photon directions, NaN and infinite stored and
-    camera min pdfs, with and without them; Filter Glossy set to pdfs the numpy stage
-    computed, so a pair exactly at the threshold flips with any change of its pdf's bits."""
+    camera min pdfs, with and without them, the directions stored as float32 or as
+    octahedral codes (read in place since percost55); Filter Glossy set to pdfs the numpy
+    stage computed, so a pair exactly at the threshold flips with any change of its
+    pdf's bits."""
     from engine.glossysplit import DiffusePdf
     rng = np.random.default_rng(5400)
     m, n, k, p = 16, 2000, 30_000, 5000
@@ -220,10 +222,17 @@ def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
     sel = rng.integers(0, n, 3000).astype(np.int64)
     rows = rng.integers(0, len(sel), k).astype(np.int64)
     photons = rng.integers(0, p, k).astype(np.int64)
+    # The compact layout's octahedral codes too (photonlayout.encode_vectors; zero and
+    # NaN directions encode to codes of their own), read in place by the kernel.
+    from engine.photonlayout import encode_vectors
+    with np.errstate(invalid="ignore", divide="ignore"):
+        code = encode_vectors(direction)
     checked = 0
-    for cam, stored in ((None, None), (camera, blur), (None, blur), (camera, None)):
+    for cam, stored, dirs in ((None, None, direction), (camera, blur, direction),
+                              (None, blur, direction), (camera, None, direction),
+                              (camera, blur, code), (None, None, code)):
         dp.camera = cam
-        pmap = SimpleNamespace(photons=SimpleNamespace(direction=direction, blur_pdf=stored))
+        pmap = SimpleNamespace(photons=SimpleNamespace(direction=dirs, blur_pdf=stored))
         dp.fg = 1.0
         _, pd = _reject_numpy(dp, pmap, sel, rows, photons)
         finite = np.unique(pd[np.isfinite(pd) & (pd > 0.0)])
@@ -233,4 +242,5 @@ def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
             got = dp.reject_for(pmap, sel)(rows, photons)
             np.testing.assert_array_equal(got, want)
             checked += int(want.sum()) * int((~want).sum()) > 0
-    assert checked >= 100  # (each threshold splits the pairs)
+    assert checked >= 140  # (each threshold splits the pairs)
+
