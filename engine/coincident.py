@@ -447,7 +447,13 @@ class CoincidentSurfaces:
                     u[done] = up
                     v[done] = vp
                 if inward and CYCLES_CONTACT:
-                    rest = np.setdiff1d(rows, done) if len(done) else rows
+                    # (rows less the probe's: rows is sorted and met indexes it, so the
+                    # mask keeps np.setdiff1d(rows, done)'s rows in its order, no sort)
+                    rest = rows
+                    if len(done):
+                        left = np.ones(len(rows), bool)
+                        left[met] = False
+                        rest = rows[left]
                     p = np.take(org_p, rest, axis=0)
                     met, tri, up, vp = self.reflected_inside_hits(
                         p, np.take(o, rest, axis=0) - p, np.take(d, rest, axis=0),
