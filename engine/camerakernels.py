@@ -40,7 +40,9 @@ two Embree calls for every hit of a camera, gather or specular ray.
   (glossysplit.DiffusePdf.pdf: no gathered copies of the packed lobes).
 - `diffuse_reject_pairs` (percost54): glossysplit.DiffusePdf.reject_for's per-photon
   test (the photon's direction normalised, pdf_D, the camera's and the photon's min pdf
-  against Filter Glossy) in one pass, no (K,3) temporaries.
+  against Filter Glossy) in one pass, no (K,3) temporaries; since percost55 it reads the
+  query rows' hit rows and the photons' stored directions (float or octahedral codes) in
+  place: one call for all of a block's pairs.
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
@@ -59,6 +61,7 @@ from .closures import principled as pr
 from .directlight import _npmax, _to_world
 from .filterglossy import raise_alphas
 from .jit import kernel, register_warm_up
+from .photonlayout import oct_decode
 from .rayoffset import G32_PLANE, G64, TINY32, U32, tilt32, winding_normal
 
 # Indices into SPEC_LOBES (bsdf.py: LOBE_NAMES[1:], principled's L_* minus one).
@@ -1060,14 +1063,18 @@ def _npdiv(a, b):
 
 
 @kernel
-def diffuse_reject_pairs(prm, sel, plain, wd, psum, largest, camera, ns, wo, fg, rows, v,
-                         stored, pid, out):
-    """glossysplit.DiffusePdf.reject_for's test of (hit row, photon) pairs in one pass:
-    out[k] (K,) bool True where Cycles blurs the photon's path at the hit row rows[k]:
-    largest[row] < fg, else min(pdf_D(wi), stored[pid[k]]) < fg (not >=: NaN rejects),
-    wi = -v[k] / max(|v[k]|, 1e-300) (v (K,3) the photon's stored direction, float64).
+def diffuse_reject_pairs(prm, sel, plain, wd, psum, largest, camera, ns, wo, fg, at, rows,
+                         pid, direction, code, stored, out):
+    """glossysplit.DiffusePdf.reject_for's test of (query row, photon) pairs in one pass:
+    out[k] (K,) bool True where Cycles blurs the photon's path at the hit row
+    r = at[rows[k]] (at (Q,) int64 the query rows' hit rows, rows (K,) int64 into at):
+    largest[r] < fg, else min(pdf_D(wi), stored[pid[k]]) < fg (not >=: NaN rejects),
+    wi = -v / max(|v|, 1e-300), v photon pid[k]'s stored direction read in place from
+    the map's array: direction (P,3) float (float32 in a shot) read as float64, or, when
+    code (P,2) int16 is not empty (photonlayout's compact layout), photonlayout.oct_decode
+    of its code (float32, photonlayout.decode_vectors' bits) read as float64.
     pdf_D is DiffusePdf.pdf's (cos / pi on its plain rows, else (bsdf_pdf + wd cos / pi)
-    / (psum + wd); at most camera[row], camera (N,) or empty; NaN read as inf); stored
+    / (psum + wd); at most camera[r], camera (N,) or empty; NaN read as inf); stored
     (P,) float32 Photons.blur_pdf or empty. The numpy stage's operations in its order:
     |v| as np.linalg.norm(axis=1) sums (x^2 + y^2) + z^2, the cosine as
     np.einsum("ij,ij->i") (x + z) + y, np.maximum / np.minimum's NaN (the same bits:
@@ -1075,12 +1082,20 @@ def diffuse_reject_pairs(prm, sel, plain, wd, psum, largest, camera, ns, wo, fg,
     rows); fg: Filter Glossy."""
     cam = camera.shape[0] > 0
     blur = stored.shape[0] > 0
+    compact = code.shape[0] > 0
     for k in range(rows.shape[0]):
-        r = rows[k]
+        r = at[rows[k]]
         if not largest[r] >= fg:
             out[k] = True
             continue
-        x, y, z = -v[k, 0], -v[k, 1], -v[k, 2]
+        j = pid[k]
+        if compact:
+            a, b, c = oct_decode(code[j, 0], code[j, 1])
+            x, y, z = -np.float64(a), -np.float64(b), -np.float64(c)
+        else:
+            x = -np.float64(direction[j, 0])
+            y = -np.float64(direction[j, 1])
+            z = -np.float64(direction[j, 2])
         m = _npmax(math.sqrt((x * x + y * y) + z * z), 1e-300)
         x, y, z = x / m, y / m, z / m
         n0, n1, n2 = ns[r, 0], ns[r, 1], ns[r, 2]
@@ -1096,8 +1111,13 @@ def diffuse_reject_pairs(prm, sel, plain, wd, psum, largest, camera, ns, wo, fg,
         if d != d:
             d = math.inf
         if blur:
-            d = _npmin(d, np.float64(stored[pid[k]]))
+            d = _npmin(d, np.float64(stored[j]))
         out[k] = not d >= fg
+
+
+# (diffuse_reject_pairs' empty arrays: no float directions, no compact codes)
+NO_DIRECTIONS = np.zeros((0, 3), np.float32)
+NO_CODES = np.zeros((0, 2), np.int16)
 
 
 @register_warm_up
@@ -1146,10 +1166,13 @@ def _warm_up():
                   ns, -d, d, np.empty(1))
     for camera, stored in ((np.zeros(0), np.zeros(0, np.float32)),
                            (np.ones(1), np.ones(1, np.float32))):
-        diffuse_reject_pairs(np.zeros((1, pr.N_PACK)), np.zeros((1, pr.N_LOBES)),
-                             np.zeros(1, np.bool_), one, one, np.full(1, np.inf), camera,
-                             ns, -d, 1.0, np.zeros(1, np.int64), d, stored,
-                             np.zeros(1, np.int64), np.empty(1, np.bool_))
+        for direction, code in ((d.astype(np.float32), NO_CODES),
+                                (NO_DIRECTIONS, np.zeros((1, 2), np.int16))):
+            diffuse_reject_pairs(np.zeros((1, pr.N_PACK)), np.zeros((1, pr.N_LOBES)),
+                                 np.zeros(1, np.bool_), one, one, np.full(1, np.inf),
+                                 camera, ns, -d, 1.0, np.zeros(1, np.int64),
+                                 np.zeros(1, np.int64), np.zeros(1, np.int64), direction,
+                                 code, stored, np.empty(1, np.bool_))
     i64 = np.zeros(1, np.int64)
     keep_path_hits(i64, p, d, base, i64, one, one, one, i64, one, i64, one)
     film_add(np.zeros((1, 3)), 0, i64, i64, base, base)

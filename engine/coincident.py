@@ -130,6 +130,7 @@ class CoincidentSurfaces:
         self.glass = glass
         self.others = others
         self._paired_ng = None  # (_ng: the paired triangles' rows, their normals)
+        self._boxes = {}  # (near: the partners' boxes (2,2,3) by the points' dtype)
 
     def _ng(self, tri) -> np.ndarray:
         """(K,3) geo.ng[tri] for triangle rows tri (K,) int64: the paired triangles' (side
@@ -244,17 +245,18 @@ class CoincidentSurfaces:
         may meet a touching surface there: tri is one of a pair and p lies in its
         partners' box (probe's first tests, one axis at a time; False everywhere lets a
         caller keep a faster path)."""
-        out = np.zeros(len(tri), bool)
-        side = np.take(self.side, np.maximum(tri, 0))
-        side[tri < 0] = NONE
-        for kind, partners in ((GLASS, self.others), (OTHER, self.glass)):
-            rows = np.nonzero(side == kind)[0]
-            for c in range(3):
-                if not len(rows):
-                    break
-                x = np.take(p[:, c], rows)
-                rows = rows[(x >= partners.box[0, c]) & (x <= partners.box[1, c])]
-            out[rows] = True
+        from .gatherkernels import touch_near
+        p = np.ascontiguousarray(p)
+        if p.dtype != np.float32:
+            p = np.ascontiguousarray(p, np.float64)
+        boxes = self._boxes.get(p.dtype)
+        if boxes is None:
+            # (in p's dtype: numpy compared a float32 p with the float64 box in float32)
+            boxes = self._boxes[p.dtype] = np.stack(
+                [self.others.box, self.glass.box]).astype(p.dtype)
+        out = np.empty(len(tri), bool)
+        touch_near(self.side, np.ascontiguousarray(tri, np.int64), p, boxes, GLASS, OTHER,
+                   out)
         return out
 
     def probe(self, p, off, d, from_tri):
@@ -445,7 +447,13 @@ class CoincidentSurfaces:
                     u[done] = up
                     v[done] = vp
                 if inward and CYCLES_CONTACT:
-                    rest = np.setdiff1d(rows, done) if len(done) else rows
+                    # (rows less the probe's: rows is sorted and met indexes it, so the
+                    # mask keeps np.setdiff1d(rows, done)'s rows in its order, no sort)
+                    rest = rows
+                    if len(done):
+                        left = np.ones(len(rows), bool)
+                        left[met] = False
+                        rest = rows[left]
                     p = np.take(org_p, rest, axis=0)
                     met, tri, up, vp = self.reflected_inside_hits(
                         p, np.take(o, rest, axis=0) - p, np.take(d, rest, axis=0),

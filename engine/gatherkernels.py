@@ -21,6 +21,8 @@ fifth slice): what ran as numpy indexing between two Embree calls of every gathe
 - `count_bounces` (s20 fig8speed as count_bent; glasswater51 by lobe): the gather rays'
   bounce counts after a continuation step (integrator._count_continuations), one pass
   instead of a row take, a compare and four fancy-indexed adds.
+- `touch_near` (percost55): coincident.CoincidentSurfaces.near's test (a ray leaves one
+  of a touching pair inside its partners' box) in one pass, no per-axis row lists.
 
 Each kernel performs the numpy stage's floating-point operations in the same order, so
 images are bitwise unchanged (tests/test_gather_kernels.py keeps the numpy gather as an
@@ -233,6 +235,35 @@ def count_bounces(cnt, idx, passed, cls, diffuse, glossy, transmission):
     return nb
 
 
+@kernel
+def touch_near(side, tri, p, boxes, glass, other, out):
+    """coincident.CoincidentSurfaces.near's test in one pass: out[i] (N,) bool True where
+    tri[i] >= 0 is one of a touching pair (side[tri[i]] glass or other, side (T,) int8)
+    and the point p[i] (N,3) lies in its partners' padded box, boxes[0] (2,3) the
+    others' (for a glass triangle), boxes[1] the glass's (for an other), lower then upper
+    corner, in p's dtype: numpy compared a float32 p with the float64 box's scalars in
+    float32 (value-based casting), so the caller converts the boxes to p's dtype."""
+    for i in range(tri.shape[0]):
+        t = tri[i]
+        out[i] = False
+        if t < 0:
+            continue
+        s = side[t]
+        if s == glass:
+            b = 0
+        elif s == other:
+            b = 1
+        else:
+            continue
+        inside = True
+        for c in range(3):
+            x = p[i, c]
+            if not (x >= boxes[b, 0, c] and x <= boxes[b, 1, c]):
+                inside = False
+                break
+        out[i] = inside
+
+
 @register_warm_up
 def _warm_up():
     n = 2
@@ -267,3 +298,6 @@ def _warm_up():
     for regather in (False, True):
         add_gathered(np.zeros((n, 3)), idx, rows[:k], tp, tp, np.ones((k, 3)), 2,
                      np.zeros(k, np.bool_), lt[:k], 0.5, regather, again)
+    for dtype in (np.float32, np.float64):
+        touch_near(np.array([0, 1], np.int8), idx, np.zeros((n, 3), dtype),
+                   np.zeros((2, 2, 3), dtype), 1, 2, np.empty(n, np.bool_))

@@ -247,43 +247,32 @@ class DiffusePdf:
         _smooth_estimate reads): a callable (rows (H,) into sel, photons (H,) of pmap)
         -> (H,) bool, True where Cycles blurs the photon's path (min(pdf_D(-w_photon),
         Photons.blur_pdf) < fg: left out of the estimate)."""
-        from .camerakernels import diffuse_reject_pairs
-        from .photonlayout import vectors
+        from .camerakernels import NO_CODES, NO_DIRECTIONS, diffuse_reject_pairs
         ph = pmap.photons
         stored = getattr(ph, "blur_pdf", None)
         stored = _NO_BLUR_PDF if stored is None else np.ascontiguousarray(stored)
-        sel = np.asarray(sel, np.int64)
         c = np.ascontiguousarray
+        at = c(sel, np.int64)
         camera = _NO_CAMERA if self.camera is None else c(self.camera, np.float64)
         ns = c(self.ns, np.float64)
+        # The photons' directions as the map stores them (float32 (P,3), or photonlayout's
+        # (P,2) int16 octahedral codes), read in place by the kernel.
+        direction = c(ph.direction)
+        code = NO_CODES
+        if direction.dtype == np.int16:
+            direction, code = NO_DIRECTIONS, direction
 
         def reject(rows, photons):
-            # A block of pairs at a time: a lookup block's pairs (up to 16,384 rows x 2k
-            # photons) made their directions', normals' and lobe parameters' temporaries
-            # all at once, tens of MB a worker (docs/performance.md "mem51").
+            # (the query rows' hit rows, the photons' directions, pdf_D, the minimum with
+            # their own min pdf and the test in one compiled pass per call, no
+            # temporaries: the numpy test took 6.3 of the candles' 51 camera CPU s under
+            # the profiler, docs/performance.md "percost54"; its blocks of 16,384 pairs
+            # with their decoded directions 2.3 of 32, "percost55")
             out = np.empty(len(rows), bool)
-            for a in range(0, len(rows), REJECT_BLOCK):
-                out[a:a + REJECT_BLOCK] = reject_block(rows[a:a + REJECT_BLOCK],
-                                                       photons[a:a + REJECT_BLOCK])
-            return out
-
-        def reject_block(rows, photons):
-            r = np.take(sel, rows)
-            out = np.ones(len(r), bool)
-            test = np.flatnonzero(np.take(self.largest, r) >= self.fg)
-            if len(test):
-                pid = np.take(photons, test).astype(np.int64)
-                # (the photons' directions, normalised, pdf, the minimum with their own
-                # min pdf and the test in one compiled pass, no (K,3) temporaries: the
-                # numpy test took 6.3 of the candles' 51 camera CPU s under the profiler,
-                # docs/performance.md "percost54"; the same operations, the same answers)
-                got = np.empty(len(test), bool)
-                diffuse_reject_pairs(self.prm, self.sel, self.plain, self.wd, self.psum,
-                                     self.largest, camera, ns, self.wo, float(self.fg),
-                                     np.take(r, test),
-                                     c(vectors(ph.direction, pid), np.float64), stored,
-                                     pid, got)  # (photonlayout: either layout)
-                out[test] = got
+            diffuse_reject_pairs(self.prm, self.sel, self.plain, self.wd, self.psum,
+                                 self.largest, camera, ns, self.wo, float(self.fg), at,
+                                 c(rows, np.int64), c(photons, np.int64), direction, code,
+                                 stored, out)
             return out
         return reject
 
@@ -310,9 +299,6 @@ def window_glass(ctx):
 _NO_BLUR_PDF = np.zeros(0, np.float32)  # (diffuse_reject_pairs: no stored min pdfs)
 _NO_CAMERA = np.zeros(0)  # (diffuse_reject_pairs: no camera path's min_ray_pdf)
 PDF_BLOCK = 1 << 16  # DiffusePdf.pdf's pairs per call (its gathered lobe rows' memory)
-# DiffusePdf.reject_for's pairs per block (each pair's test is its own: the same answers;
-# its direction, normal and pdf temporaries' memory: docs/performance.md "mem51").
-REJECT_BLOCK = 1 << 14
 
 
 def shadow_carried(light) -> bool:

@@ -187,8 +187,10 @@ def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
     """camerakernels.diffuse_reject_pairs (DiffusePdf.reject_for, percost54) against the
     numpy stage: hits of every lobe, plain and Lambert rows, rows whose bound is below
     Filter Glossy, zero-length and NaN photon directions, NaN and infinite stored and
-    camera min pdfs, with and without them; Filter Glossy set to pdfs the numpy stage
-    computed, so a pair exactly at the threshold flips with any change of its pdf's bits."""
+    camera min pdfs, with and without them, the directions stored as float32 or as
+    octahedral codes (read in place since percost55); Filter Glossy set to pdfs the numpy
+    stage computed, so a pair exactly at the threshold flips with any change of its
+    pdf's bits."""
     from engine.glossysplit import DiffusePdf
     rng = np.random.default_rng(5400)
     m, n, k, p = 16, 2000, 30_000, 5000
@@ -220,10 +222,17 @@ def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
     sel = rng.integers(0, n, 3000).astype(np.int64)
     rows = rng.integers(0, len(sel), k).astype(np.int64)
     photons = rng.integers(0, p, k).astype(np.int64)
+    # The compact layout's octahedral codes too (photonlayout.encode_vectors; zero and
+    # NaN directions encode to codes of their own), read in place by the kernel.
+    from engine.photonlayout import encode_vectors
+    with np.errstate(invalid="ignore", divide="ignore"):
+        code = encode_vectors(direction)
     checked = 0
-    for cam, stored in ((None, None), (camera, blur), (None, blur), (camera, None)):
+    for cam, stored, dirs in ((None, None, direction), (camera, blur, direction),
+                              (None, blur, direction), (camera, None, direction),
+                              (camera, blur, code), (None, None, code)):
         dp.camera = cam
-        pmap = SimpleNamespace(photons=SimpleNamespace(direction=direction, blur_pdf=stored))
+        pmap = SimpleNamespace(photons=SimpleNamespace(direction=dirs, blur_pdf=stored))
         dp.fg = 1.0
         _, pd = _reject_numpy(dp, pmap, sel, rows, photons)
         finite = np.unique(pd[np.isfinite(pd) & (pd > 0.0)])
@@ -233,4 +242,58 @@ def test_diffuse_reject_pairs_kernel_rejects_the_numpy_stages_pairs():
             got = dp.reject_for(pmap, sel)(rows, photons)
             np.testing.assert_array_equal(got, want)
             checked += int(want.sum()) * int((~want).sum()) > 0
-    assert checked >= 100  # (each threshold splits the pairs)
+    assert checked >= 140  # (each threshold splits the pairs)
+
+
+def _near_numpy(cs, p, tri):
+    """The numpy stage of coincident.CoincidentSurfaces.near the kernel replaced
+    (percost55): per kind, the rows' axes tested one at a time against the float64 box."""
+    from engine.coincident import GLASS, NONE, OTHER
+    out = np.zeros(len(tri), bool)
+    side = np.take(cs.side, np.maximum(tri, 0))
+    side[tri < 0] = NONE
+    for kind, partners in ((GLASS, cs.others), (OTHER, cs.glass)):
+        rows = np.nonzero(side == kind)[0]
+        for c in range(3):
+            if not len(rows):
+                break
+            x = np.take(p[:, c], rows)
+            rows = rows[(x >= partners.box[0, c]) & (x <= partners.box[1, c])]
+        out[rows] = True
+    return out
+
+
+def test_touch_near_kernel_marks_the_numpy_stages_rows():
+    """gatherkernels.touch_near (CoincidentSurfaces.near, percost55) against the numpy
+    stage on random points, float64 and float32 (numpy compared float32 points with the
+    box in float32): triangles of every side and none (-1), points on and one ulp either
+    side of every face of the boxes, NaN points."""
+    from engine.coincident import CoincidentSurfaces, GLASS, OTHER
+    rng = np.random.default_rng(55)
+    t, n = 300, 60_000
+    side = rng.choice(np.array([0, GLASS, OTHER], np.int8), t)
+    cs = object.__new__(CoincidentSurfaces)
+    cs.side = side
+    cs._boxes = {}
+    lo = rng.normal(size=(2, 3))
+    cs.others = SimpleNamespace(box=np.stack([lo[0], lo[0] + rng.random(3) + 0.1]))
+    cs.glass = SimpleNamespace(box=np.stack([lo[1], lo[1] + rng.random(3) + 0.1]))
+    tri = rng.integers(-1, t, n).astype(np.int64)
+    # points around either box (a margin of 0.2 beyond it on each axis)
+    box = np.stack([cs.others.box, cs.glass.box])[rng.integers(0, 2, n)]
+    p = box[:, 0] - 0.2 + rng.random((n, 3)) * (box[:, 1] - box[:, 0] + 0.4)
+    for k, box in enumerate((cs.others.box, cs.glass.box)):
+        # points on the boxes' faces and a float32 / float64 ulp either side
+        rows = rng.integers(0, n, (6, 3000))
+        for j in range(6):
+            axis, bound = j % 3, box[j // 3, j % 3]
+            for sel, val in zip(np.array_split(rows[j], 5), (
+                    bound, np.nextafter(bound, -np.inf), np.nextafter(bound, np.inf),
+                    np.float64(np.float32(bound)), np.nextafter(np.float32(bound), np.inf))):
+                p[sel, axis] = val
+    p[::101] = np.nan
+    for dtype in (np.float64, np.float32):
+        q = np.ascontiguousarray(p, dtype)
+        want = _near_numpy(cs, q, tri)
+        np.testing.assert_array_equal(cs.near(q, tri), want)
+        assert 0.01 < want.mean() < 0.5
