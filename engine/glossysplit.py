@@ -354,7 +354,10 @@ class GatherChains:
     docs/compatibility.md "splitpane47"). So do a window glass's entry and exit at the
     first two vertices for every light D's shadow rays sample (a flat passage they
     cross: window_glass; shadow_carried), not for a light without shadow rays or a
-    mesh side none samples (splitfix47)."""
+    mesh side none samples (splitfix47); so do transparent passes (leaves55) and, in any
+    order and number, both (self.passages: gatherpassages.GatherPassages' state, as
+    camera_passage steps it; a pane's carried lights stay carried on past transparent
+    passes: passages55)."""
 
     def __init__(self, ctx, n: int, fg: float, d_pdf: DiffusePdf):
         from . import integrator as it
