@@ -76,6 +76,13 @@ class GatherPassages:
         current hit across passages alone (outside every window glass)."""
         return np.flatnonzero(np.take(self.clear, idx) > 0.0)
 
+    def at_passage(self, idx) -> np.ndarray:
+        """(K,) bool: per hit row of idx (K,), whether its ray met its current hit across
+        passages alone or inside window glass it entered so (a refraction there out
+        through the parallel face ends a passage: step makes the ray clear again)."""
+        return ((np.take(self.clear, idx) > 0.0)
+                | ((np.take(self.entry, idx) >= 0) & (np.take(self.pre, idx) > 0.0)))
+
     def step(self, prim, d_in, p, idx, keep, d_out) -> None:
         """After continue_specular at hits prim (M,) (triangle rows; arriving directions
         d_in (M,3), points p (M,3)) of the rays of hit rows idx (M,): the rows keep (K,)

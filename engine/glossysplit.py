@@ -340,7 +340,10 @@ class GatherChains:
     docs/compatibility.md "splitpane47"). So do a window glass's entry and exit at the
     first two vertices for every light D's shadow rays sample (a flat passage they
     cross: window_glass; shadow_carried), not for a light without shadow rays or a
-    mesh side none samples (splitfix47)."""
+    mesh side none samples (splitfix47); so do transparent passes (leaves55) and, in any
+    order and number, both (self.passages: gatherpassages.GatherPassages' state, as
+    camera_passage steps it; a pane's carried lights stay carried on past transparent
+    passes: passages55)."""
 
     def __init__(self, ctx, n: int, fg: float, d_pdf: DiffusePdf):
         from . import integrator as it
@@ -393,6 +396,13 @@ class GatherChains:
         # world seen through cut-out leaves was counted twice, the leaves 1.08-1.20x
         # Cycles).
         self.clear = np.zeros(n, bool)
+        # ... and in any order with window passages (passages55: a card behind a window
+        # pane, or before it, left the world counted twice): the gather rays' passage
+        # state, as gather_indirect's own (engine/gatherpassages.py; None: shadow rays
+        # cross no surface), stepped at each continuation from the hits vertex() keeps.
+        from .gatherpassages import GatherPassages
+        self.passages = GatherPassages.for_context(ctx, n)
+        self._hits = None  # (prim (M,), wo (M,3), p (M,3), hit rows (M,)) of vertex()'s y
         self._depth = 0
         # At the current vertex: (carried bits (M,) or None, passage (M,) bool or None,
         # ng (M,3), wo (M,3)) by row of vertex()'s hits; None: nothing carried there.
@@ -404,6 +414,8 @@ class GatherChains:
         maps' own predicate; cos / pi on a Lambert-only D)."""
         self.min_pdf[idx] = self.d_pdf.pdf(idx, d, ns)
         self.clear[idx] = True
+        if getattr(self, "passages", None) is not None:
+            self.passages.start(idx)
 
     def carrier_bits(self, prim) -> np.ndarray:
         """(K,) int64: per triangle row of prim (K,), bit j set where it carries the light
@@ -452,11 +464,22 @@ class GatherChains:
         if depth == 0 and self.carried:
             bits = self.carrier_bits(np.asarray(y.prim, np.int64))
             bits = bits if bits.any() else None
-        if self.window is not None and depth <= 1:
-            passage = np.take(self.window, np.asarray(y.prim, np.int64))
-            if depth == 1:
-                passage &= np.take(self.in_glass, rows_idx)
-            passage = passage if passage.any() else None
+        prim_y = np.asarray(y.prim, np.int64)
+        if self.passages is not None:
+            self._hits = (prim_y, np.asarray(y.wo, np.float64), np.asarray(y.p, np.float64),
+                          np.asarray(rows_idx, np.int64))
+        if self.window is not None:
+            passage = None
+            if depth <= 1:
+                passage = np.take(self.window, prim_y)
+                if depth == 1:
+                    passage &= np.take(self.in_glass, rows_idx)
+            if depth >= 1 and self.passages is not None:
+                # (deeper: window glass met across passages alone, or left from inside
+                # glass entered so: a card before the window)
+                deep = np.take(self.window, prim_y) & self.passages.at_passage(rows_idx)
+                passage = deep if passage is None else passage | deep
+            passage = passage if passage is not None and passage.any() else None
         if bits is not None or passage is not None:
             self._carrier = (bits, passage, np.asarray(y.ng, np.float64),
                              np.asarray(y.wo, np.float64))
@@ -540,9 +563,20 @@ class GatherChains:
         self.from_blurred[rows_idx] = self.min_pdf[rows_idx] < self.fg
         self.clear[rows_idx] = (False if passed is None
                                 else np.take(self.clear, rows_idx) & np.asarray(passed, bool))
+        passages = getattr(self, "passages", None)
+        if passages is not None and rows_y is not None and self._hits is not None:
+            # (window passages and transparent passes in any order: camera_passage's rule)
+            prim_y, wo_y, p_y, idx_y = self._hits
+            passages.step(prim_y, -wo_y, p_y, idx_y, rows_y, d)
+            self.clear[rows_idx] |= np.take(passages.clear, rows_idx) > 0.0
         # The rays refracted through a first vertex that carries lights (vertex(first)):
-        # those lights' emission is panelight's / shadelight's.
-        self.left_carrier[rows_idx] = 0
+        # those lights' emission is panelight's / shadelight's, and stays theirs on past
+        # transparent passes (a pane's shadow rays cross those beyond it: panelight).
+        if self._depth == 0 or passed is None:
+            self.left_carrier[rows_idx] = 0
+        else:
+            self.left_carrier[rows_idx] = np.where(np.asarray(passed, bool),
+                                                   np.take(self.left_carrier, rows_idx), 0)
         self.left_passage[rows_idx] = False
         if self._depth == 0:
             self.in_glass[rows_idx] = False
