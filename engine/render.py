@@ -1380,9 +1380,9 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
         # Three steps that need the radius at most, side by side on the workers (each
         # computes what it would alone, so the values are the same for any thread count;
         # on one thread in this order): the shot's spacing (handed over to other_maps
-        # as soon as it is known), the indirect share, and the gather map's masks. Run
-        # one after another they were the gather chain's serial stretch while
-        # other_maps, the shorter chain, had finished (docs/performance.md "workers55").
+        # as soon as it is known), the indirect share, and the gather map's masks. One
+        # after another they were a serial stretch of the longer chain, the build's
+        # critical path (docs/performance.md "workers55").
 
         def spacing(job_stop):
             # The caustic map's cap stays the whole shot's spacing (caustic_radius): a
