@@ -700,6 +700,56 @@ def _drop_bound_masks(shot, limits, gathered, masks, level_of) -> dict:
     return out
 
 
+def _gather_masks(shot, limits, gathered, bounded: bool, stop=None) -> tuple:
+    """The gather map's masks over the shot's photons (N,) bool, for _build_maps's gather
+    chain: (subsets, level_of, secondary, secondary_of, drop_bounds).
+
+    The regathers' maps, level by level: where the limits drop photons the level above
+    keeps, the level-0 map's irradiance from those photons alone at the same gather
+    points (GatherMap subsets: the points' estimates again, not a whole map; whole maps
+    per level doubled Figure 6's map build). Every level whose limits drop any photon's
+    light the level above keeps gets its subset, however small the dropped share of the
+    whole shot's power: the deep photons gather where the light is trapped, not evenly.
+    A house on a sunlit lawn (issue 14, bounces4) dropped 0.03 % of the shot's power at
+    level 1, nearly all of it inside the house, whose back wall read 1.23-1.31x Cycles at
+    Diffuse 4 while its regathers read the level-0 map (the share threshold this
+    replaced, 0.5 %). A subset costs no search of its own (the masks of one pass,
+    GatherMap): map build CPU the same within 3 % (docs/performance.md, bounces4).
+    level_of[L - 1]: the subset index of level L (-1: the level-0 map's photons).
+
+    The secondary-caustic (CAUSTIC_DIFFUSE) share of each regathering level's points,
+    from the same searches: a regathered end adds it back from its lookup's point
+    (integrator._secondary_irradiance) instead of a k-NN estimate of the secondary map
+    (docs/performance.md, regather29). Level L's ends are L + 1 diffuse bounces from the
+    camera's hit: the photons of regather_secondary[L] (other_maps). secondary: the
+    distinct masks; secondary_of: each level's index into them.
+
+    drop_bounds: _drop_bound_masks's where bounded (render.regather_levels), else None.
+    stop: unused (a run_tasks step)."""
+    subsets, level_of = [], []
+    last = gathered
+    power = shot.power.astype(np.float64).sum(axis=1) * (shot.kind != CAUSTIC)
+    for level in range(1, MAX_GATHER_LEVEL + 1):
+        ok = shot.usable(limits, camera=(level + 1, level + 1, 0, 0))
+        if np.any(last & ~ok & (power != 0.0)):
+            subsets.append(ok)
+            last = ok
+        level_of.append(len(subsets) - 1)
+    del power
+    secondary, secondary_of = [], []
+    if _integrator.SECONDARY_FROM_GATHER_POINTS:
+        for level in range(MAX_GATHER_LEVEL):
+            mask = (shot.kind == CAUSTIC_DIFFUSE) & shot.usable(
+                limits, camera=(level + 1, level + 1, 0, 0))
+            same = [i for i, m in enumerate(secondary) if np.array_equal(m, mask)]
+            secondary_of.append(same[0] if same else len(secondary))
+            if not same:
+                secondary.append(mask)
+    drop_bounds = (_drop_bound_masks(shot, limits, gathered, subsets, level_of)
+                   if bounded else None)
+    return subsets, level_of, secondary, secondary_of, drop_bounds
+
+
 def level_maps(gather_map: GatherMap, level_of: list, secondary_of: list) -> tuple:
     """The map each regathering level reads (render context's regather_maps), with each
     level's secondary-caustic share set (GatherMap.secondary_E).
@@ -905,7 +955,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
     maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
                                                     stop, pre_radius, glow_apart,
-                                                    camera_map_radius[0]),
+                                                    camera_map_radius[0], known_secondary),
                            should_cancel)
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
@@ -919,6 +969,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     if "time_gather_guide" in maps:
         stats["time_gather_guide"] = maps.pop("time_gather_guide")
     pre_share = maps.pop("indirect_share", _NOT_MEASURED)
+    maps_secondary = maps.pop("secondary_share", None)
     guide_skipped = maps.pop("guide_skipped", False)
     for name, value in maps.items():
         setattr(ctx, name, value)
@@ -964,7 +1015,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     elif guide_skipped:
         # (auto at a share too small for any grid to pay: guiding.can_guide; not built)
         stats.update(gather_guide_gain=None, gather_guided=False, gather_guide_points=0)
-    smooth_counts(ctx, shot, stats, known_secondary)
+    smooth_counts(ctx, shot, stats, maps_secondary or known_secondary)
     stats["time_photon_map"] = time.perf_counter() - t0
     # (The glow shot's photons beside an aimed map are the glow map's: counted, and
     # drawn in the photon-hit view, as when they were the caustic map's.)
@@ -1256,7 +1307,7 @@ def kth_radius(points: np.ndarray, positions: np.ndarray, k: int,
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
-                glow=None, camera_map_radius=None) -> dict:
+                glow=None, camera_map_radius=None, known_secondary=None) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
     global_photons. stop() is asked between the steps (raises Cancelled).
 
@@ -1270,7 +1321,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     global_search_radius's answer for this shot where the photon pass has it, else None.
     glow: the glow shot's Photons for a map of their own (GLOW_MAP_APART), else None.
     camera_map_radius: without final gathering, camera_radius's answer for the global
-    map's photons where the photon pass measured it (_camera_map_radius), else None."""
+    map's photons where the photon pass measured it (_camera_map_radius), else None.
+    known_secondary: (radius, secondary share) the photon pass measured (smooth_counts),
+    else None; where the maps keep another radius (or have none), the secondary map's
+    share at theirs comes back as secondary_share: (radius, share)."""
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     diffuse_tris = _diffuse_tris(ctx)
     diffuse_area = area_sum(geo, diffuse_tris)
@@ -1282,9 +1336,12 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     # the camera's hit (none). Paths with more camera-side bounces (after a mirror or glass
     # chain) read the same maps.
     limits = s.bounce_limits
-    at_hit = shot.usable(limits)
-    gathered = shot.usable(limits, camera=(1, 1, 0, 0))
-    final = plan.indirect and s.final_gather and bool(gathered.any())
+    # (at_hit, gathered, final), made by whichever chain asks first, under a lock (the
+    # other waits for it): the shot's count classes behind them (Photons.count_classes,
+    # ~0.05 CPU s on Figure 6) were the build's serial prologue; other_maps asks at its
+    # start, the gather chain after its Morton tree and radius (on one thread the gather
+    # chain runs first and makes them: the same masks).
+    usable = _Once(lambda: _usable_masks(shot, limits, plan.indirect and s.final_gather))
 
     def check(flag):
         if flag():
@@ -1320,21 +1377,43 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             # camera's diffuse hits (other_maps, camera_radius); visual importance's
             # gather-ray ends (lookup_points: 16 k rays more) would serve nothing.
             r_global, measured = None, -1
-        # The caustic map's cap stays the whole shot's spacing (caustic_radius): a glow of
-        # light through a rough metal ball under a low Multiple Scattering sun read 4x
-        # noisier with the region's (0.24 m against 0.46 m).
-        shot_radius.set(r_global if measured == len(shot) else auto_radius(
-            diffuse_area, len(shot), k, geo.extent, shot.position, tree, workers=workers))
-        del tree
+        # Three steps that need the radius at most, side by side on the workers (each
+        # computes what it would alone, so the values are the same for any thread count;
+        # on one thread in this order): the shot's spacing (handed over to other_maps
+        # as soon as it is known), the indirect share, and the gather map's masks. One
+        # after another they were a serial stretch of the longer chain, the build's
+        # critical path (docs/performance.md "workers55").
+
+        def spacing(job_stop):
+            # The caustic map's cap stays the whole shot's spacing (caustic_radius): a
+            # glow of light through a rough metal ball under a low Multiple Scattering
+            # sun read 4x noisier with the region's (0.24 m against 0.46 m).
+            shot_radius.set((r_global if measured == len(shot) else auto_radius(
+                diffuse_area, len(shot), k, geo.extent, shot.position, tree,
+                workers=workers), r_global))
+
+        def share_step(job_stop):
+            # The indirect share (visualimportance.indirect_share, ~0.05 s) before the
+            # map: it sizes the map's points (gather_points) and tells whether the
+            # guide's grids could pay (guiding.can_guide); _photon_maps reads the same
+            # value.
+            if share_counts(ctx) or s.gather_guiding == "auto":
+                return indirect_share(ctx, shot, s.radius or r_global)
+            return _NOT_MEASURED
+
+        _, gathered, final = usable()
+        steps = [spacing] + ([share_step, partial(_gather_masks, shot, limits, gathered,
+                                                      regather_levels(s))]
+                             if final else [])
+        done = run_tasks(steps, workers, flag)
+        del tree, steps
         gather_map = None
         if final:
             check(flag)
-            # The indirect share (visualimportance.indirect_share, ~0.05 s) before the map:
-            # it sizes the map's points (gather_points) and tells whether the guide's grids
-            # could pay (guiding.can_guide); _photon_maps reads the same value.
-            share = None
-            if share_counts(ctx) or s.gather_guiding == "auto":
-                share = indirect_share(ctx, shot, s.radius or r_global)
+            share, (masks, level_of, secondary, secondary_of, drop_bounds) = done[1:]
+            if share is _NOT_MEASURED:
+                share = None
+            else:
                 out_deeper["indirect_share"] = share
             # Final gathering needs all light at the gathered point: every stored photon.
             # Photons that arrived straight from a caustic are left out: seen through a
@@ -1342,43 +1421,6 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             # Every photon of a disc counts outside paper mode (smooth_min_photons):
             # zeroing discs below min_photons darkened thinly lit surfaces.
-            # The regathers' maps, level by level: where the limits drop photons the
-            # level above keeps, the level-0 map's irradiance from those photons alone at
-            # the same gather points (GatherMap subsets: the points' estimates again, not
-            # a whole map; whole maps per level doubled Figure 6's map build).
-            # Every level whose limits drop any photon's light the level above keeps gets
-            # its subset, however small the dropped share of the whole shot's power: the
-            # deep photons gather where the light is trapped, not evenly. A house on a
-            # sunlit lawn (issue 14, bounces4) dropped 0.03 % of the shot's power at
-            # level 1, nearly all of it inside the house, whose back wall read 1.23-1.31x
-            # Cycles at Diffuse 4 while its regathers read the level-0 map (the share
-            # threshold this replaced, 0.5 %). A subset costs no search of its own (the
-            # masks of one pass, GatherMap): map build CPU the same within 3 %
-            # (docs/performance.md, bounces4).
-            masks, level_of = [], []
-            last = gathered
-            power = shot.power.astype(np.float64).sum(axis=1) * (shot.kind != CAUSTIC)
-            for level in range(1, MAX_GATHER_LEVEL + 1):
-                ok = shot.usable(limits, camera=(level + 1, level + 1, 0, 0))
-                if np.any(last & ~ok & (power != 0.0)):
-                    masks.append(ok)
-                    last = ok
-                level_of.append(len(masks) - 1)
-            # The secondary-caustic (CAUSTIC_DIFFUSE) share of each regathering level's
-            # points, from the same searches: a regathered end adds it back from its
-            # lookup's point (integrator._secondary_irradiance) instead of a k-NN
-            # estimate of the secondary map (docs/performance.md, regather29). Level L's
-            # ends are L + 1 diffuse bounces from the camera's hit: the photons of
-            # regather_secondary[L] (other_maps).
-            secondary, secondary_of = [], []  # distinct masks; each level's
-            if _integrator.SECONDARY_FROM_GATHER_POINTS:
-                for level in range(MAX_GATHER_LEVEL):
-                    mask = (shot.kind == CAUSTIC_DIFFUSE) & shot.usable(
-                        limits, camera=(level + 1, level + 1, 0, 0))
-                    same = [i for i, m in enumerate(secondary) if np.array_equal(m, mask)]
-                    secondary_of.append(same[0] if same else len(secondary))
-                    if not same:
-                        secondary.append(mask)
             # Every non-caustic photon makes the map's points and discs; the irradiance
             # counts those valid one diffuse bounce after the camera's hit (keep).
             rows = np.flatnonzero(shot.kind != CAUSTIC)
@@ -1396,9 +1438,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                                    bounces=shot.bounces if bounded else None,
                                    # (which points' estimates hold photons a lookup's
                                    # counts may drop: most hold none)
-                                   drop_bounds=_drop_bound_masks(shot, limits, gathered,
-                                                                 masks, level_of)
-                                   if bounded else None,
+                                   drop_bounds=drop_bounds if bounded else None,
                                    # (each point's estimates when a lookup first takes
                                    # it, where few lookups a point are expected)
                                    lazy=gather_points_lazy(ctx, points, gather_count(
@@ -1422,6 +1462,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
 
     def other_maps(flag):
         out = {}
+        at_hit, _, final = usable()
         if plan.caustics:
             source = (caustic, np.flatnonzero(caustic.usable(limits))) if use_caustic_shot \
                 else (shot, np.flatnonzero((shot.kind == CAUSTIC) & at_hit))
@@ -1497,7 +1538,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
         # The caustic and glow maps need the estimates' cap, from the whole shot's
         # spacing, which gather_chain measures first (waited for here; on one thread
         # gather_chain has run whole before this chain starts).
-        spacing = shot_radius.wait(flag)
+        spacing, r_lookups = shot_radius.wait(flag)
         # The caustic estimates' cap (photonmap.caustic_radius): each takes its k nearest
         # caustic photons, so a focus is as narrow as its photons; the cap acts where they
         # are sparse.
@@ -1530,6 +1571,15 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
                 photons = _with_images(photons, images)
                 out["glow_images"] = len(images)
             out["glow_map"] = _counted_map(photons, workers, None)
+        secondary = out.get("secondary_map")
+        radius = s.radius or r_lookups
+        if secondary is not None and len(secondary) and len(shot) and radius and radius > 0 \
+                and not (known_secondary is not None and known_secondary[0] == radius):
+            # The secondary map's share for smooth_counts (its radius the one the maps
+            # keep), here beside the gather chain rather than on the calling thread
+            # after the build (~0.04 CPU s on Figure 6; the same value: one search).
+            check(flag)
+            out["secondary_share"] = (radius, secondary_share(ctx, shot, radius))
         return out
 
     out_deeper = {}
@@ -1539,6 +1589,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
     check(stop)
     global_radius = out.pop("global_radius", s.radius or r_global)
     r_global = r_global or global_radius  # (without final gathering: the camera's)
+    final = usable()[2]
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
     out["gather_short"] = s.radius or r_global
@@ -1553,6 +1604,40 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, pre_radius=None,
             out[name].lookup = s.caustic_lookup  # engine/causticcache.py
     out["diffuse_area"] = diffuse_area
     return out
+
+
+def _usable_masks(shot, limits, gathering: bool) -> tuple:
+    """(at_hit, gathered, final) for _build_maps: the shot's photons (N,) bool usable at
+    the camera's hit and one diffuse bounce after it (Photons.usable), and whether the
+    gather map is built (gathering: indirect light by final gathering, and some photon
+    is usable there)."""
+    at_hit = shot.usable(limits)
+    gathered = shot.usable(limits, camera=(1, 1, 0, 0))
+    return at_hit, gathered, gathering and bool(gathered.any())
+
+
+class _Once:
+    """make()'s result, made by the first thread that calls this and kept; a thread that
+    calls meanwhile waits for it (a lock held only while make runs, so a chain never
+    waits on one that is not running). An error in make reaches every caller."""
+
+    def __init__(self, make):
+        self._make = make
+        self._lock = threading.Lock()
+        self._done = False
+        self._value = self._error = None
+
+    def __call__(self):
+        with self._lock:
+            if not self._done:
+                try:
+                    self._value = self._make()
+                except BaseException as e:  # (each caller re-raises it)
+                    self._error = e
+                self._done = True
+        if self._error is not None:
+            raise self._error
+        return self._value
 
 
 class _Handover:
