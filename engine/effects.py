@@ -1627,7 +1627,8 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     'mirror' (a metal or Glossy BSDF lobe that is mirror-smooth: GGX alpha below
     ggx.ALPHA_MIN, the engine's delta lobe); a Glossy BSDF: 'glossy' (sharp enough to
     focus light: is_sharp) or 'rough glossy'; a Principled metal (Metallic above
-    METAL_WORDS): 'polished metal' (sharp) or 'metal'; else a specular layer over a
+    METAL_WORDS): 'polished metal' (sharp), 'glossy' (rough under a sharp coat) or
+    'metal'; else a specular layer over a
     diffuse base (a dielectric Principled, a coat), by its roughness: 'glossy' (sharp:
     plastic, varnish), 'rough glossy' (up to MATTE_ROUGHNESS) or 'matte' (rougher: its
     highlight spreads over most of the view). A Glossy BSDF at roughness 0.2 was called
@@ -1648,6 +1649,11 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
         return "glossy" if np.any(glossy & is_sharp(rough)) else "rough glossy"
     if np.any(metal & is_sharp(rough)):
         return "polished metal"
+    # A rough metal under a sharp coat (car paint) shows a mirror image in its coat: it is
+    # named by the coat, as a coated dielectric is (newuser55's Suzanne, metallic 1 at
+    # roughness 0.35 under Coat Roughness 0.03, read "metal ... no mirror image").
+    if np.any(metal & is_sharp(_layer_roughness(table, mats))):
+        return "glossy"
     if np.any(metal):
         return "metal"
     layer = float(_layer_roughness(table, mats).min())
@@ -1668,7 +1674,8 @@ def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> 
     as plain "glass", as if its roughness were ignored: new-user trial, newuser28);
     " (coat, roughness 0.03)" for a dielectric layer sharper by its coat than by its own
     roughness (newuser46's bowl at roughness 0.5 with a coat read as plain "glossy", as
-    the rough walls beside it are not); "" otherwise."""
+    the rough walls beside it are not), " (coat, roughness 0.03 over metallic 1, roughness
+    0.35)" for a rough metal under a sharp coat (car paint); "" otherwise."""
     mats = np.unique(geo.material[geo.object_id == oid])
     if kind == "glass":
         # The smoothest transmitting material names it; smooth (the delta lobe) says nothing.
@@ -1689,7 +1696,10 @@ def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> 
         layer = _layer_roughness(table, mats)
         coated = layer < np.asarray(table.roughness[mats], np.float64)
         if coated.any() and float(layer[coated].min()) <= float(layer.min()):
-            return f" (coat, roughness {float(layer[coated].min()):.2g})"
+            metal = mats[coated & (table.metallic[mats] > METAL_WORDS)]
+            base = (f" over metallic {float(np.max(table.metallic[metal])):.2g}, roughness "
+                    f"{float(np.min(table.roughness[metal])):.2g}" if len(metal) else "")
+            return f" (coat, roughness {float(layer[coated].min()):.2g}{base})"
     return ""
 
 

@@ -854,6 +854,30 @@ def test_a_coated_surface_is_glossy_by_its_coat_and_says_so():
     assert "glossy 'Varnish'" in spec and "glossy 'Varnish' (" not in spec, spec
 
 
+def test_a_rough_metal_under_a_sharp_coat_is_glossy_by_its_coat():
+    """newuser55's car paint (Principled Metallic 1, roughness 0.35, Coat Weight 1, Coat
+    Roughness 0.03) was listed among "glossy highlights ... no mirror image, on ... metal
+    'Suzanne'", while its coat mirrors the studio and the caustic line aims photons at it:
+    it is named by its coat, with the metal under it; a bare rough metal stays "metal"."""
+    from engine.effects import specular_kind
+    from engine.geometry import prepare
+    s = _room(Material("plain", (0.6, 0.6, 0.6)))
+    for name, mat, x in (("Paint", Material("carpaint", (0.5, 0.02, 0.03), roughness=0.35,
+                                            metallic=1.0, coat_weight=1.0,
+                                            coat_roughness=0.03), -1.0),
+                         ("Steel", Material("steel", (0.8, 0.8, 0.8), roughness=0.35,
+                                            metallic=1.0), 1.0)):
+        s.add_material(mat)
+        s.add_sphere((x, 0.5, 0.5), 0.5, mat.name, name=name, segments=16)
+    geo, table = prepare(s)
+    assert specular_kind(geo, table, geo.object_names.index("Paint")) == "glossy"
+    assert specular_kind(geo, table, geo.object_names.index("Steel")) == "metal"
+    spec = _line(_plan(s), "specular reflection / refraction: on")
+    sharp, _, rough = spec.partition("no mirror image")
+    assert "glossy 'Paint' (coat, roughness 0.03 over metallic 1, roughness 0.35)" in sharp, spec
+    assert "metal 'Steel' (metallic 1, roughness 0.35)" in rough and "'Paint'" not in rough, spec
+
+
 def test_rough_glass_is_named_with_its_roughness_and_clear_glass_without():
     """A Principled Transmission 1 vase at roughness 0.2 was reported as plain "glass
     'Vase'", as if its roughness were ignored (new-user trial, newuser28): glass that is
