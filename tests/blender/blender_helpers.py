@@ -190,6 +190,23 @@ def read_rgba(bpy, path):
         bpy.data.images.remove(img)
 
 
+def ours_and_cycles_means(bpy, scene, tmp_path, cycles_blur):
+    """(ours, Cycles) image means of the scene's RGB: ours first (the scene's engine,
+    with engine.blurredpassage.CYCLES_BLUR set to cycles_blur for the render: the
+    emulation of Cycles' blurred window passages, off by default), then Cycles."""
+    from engine import blurredpassage
+    was = blurredpassage.CYCLES_BLUR
+    blurredpassage.CYCLES_BLUR = cycles_blur
+    try:
+        ours = float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))
+                     [..., :3].mean())
+    finally:
+        blurredpassage.CYCLES_BLUR = was
+    scene.render.engine = "CYCLES"
+    ref = float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3].mean())
+    return ours, ref
+
+
 def read_layers(path):
     """Multilayer EXR -> {pass name: (H, W, C) array} for the first view layer."""
     import OpenEXR

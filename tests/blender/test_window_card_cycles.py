@@ -14,7 +14,7 @@ plane 0.9863; before passages55 1.4242 and 1.3063 (about 15 s in all).
 """
 import pytest
 from blender_helpers import (cheap, cycles_plain, glass_or_diffuse_material,
-                             looking_down_camera, read_rgba, render_exr, world_color)
+                             looking_down_camera, ours_and_cycles_means, world_color)
 from test_cutout_cards_cycles import _checker, _cutout_material
 
 pytestmark = pytest.mark.blender
@@ -48,19 +48,10 @@ def test_card_outside_window_glass_matches_cycles(fresh_scene, bpy_addon, tmp_pa
     scene.render.engine = "PHOTONMAP"
     cheap(scene, spp=16, photons=20_000, caustic_photons=20_000)
     cycles_plain(scene, 1024, 12).blur_glossy = 1.0
-    from engine import blurredpassage
-    was = blurredpassage.CYCLES_BLUR
     # Cycles blurs the slab's refractions after the floor's diffuse bounce (its shadow
     # rays stop at glass): 0.63 of its Filter Glossy 0 light here; ours' emulation of that
     # is off by default (docs/compatibility.md "fgslab49"), on here for the slab.
-    blurredpassage.CYCLES_BLUR = window == "slab"
-    try:
-        ours = float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))
-                     [..., :3].mean())
-    finally:
-        blurredpassage.CYCLES_BLUR = was
-    scene.render.engine = "CYCLES"
-    ref = float(read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3].mean())
+    ours, ref = ours_and_cycles_means(bpy, scene, tmp_path, cycles_blur=window == "slab")
     print(f"card outside {window} window glass at Filter Glossy 1: ours / Cycles "
           f"{ours / ref:.4f} (ours {ours:.4f}, Cycles {ref:.4f})")
     assert ref > 0.05
