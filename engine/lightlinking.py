@@ -373,22 +373,10 @@ NO_OBJECT = -2
 
 def mesh_photon_rows(links, light, key, slot: np.ndarray) -> np.ndarray:
     """(m,) int64 emitter rows (LightLinks.emit_row; -1: no links) of the triangles the
-    mesh light's photons in `slot` left: the triangle its emission chose (emit_mesh: the
-    CDF at emit_uniform(key, slot, 0), recomputed here with the same SplitMix64 number,
-    photonkernels.uniform)."""
-    from .lights.emission import EMIT_BOUNCE
-    from .photonkernels import MAX_BOUNCES, N_DIMS
-    with np.errstate(over="ignore"):
-        counter = ((np.asarray(slot, np.int64) * MAX_BOUNCES + EMIT_BOUNCE) * N_DIMS
-                   ).astype(np.uint64)
-        z = np.uint64(key) + (counter + np.uint64(1)) * np.uint64(0x9E3779B97F4A7C15)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        z = z ^ (z >> np.uint64(31))
-    u = (z >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
-    cdf = np.asarray(light.cdf)
-    tri = np.minimum(np.searchsorted(cdf, u, side="right"), len(cdf) - 1)
-    return links.mesh_tri_row[tri]
+    mesh light's photons in `slot` left (meshphotons.emitted_triangles: emit_mesh's
+    own pick)."""
+    from .meshphotons import emitted_triangles
+    return links.mesh_tri_row[emitted_triangles(light, key, slot)]
 
 
 class ShadowGroup:

@@ -40,6 +40,7 @@ import numpy as np
 from . import sampleclamp
 from .photonlayout import decode_power
 from .photonkernels import B_TOTAL
+from .meshphotons import emitted_triangles
 
 # Per-photon Clamp Indirect (above). False: the estimates are clamped as a whole only
 # (sampleclamp: each sample's estimate), the photon pass keeps no radiance.
@@ -55,20 +56,6 @@ def keeps_radiance(settings) -> bool:
     return PER_PHOTON and np.isfinite(sampleclamp.limits(settings)[1])
 
 
-def emitted_triangles(light, key, slot) -> np.ndarray:
-    """(M,) int64 the rows of mesh light `light`'s triangles (lights/mesh.py MeshLight)
-    its photons in `slot` (M,) int left under emission key `key` (uint64): emit_mesh's
-    choice, the triangle CDF at the photon's emission number 0 (emission.emit_uniform,
-    the same SplitMix64 number; emission.pick is searchsorted's right side)."""
-    from .lights.emission import EMIT_BOUNCE
-    from .photonkernels import uniforms
-    slot = np.ascontiguousarray(slot, np.int64)
-    u = np.empty(len(slot))
-    uniforms(np.uint64(key), slot, EMIT_BOUNCE, 0, u)
-    cdf = np.asarray(light.cdf)
-    return np.minimum(np.searchsorted(cdf, u, side="right"), len(cdf) - 1)
-
-
 def emitted_radiance(light, o, d, slot=None, key=None) -> np.ndarray:
     """(M,) float64 |Le|_1 (W sr^-1 m^-2, summed over RGB) of the light `light` along
     photons leaving o (M,3) in unit directions d (M,3): the radiance a Cycles path
@@ -80,8 +67,9 @@ def emitted_radiance(light, o, d, slot=None, key=None) -> np.ndarray:
     from .lights.world import WORLD
     m = len(d)
     zero = np.zeros(m)
-    if hasattr(light, "region") and hasattr(light, "light"):
-        light = light.light  # (a visualimportance.RegionEmitter: its light's photons)
+    from .visualimportance import RegionEmitter
+    if isinstance(light, RegionEmitter):
+        light = light.light  # (aimed at a region: its light's photons)
     kind = getattr(light, "kind", None)
     d = np.asarray(d, np.float64)
     if kind == SUN:
