@@ -68,11 +68,14 @@ def numpy_reject_for(self, pmap, sel):
             out[test] = ~(pd >= self.fg)
         return out
 
+    # (main's block of pairs at the time: glossysplit.REJECT_BLOCK, gone since percost55
+    # made the test one kernel call)
+    step = 1 << 14
+
     def reject(rows, photons):
         out = np.empty(len(rows), bool)
-        for a in range(0, len(rows), gs.REJECT_BLOCK):
-            out[a:a + gs.REJECT_BLOCK] = block(rows[a:a + gs.REJECT_BLOCK],
-                                               photons[a:a + gs.REJECT_BLOCK])
+        for a in range(0, len(rows), step):
+            out[a:a + step] = block(rows[a:a + step], photons[a:a + step])
         return out
     return reject
 
