@@ -51,6 +51,28 @@ SHARP_ROUGHNESS = 0.3
 SHARP_TOLERANCE = 1e-6
 
 
+def object_materials(geo: Geometry, oid: int) -> np.ndarray:
+    """(K,) int64 the distinct material indices of object oid's triangles, sorted: what
+    object_materials(geo, oid) gives, from a table of every object's
+    materials made once per geometry (one np.unique of object x material codes) and
+    kept on it, so that asking for each of many objects costs no pass over every
+    triangle (2,000 objects of 2M triangles took ~2 CPU s that way)."""
+    mat = geo.material
+    obj = geo.object_id
+    key = (id(mat), id(obj), len(mat))
+    entry = getattr(geo, "_object_materials", None)
+    if entry is None or entry[0] != key:
+        m = np.asarray(mat, np.int64)
+        n_mat = int(m.max()) + 1 if len(m) else 1
+        codes = np.unique(np.asarray(obj, np.int64) * n_mat + m)
+        # (floor division and modulo keep the pairs of a negative object id too)
+        entry = (key, codes // n_mat, codes % n_mat)
+        geo._object_materials = entry
+    _, objs, mats = entry
+    a, b = np.searchsorted(objs, (oid, oid + 1))
+    return mats[a:b]
+
+
 def is_sharp(roughness) -> np.ndarray:
     """Roughness (any shape) sharp enough to focus light: below SHARP_ROUGHNESS by more
     than float32's rounding (SHARP_TOLERANCE), whatever precision the value came in."""
@@ -298,7 +320,7 @@ def _strong_reflector(geo: Geometry, table: MaterialTable, oid: int) -> bool:
     if specular_kind(geo, table, oid) in ("glass", "mirror", "polished metal", "metal",
                                           "glossy"):
         return True
-    return bool(np.any(_is_glossy_node(table, np.unique(geo.material[geo.object_id == oid]))))
+    return bool(np.any(_is_glossy_node(table, object_materials(geo, oid))))
 
 
 def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names,
@@ -427,7 +449,7 @@ def _aimed_words(geo: Geometry, table: MaterialTable, names, refractors) -> str:
     for n in names:
         if n not in ids or n in refractors:
             continue
-        mats = np.unique(geo.material[geo.object_id == ids[n]])
+        mats = object_materials(geo, ids[n])
         if (specular_kind(geo, table, ids[n]) != "glossy" or np.any(_is_glossy_node(table, mats))
                 or np.any(table.metallic[mats] > 0) or np.any(table.transmission[mats] > 0)):
             continue
@@ -468,7 +490,7 @@ def _volume_only(geo: Geometry, table: MaterialTable, name: str) -> bool:
     volume_only: a medium's invisible boundary)."""
     if table.volume_only is None or name not in geo.object_names:
         return False
-    mats = np.unique(geo.material[geo.object_id == geo.object_names.index(name)])
+    mats = object_materials(geo, geo.object_names.index(name))
     return bool(len(mats)) and bool(np.all(table.volume_only[mats]))
 
 
@@ -1633,7 +1655,7 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     plastic, varnish), 'rough glossy' (up to MATTE_ROUGHNESS) or 'matte' (rougher: its
     highlight spreads over most of the view). A Glossy BSDF at roughness 0.2 was called
     "polished metal" (new-user trial, s17)."""
-    mats = np.unique(geo.material[geo.object_id == oid])
+    mats = object_materials(geo, oid)
     if np.any(table.transmission[mats] > 0):
         return "glass"
     if np.any(table.alpha[mats] < 1) or np.any(table.has_alpha_texture[mats]):
@@ -1676,7 +1698,7 @@ def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> 
     roughness (newuser46's bowl at roughness 0.5 with a coat read as plain "glossy", as
     the rough walls beside it are not), " (coat, roughness 0.03 over metallic 1, roughness
     0.35)" for a rough metal under a sharp coat (car paint); "" otherwise."""
-    mats = np.unique(geo.material[geo.object_id == oid])
+    mats = object_materials(geo, oid)
     if kind == "glass":
         # The smoothest transmitting material names it; smooth (the delta lobe) says nothing.
         r = float(np.min(table.roughness[mats[table.transmission[mats] > 0]]))
@@ -1799,7 +1821,7 @@ def _material_groups(geo: Geometry, table: MaterialTable, entries, at_least: int
     key_of = {}
     for shown, count, n in entries:
         if count == 1 and n in ids:
-            mats = np.unique(geo.material[geo.object_id == ids[n]])
+            mats = object_materials(geo, ids[n])
             if len(mats) == 1:
                 key_of[n] = (specular_kind(geo, table, ids[n]), table.names[int(mats[0])])
     sizes: dict = {}
@@ -1872,7 +1894,7 @@ def _rough_words(geo: Geometry, table: MaterialTable, names, kinds: dict,
     ids = {n: i for i, n in enumerate(geo.object_names)}
 
     def glossy_node(n):
-        mats = np.unique(geo.material[geo.object_id == ids[n]])
+        mats = object_materials(geo, ids[n])
         return bool(_is_glossy_node(table, mats).any())
 
     layers = [n for n in names if kinds[n] == "matte"

@@ -1508,3 +1508,19 @@ def test_cut_out_leaves_name_their_alpha_image_and_are_counted_by_material():
     spec = _line(plan, "specular reflection")
     assert f"{leaves} transparent objects of material 'Leaf'" in spec, spec
     assert "transparent 'Card'" in spec and "'Leaf00'" not in spec, spec
+
+
+def test_object_materials_is_each_objects_unique_materials():
+    """effects.object_materials answers np.unique(geo.material[geo.object_id == oid]) for
+    every object (and none for an id without triangles) from one table per geometry, and
+    makes a new table when the geometry's arrays are replaced."""
+    from types import SimpleNamespace
+    from engine.effects import object_materials
+    rng = np.random.default_rng(5)
+    geo = SimpleNamespace(material=rng.integers(0, 7, 5000).astype(np.int32),
+                          object_id=rng.integers(-1, 40, 5000).astype(np.int32))
+    for oid in range(-1, 42):
+        assert np.array_equal(object_materials(geo, oid),
+                              np.unique(geo.material[geo.object_id == oid])), oid
+    geo.material = np.zeros(5000, np.int32)
+    assert np.array_equal(object_materials(geo, 3), [0])
