@@ -258,7 +258,10 @@ def _near_numpy(cs, p, tri):
             if not len(rows):
                 break
             x = np.take(p[:, c], rows)
-            rows = rows[(x >= partners.box[0, c]) & (x <= partners.box[1, c])]
+            # (numpy 1.26 compared a float32 array with the float64 box scalar in float32:
+            # value-based casting, which NEP 50 ends; cast as it did)
+            lo, hi = (p.dtype.type(partners.box[k, c]) for k in (0, 1))
+            rows = rows[(x >= lo) & (x <= hi)]
         out[rows] = True
     return out
 
