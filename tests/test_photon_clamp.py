@@ -313,15 +313,24 @@ def test_mesh_light_of_several_radiances_gives_each_photon_its_triangle():
     assert (np.isclose(direct, 30.0, rtol=1e-5) | np.isclose(direct, 12.0, rtol=1e-5)).all()
 
 
-def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums():
+@pytest.mark.parametrize("focus", [False, True])
+def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums(focus):
     """Clamp Indirect folded into photonvisibility._visible_rows: each row whose read
     list holds a photon over the limit is factor x sum(weight x w_p x power) over its
     photons not left out (here by a reject callable, as hidden ones are), the numpy
     sum photonclamp.clamp_rows took before, within float64 reordering; every other row
-    keeps the plain estimate's bits."""
+    keeps the plain estimate's bits. focus: 300 more photons in a spot 1e-4 wide with
+    rows on it, estimated by the radius estimator, so they read more than READ_WIDTH x
+    k photons and are read again whole (_estimate_read's wide rows, summed by their own
+    pass)."""
     rng = np.random.default_rng(7)
     n = 600
-    pos = np.c_[rng.random((n, 2)), np.zeros(n)].astype(np.float32)
+    pos = np.c_[rng.random((n, 2)), np.zeros(n)]
+    if focus:
+        spot = 300
+        pos = np.r_[pos, np.c_[0.7 + 1e-4 * rng.random((spot, 2)), np.zeros(spot)]]
+        n += spot
+    pos = pos.astype(np.float32)
     up = np.tile(np.float32([0, 0, 1]), (n, 1))
     power = (0.005 + 0.02 * rng.random((n, 3))).astype(np.float32)
     # (|L_p|_1 20 is under the limit 30 x Q at any scale <= 1: the rows left of x 0.35
@@ -334,6 +343,11 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums():
     pmap = PhotonMap(ph)
     m = 40
     p = np.c_[0.1 + 0.8 * rng.random((m, 2)), np.zeros(m)]
+    if focus:
+        p[-8:, :2] = 0.70005 + 2e-5 * rng.random((8, 2))
+    # (the radius estimator reads every photon within the radius: the rows on the spot
+    # read ~340, more than READ_WIDTH x k)
+    estimator = "radius" if focus else "knn_simpson"
     nrm = np.tile([0.0, 0.0, 1.0], (m, 1))
     scale = 0.3 + 0.7 * rng.random((m, 3))
     scale[:5] = 0.0  # (rows over no limit: their bits kept)
@@ -341,17 +355,24 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums():
     def reject(rows, photons):
         return (np.asarray(rows) + np.asarray(photons)) % 5 == 0
 
-    args = (pmap, None, p, nrm, None, 0.15, 40, 8, "knn_simpson")
+    args = (pmap, None, p, nrm, None, 0.15, 40, 8, estimator)
     plain = photonvisibility.visible_irradiance(*args, reject=reject)
     got = photonvisibility.visible_irradiance(*args, reject=reject, clamp=(scale, 30.0))
     _, count, lists, weight, factor, wide = photonvisibility._estimate_read(
-        pmap, None, None, p, nrm, 0.15, 40, 8, "knn_simpson", None)
-    assert not len(wide[0]) and (count > 0).all()
+        pmap, None, None, p, nrm, 0.15, 40, 8, estimator, None)
+    count, lists, weight, factor = count.copy(), lists.copy(), weight.copy(), factor.copy()
+    if focus:
+        assert set(range(m - 8, m)) <= set(wide[0]), wide[0]  # (and rows near the spot)
+        wide_lists = {int(r): (wide[2][j, :wide[1][j]], wide[3][j, :wide[1][j]], wide[4][j])
+                      for j, r in enumerate(wide[0])}
+    else:
+        assert not len(wide[0]) and (count > 0).all()
+        wide_lists = {}
     want = np.empty((m, 3))
     over = np.zeros(m, bool)
     mp = pmap.photons  # (the map's own order)
     for i in range(m):
-        js = lists[i, :count[i]]
+        js, wt, fac = wide_lists.get(i, (lists[i, :count[i]], weight[i, :count[i]], factor[i]))
         keep = ~reject(np.full(len(js), i), js)
         pw = (decode_power(mp.power[js]) if mp.power.dtype == np.uint8
               else mp.power[js].astype(np.float64))  # (a compact map's RGBE)
@@ -359,9 +380,10 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums():
                                        scale[i], 30.0,
                                        None if mp.bounces is None else mp.bounces[js, 0])
         over[i] = (w < 1).any()
-        want[i] = (np.where(keep, weight[i, :count[i]] * w, 0.0)[:, None]
-                   * pw).sum(axis=0) * factor[i]
+        want[i] = (np.where(keep, wt * w, 0.0)[:, None] * pw).sum(axis=0) * fac
     assert 10 < over.sum() <= m - 10
+    if focus:
+        assert over[m - 8:].sum() >= 4  # (wide rows the clamp sums again)
     assert np.allclose(got[over], want[over], rtol=1e-12, atol=0.0)
     assert np.array_equal(got[~over], plain[~over])
     assert np.allclose(plain[~over], want[~over], rtol=1e-12, atol=0.0)  # (the reference)
