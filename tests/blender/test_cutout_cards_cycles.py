@@ -20,7 +20,8 @@ import math
 
 import numpy as np
 import pytest
-from blender_helpers import cycles_plain, read_rgba, render_exr
+from blender_helpers import (cycles_plain, looking_down_camera, read_rgba, render_exr, sun_light,
+                             world_color)
 
 pytestmark = pytest.mark.blender
 
@@ -69,21 +70,10 @@ def _scene(bpy, scene):
     for x, z in ((-0.55, 0.5), (-0.15, 0.25)):  # the upper card half over the lower
         bpy.ops.mesh.primitive_plane_add(size=0.8, location=(x, 0.0, z))
         bpy.context.object.data.materials.append(card)
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy, sun.data.angle = 1.0, math.radians(3.0)
-    sun.rotation_euler = (0.0, math.radians(-25.0), 0.0)
-    scene.collection.objects.link(sun)
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
-    bg.inputs["Color"].default_value = (0.6, 0.7, 0.8, 1.0)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.8
-    cam.location = (0.0, 0.0, 1.5)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    sun = sun_light(bpy, scene, (0.0, math.radians(-25.0), 0.0), energy=1.0)
+    sun.data.angle = math.radians(3.0)
+    world_color(bpy, scene, (0.6, 0.7, 0.8))
+    looking_down_camera(bpy, scene, 1.5, ortho_scale=1.8)
     scene.render.resolution_x = scene.render.resolution_y = RES
     scene.render.resolution_percentage = 100
 
