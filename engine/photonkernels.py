@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from .closures import principled as pr
@@ -39,6 +40,12 @@ from .filterglossy import blur_alpha, raise_alphas
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
 from .trig import sincos_turn
+
+# A kernel numba inlines into its callers (its IR, before LLVM: the same operations, so
+# the same bits; jit.kernel otherwise). For the smooth glass set-up and sample, which
+# _scatter calls once a glass hit: as calls (5 arrays passed) they took ~25 ns more a
+# glass hit of Figure 8's replayed scatter calls (docs/performance.md, glass55).
+_inline_kernel = numba.njit(nogil=True, cache=True, inline="always")
 
 # Kinds of path recorded with a stored photon (engine/photons.py explains them).
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
@@ -737,7 +744,7 @@ def _same(x, y):
     return x == y and (x != 0.0 or math.copysign(1.0, x) == math.copysign(1.0, y))
 
 
-@kernel
+@_inline_kernel
 def smooth_glass_at(params, m, a, base, j, cos_o, gprm, wj, sg, r):
     """smooth_glass with the material side's constants sg[r] (smooth_glass_consts) given:
     scatter fills them once per (material, side) a call. The same bits as smooth_glass
@@ -830,7 +837,7 @@ def _smooth_glass_sample(gprm, ox, oy, oz, u3, mu, remap):
                                    1.0 / eta)
 
 
-@kernel
+@_inline_kernel
 def _smooth_glass_sample_at(gprm, ox, oy, oz, u3, mu, remap, f0e, inv_eta):
     """_smooth_glass_sample with its side's constants given: f0e = F0_from_ior(eta)
     and inv_eta = 1 / eta (smooth_glass_consts' _SG_F0E, _SG_INV_ETA; eta =
