@@ -27,18 +27,25 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from .closures import principled as pr
 from .closures import ggx, tables
 from . import glassadjoint as ga
-from .closures.fresnel import F0_from_ior, schlick_remap
+from .closures.fresnel import F0_from_ior, fresnel_dielectric
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .blurredpassage import passage_factor
 from .filterglossy import blur_alpha, raise_alphas
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
 from .trig import sincos_turn
+
+# A kernel numba inlines into its callers (its IR, before LLVM: the same operations, so
+# the same bits; jit.kernel otherwise). For the smooth glass set-up and sample, which
+# _scatter calls once a glass hit: as calls (5 arrays passed) they took ~25 ns more a
+# glass hit of Figure 8's replayed scatter calls (docs/performance.md, glass55).
+_inline_kernel = numba.njit(nogil=True, cache=True, inline="always")
 
 # Kinds of path recorded with a stored photon (engine/photons.py explains them).
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
@@ -527,7 +534,14 @@ _SG_KE = 5       # the E table's z cell (tables._coord: index as a float, fracti
 _SG_FZE = 6
 _SG_KS = 7       # SCHLICK_IOR_S's z cell
 _SG_FZS = 8
-SG_N = 9
+_SG_F0E = 9      # F0_from_ior(eta): schlick_remap(., eta)'s f0 on this side
+_SG_INV_ETA = 10  # 1 / eta
+_SG_F0C = 11     # (3) the glass lobe's f0 per channel (P_GLASS_F0)
+_SG_BASE = 14    # (3) the base colour the next columns were taken for (NaN: none yet)
+_SG_RT = 17      # (3) reflection tint of that base (Glass BSDF: base, Principled: 1)
+_SG_TT = 20      # (3) transmission tint (Glass BSDF: base, Principled: sqrt(base))
+_SG_FMS = 23     # (3) ggx.energy_factor's Fms of that tint (Multiscatter GGX; E_avg is the side's)
+SG_N = 26
 
 
 @kernel
@@ -546,7 +560,9 @@ def smooth_glass_consts(params, m, front, sg, r):
     (front: arrived outside) that no hit changes: eta, F0, and at roughness <= 0 the glass
     tables' z cells and their average albedo (tables.lookup3(tab, 0, y, z) =
     tables.lookup3_at(tab, 0, 0, y, k, fz) with (k, fz) = tables._coord(z): the same
-    operations on the same values as per hit, so the same bits)."""
+    operations on the same values as per hit, so the same bits), schlick_remap's f0 and
+    1 / eta on this side, and the glass lobe's f0 per channel. The base colour's tints
+    (_SG_BASE ..) are filled by smooth_glass_at at the row's first hit."""
     rough = params[m, pr.M_ROUGH]
     ior = max(params[m, pr.M_IOR], 1e-5)
     eta = ior if front else 1.0 / ior
@@ -565,6 +581,13 @@ def smooth_glass_consts(params, m, front, sg, r):
         sg[r, _SG_KE], sg[r, _SG_FZE] = float(k), fz
         k, fz = tables._coord(tables.z_from_ior(max(ior, 1.0)), tables.SCHLICK_IOR_S.shape[2])
         sg[r, _SG_KS], sg[r, _SG_FZS] = float(k), fz
+    sg[r, _SG_F0E] = F0_from_ior(eta)
+    sg[r, _SG_INV_ETA] = 1.0 / eta
+    glass_node = params[m, pr.M_NODE] == pr.NODE_GLASS
+    for c in range(3):
+        sg[r, _SG_F0C + c] = (sg[r, _SG_F0] if glass_node else
+                              min(sg[r, _SG_F0] * max(params[m, pr.M_STINT + c], 0.0), 1.0))
+        sg[r, _SG_BASE + c] = np.nan  # (never equal: the first hit fills the tints)
     sg[r, _SG_SET] = 1.0
 
 
@@ -694,42 +717,107 @@ def _adjoint_channel(e_in, ea_in, e_out, ea_out, colour, glass_node):
 
 
 @kernel
+def _glass_s(rough, mu, ior, sg, r):
+    """_glass_tables' third value alone (tables.schlick_ior_s, the same bits), for a
+    material without Multiscatter GGX: its E and E_avg are not used (_compensation is
+    (1, 1) there)."""
+    if sg[r, _SG_X0] == 0.0:
+        return tables.schlick_ior_s(rough, mu, ior)
+    return tables.lookup3_at(tables.SCHLICK_IOR_S, 0.0, 0.0, mu, sg[r, _SG_KS], sg[r, _SG_FZS])
+
+
+@kernel
+def _schlick_remap_f0(cos_i, eta, f0):
+    """fresnel.schlick_remap(cos_i, eta) with its f0 = F0_from_ior(eta) given (a
+    constant of the material's side, sg[r, _SG_F0E]): the same operations on the same
+    values, so the same bits."""
+    f = fresnel_dielectric(cos_i, eta)
+    if f0 >= 1.0:
+        return 1.0
+    return min(max((f - f0) / (1.0 - f0), 0.0), 1.0)
+
+
+@kernel
+def _same(x, y):
+    """x and y are the same float for the tints' clamps and square root: equal, and of
+    the same sign where 0 (-0.0 == 0.0, but max(-0.0, 0.0) and sqrt keep a sign)."""
+    return x == y and (x != 0.0 or math.copysign(1.0, x) == math.copysign(1.0, y))
+
+
+@_inline_kernel
 def smooth_glass_at(params, m, a, base, j, cos_o, gprm, wj, sg, r):
     """smooth_glass with the material side's constants sg[r] (smooth_glass_consts) given:
-    scatter fills them once per (material, side) a call."""
+    scatter fills them once per (material, side) a call. The same bits as smooth_glass
+    before the constants: the glass tables are read only where their values are used
+    (E and E_avg with Multiscatter GGX; s for a photon arriving from outside), the
+    transmission tint sqrt(base) of a Principled glass, the f0 per channel and the energy
+    compensation's Fms per channel are taken again only when the hit's base colour
+    differs from the row's last one (an untextured base: once a call), the compensation's
+    (1 - E) / E once for the three channels, and without Multiscatter GGX the weights
+    skip their factors of exactly 1 (x * 1.0 is x)."""
     mu = min(max(cos_o, 0.0), 1.0)
     W = a * (1.0 + params[m, pr.M_ADD])
     for c in range(3):
         wj[pr.L_PASS, c] = (1.0 - a) * params[m, pr.M_TTINT + c]
     rough = params[m, pr.M_ROUGH]
     multi = params[m, pr.M_MULTI]
-    node = params[m, pr.M_NODE]
     tr = params[m, pr.M_TRANS]
-    ior = max(params[m, pr.M_IOR], 1e-5)
     eta = sg[r, _SG_ETA]
     Eg = Eg_avg = s_out = 0.0
-    if multi != 0.0 or eta >= 1.0:
-        Eg, Eg_avg, s_out = _glass_tables(rough, mu, eta, ior, sg, r)
-    F0g = sg[r, _SG_F0]
+    if multi != 0.0:
+        Eg, Eg_avg, s_out = _glass_tables(rough, mu, eta, max(params[m, pr.M_IOR], 1e-5),
+                                          sg, r)
+    elif eta >= 1.0:
+        s_out = _glass_s(rough, mu, max(params[m, pr.M_IOR], 1e-5), sg, r)
     remap = -1.0
     if eta >= 1.0:
         s_n = s_out
     else:
-        s_n = remap = schlick_remap(mu, eta)
+        s_n = remap = _schlick_remap_f0(mu, eta, sg[r, _SG_F0E])
+    if not (_same(base[j, 0], sg[r, _SG_BASE]) and _same(base[j, 1], sg[r, _SG_BASE + 1])
+            and _same(base[j, 2], sg[r, _SG_BASE + 2])):
+        glass_node = params[m, pr.M_NODE] == pr.NODE_GLASS
+        for c in range(3):
+            sg[r, _SG_BASE + c] = base[j, c]
+            if glass_node:
+                tt = max(base[j, c], 0.0)
+                sg[r, _SG_RT + c] = tt
+            else:
+                tt = math.sqrt(min(max(base[j, c], 0.0), 1.0))
+                sg[r, _SG_RT + c] = 1.0
+            sg[r, _SG_TT + c] = tt
+            if multi != 0.0:
+                # ggx.energy_factor's Fms for Fss = tt: E_avg depends on the roughness
+                # and eta alone (the row's), so it is the row's per tint.
+                sg[r, _SG_FMS + c] = tt * Eg_avg / max(1.0 - tt * (1.0 - Eg_avg), 1e-9)
+    tW = tr * W
+    if multi != 0.0:
+        # principled._compensation's (f, f x E) with f = ggx.energy_factor(E, E_avg, tt)
+        # = 1 + Fms (1 - E') / E' (E' = max(E, 1e-4)): its per-hit term, once for the
+        # three channels.
+        Ec = max(Eg, 1e-4)
+        missing = (1.0 - Ec) / Ec
+    else:
+        missing = 0.0
     for c in range(3):
-        if node == pr.NODE_GLASS:
-            rt = tt = max(base[j, c], 0.0)
-            f0 = F0g
-        else:
-            rt = 1.0
-            tt = math.sqrt(min(max(base[j, c], 0.0), 1.0))
-            f0 = min(F0g * max(params[m, pr.M_STINT + c], 0.0), 1.0)
-        fac, dark = pr._compensation(multi, Eg, Eg_avg, tt)
-        gprm[0, pr.P_GLASS_RW + c] = tr * W * rt * fac
-        gprm[0, pr.P_GLASS_TW + c] = tr * W * tt * fac
+        rt = sg[r, _SG_RT + c]
+        tt = sg[r, _SG_TT + c]
+        f0 = sg[r, _SG_F0C + c]
+        F = f0 + (1.0 - f0) * s_n
         gprm[0, pr.P_GLASS_F0 + c] = f0
-        wj[pr.L_GLASS_R, c] = tr * W * rt * dark * (f0 + (1.0 - f0) * s_n)
-        wj[pr.L_GLASS_T, c] = tr * W * tt * dark * (1.0 - (f0 + (1.0 - f0) * s_n))
+        if multi == 0.0:
+            # _compensation's (1, 1): fac and dark are exact factors of 1.
+            gprm[0, pr.P_GLASS_RW + c] = tW * rt
+            gprm[0, pr.P_GLASS_TW + c] = tW * tt
+            wj[pr.L_GLASS_R, c] = tW * rt * F
+            wj[pr.L_GLASS_T, c] = tW * tt * (1.0 - F)
+        else:
+            fac = 1.0 + sg[r, _SG_FMS + c] * missing
+            dark = fac * Eg
+            gprm[0, pr.P_GLASS_RW + c] = tW * rt * fac
+            gprm[0, pr.P_GLASS_TW + c] = tW * tt * fac
+            wj[pr.L_GLASS_R, c] = tW * rt * dark * F
+            wj[pr.L_GLASS_T, c] = tW * tt * dark * (1.0 - F)
     gprm[0, pr.P_GLASS_ALPHA] = rough * rough
     gprm[0, pr.P_GLASS_ETA] = eta
     Wd = W * (1.0 - tr)
@@ -744,6 +832,16 @@ def _smooth_glass_sample(gprm, ox, oy, oz, u3, mu, remap):
     microfacet normal is the shading normal, c = wo . n), the same operations on the same
     values, so the same bits; except that the real-Fresnel remap schlick_remap(c, eta) is
     remap where smooth_glass computed it for the same cosine (c == mu, remap >= 0)."""
+    eta = gprm[0, pr.P_GLASS_ETA]
+    return _smooth_glass_sample_at(gprm, ox, oy, oz, u3, mu, remap, F0_from_ior(eta),
+                                   1.0 / eta)
+
+
+@_inline_kernel
+def _smooth_glass_sample_at(gprm, ox, oy, oz, u3, mu, remap, f0e, inv_eta):
+    """_smooth_glass_sample with its side's constants given: f0e = F0_from_ior(eta)
+    and inv_eta = 1 / eta (smooth_glass_consts' _SG_F0E, _SG_INV_ETA; eta =
+    gprm[0, P_GLASS_ETA]), the same bits."""
     if gprm[0, pr.P_GLASS_ALPHA] >= ggx.ALPHA_MIN:  # not smooth after all
         return pr._glass_sample(gprm, 0, ox, oy, oz, 0.0, 0.0, u3)
     eta = gprm[0, pr.P_GLASS_ETA]
@@ -751,7 +849,7 @@ def _smooth_glass_sample(gprm, ox, oy, oz, u3, mu, remap):
     c = ox * hx + oy * hy + oz * hz
     if c <= 0.0:
         return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
-    s = remap if (remap >= 0.0 and c == mu) else schlick_remap(c, eta)
+    s = remap if (remap >= 0.0 and c == mu) else _schlick_remap_f0(c, eta, f0e)
     F0 = pr._glass_F_s(gprm[0, pr.P_GLASS_F0], s)
     F1 = pr._glass_F_s(gprm[0, pr.P_GLASS_F0 + 1], s)
     F2 = pr._glass_F_s(gprm[0, pr.P_GLASS_F0 + 2], s)
@@ -761,7 +859,6 @@ def _smooth_glass_sample(gprm, ox, oy, oz, u3, mu, remap):
     t0 = gprm[0, pr.P_GLASS_TW] * (1.0 - F0)
     t1 = gprm[0, pr.P_GLASS_TW + 1] * (1.0 - F1)
     t2 = gprm[0, pr.P_GLASS_TW + 2] * (1.0 - F2)
-    inv_eta = 1.0 / eta
     s2 = inv_eta * inv_eta * (1.0 - c * c)
     if s2 >= 1.0:  # total internal reflection
         t0 = t1 = t2 = 0.0
@@ -954,6 +1051,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     sg = np.zeros((2 * params.shape[0], SG_N))  # row 2 x material + arrived outside
     sg_mu = 0.0
     sg_remap = -1.0
+    sg_f0e = 0.0
+    sg_inv_eta = 1.0
     # glassadjoint's arguments and candidate rows at a bent smooth glass hit.
     gd = np.empty(3)
     gnn = np.empty(3)
@@ -1048,6 +1147,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 sg_mu = min(max(cos_o, 0.0), 1.0)
                 sg_remap = smooth_glass_at(params, mat_b[j], alpha_b[j], base_b, j, cos_o,
                                            gprm, wj, sg, sgr)
+                sg_f0e = sg[sgr, _SG_F0E]
+                sg_inv_eta = sg[sgr, _SG_INV_ETA]
             else:
                 for l in range(pr.N_LOBES):
                     for c in range(3):
@@ -1131,7 +1232,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     s += probs[l]
                 norm = max(s, 1.0)
                 for l in (pr.L_DIFFUSE, pr.L_PASS, pr.L_GLASS_R, pr.L_GLASS_T):
-                    cdf += probs[l] / norm
+                    cdf += probs[l] if norm == 1.0 else probs[l] / norm  # (as PLAIN's)
                     if xi < cdf:
                         lobe = l
                         break
@@ -1141,7 +1242,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     s += probs[l]
                 norm = max(s, 1.0)
                 for l in range(pr.N_LOBES):
-                    cdf += probs[l] / norm
+                    cdf += probs[l] if norm == 1.0 else probs[l] / norm  # (as PLAIN's)
                     if xi < cdf:
                         lobe = l
                         break
@@ -1235,8 +1336,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     elif jc == -SMOOTH_GLASS:
                         # The glass lobe's own sampler; smooth, it reads only its third number
                         # (reflect or refract): the first two are not drawn.
-                        ix, iy, iz, k0, k1, k2, transmitted = _smooth_glass_sample(
-                            gprm, lx, ly, lz, uniform(key, sl, bounce, 5), sg_mu, sg_remap)
+                        ix, iy, iz, k0, k1, k2, transmitted = _smooth_glass_sample_at(
+                            gprm, lx, ly, lz, uniform(key, sl, bounce, 5), sg_mu, sg_remap,
+                            sg_f0e, sg_inv_eta)
                     else:
                         ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
                             prm, jc, lobe, lx, ly, lz, uniform(key, sl, bounce, 3),

@@ -281,6 +281,83 @@ def test_smooth_glass_sets_up_as_principled_setup():
             assert not np.any(w[i, lobe])
 
 
+def test_smooth_glass_at_with_a_call_s_constants_sets_up_as_principled_setup():
+    """scatter's SMOOTH_GLASS set-up as scatter calls it: one table of constants per
+    call (smooth_glass_consts, a row per material and side), shared by every hit, whose
+    tints, f0 and energy compensation's Fms are kept from the row's last base colour.
+    Runs of hits of one material and base colour (an untextured base), base colours that
+    change from hit to hit (a texture), a base of -0.0 after 0.0 (the clamps keep the
+    sign) and NaN: the weights, glass columns and remap principled.setup and the one-hit
+    smooth_glass give, bit for bit; and the sampler with the row's f0 and 1 / eta gives
+    principled._glass_sample's bits."""
+    from engine.closures import principled as pr
+    rng = np.random.default_rng(55)
+    rows = []
+    for node in (pr.NODE_GLASS, pr.NODE_PRINCIPLED):
+        for rough in (0.0, 0.009):
+            for multi in (0.0, 1.0):
+                for ior in (1.45, 0.8):
+                    q = np.zeros(pr.N_MAT)
+                    q[pr.M_ALPHA] = q[pr.M_TRANS] = q[pr.M_SPEC] = 1.0
+                    q[pr.M_ROUGH], q[pr.M_IOR], q[pr.M_LEVEL] = rough, ior, 0.5
+                    q[pr.M_STINT:pr.M_STINT + 3] = (1.0, 0.8, 0.5)
+                    q[pr.M_MULTI], q[pr.M_NODE] = multi, node
+                    q[pr.M_TTINT:pr.M_TTINT + 3] = (1.0, 0.9, 0.7)
+                    rows.append(q)
+    params = np.array(rows)
+    assert np.all(pk.lobe_classes(params) == pk.SMOOTH_GLASS)
+    n = 6000
+    # runs of 1-40 hits sharing a material, side and base colour
+    mat = np.empty(n, np.int64)
+    front = np.empty(n, bool)
+    base = np.empty((n, 3))
+    i = 0
+    while i < n:
+        k = min(int(rng.integers(1, 40)), n - i)
+        mat[i:i + k] = rng.integers(0, len(params))
+        front[i:i + k] = rng.random() < 0.5
+        base[i:i + k] = (1.0, 1.0, 1.0) if rng.random() < 0.5 else rng.random(3)
+        i += k
+    textured = rng.random(n) < 0.2
+    base[textured] = rng.random((int(textured.sum()), 3))
+    base[100:104] = ((0.0, 0.5, 1.0), (-0.0, 0.5, 1.0), (0.0, -0.0, 1.0), (np.nan, 0.5, 1.0))
+    mat[100:104] = mat[100]
+    front[100:104] = front[100]
+    cos_o = np.concatenate([[-0.1, 0.0, 1e-5, 1.0], rng.random(n - 4)])
+    alpha = np.where(rng.random(n) < 0.3, rng.random(n), 1.0)
+    prm = np.zeros((n, pr.N_PACK))
+    w = np.zeros((n, pr.N_LOBES, 3))
+    pr.setup(mat, params, base, cos_o, front, alpha, prm, w)
+    sg = np.zeros((2 * len(params), pk.SG_N))
+    gprm = np.zeros((1, pr.N_PACK))
+    wj = np.zeros((pr.N_LOBES, 3))
+    gprm1 = np.zeros((1, pr.N_PACK))
+    wj1 = np.zeros((pr.N_LOBES, 3))
+    cols = ([pr.P_GLASS_RW + c for c in range(3)] + [pr.P_GLASS_TW + c for c in range(3)]
+            + [pr.P_GLASS_F0 + c for c in range(3)] + [pr.P_GLASS_ALPHA, pr.P_GLASS_ETA])
+    for i in range(n):
+        r = 2 * mat[i] + (1 if front[i] else 0)
+        if sg[r, pk._SG_SET] == 0.0:
+            pk.smooth_glass_consts(params, mat[i], front[i], sg, r)
+        remap = pk.smooth_glass_at(params, mat[i], alpha[i], base, i, cos_o[i], gprm, wj, sg, r)
+        remap1 = pk.smooth_glass(params, mat[i], alpha[i], base, i, cos_o[i], front[i],
+                                 gprm1, wj1)
+        assert np.float64(remap).tobytes() == np.float64(remap1).tobytes(), i
+        for lobe in (pr.L_DIFFUSE, pr.L_PASS, pr.L_GLASS_R, pr.L_GLASS_T):
+            assert wj[lobe].tobytes() == w[i, lobe].tobytes(), (i, lobe)
+        assert gprm[0, cols].tobytes() == prm[i, cols].tobytes(), i
+        if i % 3 == 0 and 0.0 < cos_o[i]:
+            oz = cos_o[i]
+            ox = np.sqrt(1.0 - oz * oz)
+            u3 = rng.random()
+            mu = min(max(oz, 0.0), 1.0)
+            want = pr._glass_sample(gprm, 0, ox, 0.0, oz, 0.0, 0.0, u3)
+            got = pk._smooth_glass_sample_at(gprm, ox, 0.0, oz, u3, mu, remap,
+                                             sg[r, pk._SG_F0E], sg[r, pk._SG_INV_ETA])
+            assert np.array(got[:6]).tobytes() == np.array(want[:6]).tobytes(), i
+            assert got[6] == want[6]
+
+
 def test_smooth_glass_samples_as_principled_glass_sample():
     """scatter's smooth glass sampler (photonkernels._smooth_glass_sample, given the
     Fresnel remap smooth_glass returned for the hit's cosine) gives the direction,
