@@ -142,7 +142,8 @@ def uniform(key, slot, bounce, dim):
 
 @kernel
 def uniforms(key, slot, bounce, dim, out):
-    """out[i] = uniform(key, slot[i], bounce, dim) (for tests of the stream)."""
+    """out[i] = uniform(key, slot[i], bounce, dim): the stream read outside the kernels
+    (meshphotons.emitted_triangles: a mesh light photon's triangle) and by the tests."""
     for i in range(slot.shape[0]):
         out[i] = uniform(key, slot[i], bounce, dim)
 
