@@ -630,7 +630,8 @@ def eval_reflection_parts(prm, i, ox, oy, oz, ix, iy, iz):
             r0 += prm[i, P_GLASS_RW] * _glass_F(prm[i, P_GLASS_F0], c, eta) * e
             r1 += prm[i, P_GLASS_RW + 1] * _glass_F(prm[i, P_GLASS_F0 + 1], c, eta) * e
             r2 += prm[i, P_GLASS_RW + 2] * _glass_F(prm[i, P_GLASS_F0 + 2], c, eta) * e
-    if oz <= 0.0 or iz <= 0.0:
+    # The sheen tests the light's side only (Cycles' bsdf_sheen_eval; smooth55).
+    if iz <= 0.0:
         return r0, r1, r2, 0.0, 0.0, 0.0
     if (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
             or prm[i, P_SHEEN_W + 2] > 0):
@@ -716,7 +717,7 @@ def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
             _, p, c = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
             eta = prm[i, P_GLASS_ETA]
             pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
-    if oz <= 0.0 or iz <= 0.0:
+    if iz <= 0.0:  # the sheen's side test: the light's only (smooth55)
         return pdf
     w = sel[i, L_SHEEN]
     if w > 0.0:
