@@ -242,6 +242,7 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
     cos_o = np.empty(n)
     for i in range(n):
         cos_o[i] = _view_cosine(ns, wo, i)
+    cos_s = cos_o.copy()  # the sheen's: on ns, never raised (principled.setup_views)
     local = np.zeros((n, 3))
     pr.glossy_normals(ns, ng, wo, local, cos_o)
     rows = np.empty(n, np.int64)
@@ -251,7 +252,7 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
         r = i if per_hit else mat[i]
         rows[i] = r
         alpha[i] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
-    pr.setup(rows, params, base, cos_o, front, alpha, prm, albedo)
+    pr.setup_views(rows, params, base, cos_o, cos_s, front, alpha, prm, albedo)
     if blur.shape[0] > 0:
         for i in range(n):
             raise_alphas(prm, i, blur[i])
@@ -326,7 +327,7 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
     at = np.empty(nc, np.int64)
     rows_c = np.empty(nc, np.int64)
     base_c, local_c = np.empty((nc, 3)), np.zeros((nc, 3))
-    cos_c, alpha_c = np.empty(nc), np.empty(nc)
+    cos_c, cos_sc, alpha_c = np.empty(nc), np.empty(nc), np.empty(nc)
     front_c = np.empty(nc, np.bool_)
     j = 0
     for i in range(n if nc > 0 else 0):
@@ -336,6 +337,7 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
         at[j] = i
         rows_c[j] = r
         cos = _view_cosine(ns, wo, i)
+        cos_sc[j] = cos  # the sheen's: on ns, never raised (principled.setup_views)
         raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
         if raised:
             local_c[j, 0], local_c[j, 1], local_c[j, 2], cos = g0, g1, g2, c
@@ -346,7 +348,7 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
         j += 1
     prm_c = np.empty((nc, pr.N_PACK))
     w_c = np.empty((nc, pr.N_LOBES, 3))
-    pr.setup(rows_c, params, base_c, cos_c, front_c, alpha_c, prm_c, w_c)
+    pr.setup_views(rows_c, params, base_c, cos_c, cos_sc, front_c, alpha_c, prm_c, w_c)
     if blur.shape[0] > 0:
         for j in range(nc):
             raise_alphas(prm_c, j, blur[at[j]])

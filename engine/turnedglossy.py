@@ -12,9 +12,11 @@ Cycles there.
 Here a camera path's hits on materials whose lobes are all glossy (Principled Metallic 1
 or a Glossy BSDF: no diffuse, sheen, translucent or transmission lobe) keep their shading
 normal where the guard would replace it (bsdf.surface_hit's `unguarded` rows), and so do
-Principled materials with a diffuse lobe and no sheen, translucent or transmission lobe
-(plastic, paint: `diffuse_reflective`, vase47): as in Cycles their glossy lobes take the
-turned normal and their diffuse lobe the interpolated one as it is. With the guard a
+Principled materials with a diffuse lobe and no translucent or transmission lobe
+(plastic, paint: `diffuse_reflective`, vase47; with a sheen too since smooth55): as in
+Cycles their glossy lobes take the turned normal and their diffuse and sheen lobes the
+interpolated one as it is (the sheen read at a view cosine of 0 where the viewer is
+below it, and tested on the light's side only, as bsdf_sheen_setup / bsdf_sheen_eval). With the guard a
 smooth plastic vase under a Spot from above read 1.075 of Cycles (its cap's top quarter
 of rows 1.89; docs/accuracy.md, vase47); smooth glass follows
 turnedlight.camera_unguarded (the photons' adjoint threshold). Rows where the guard
@@ -44,6 +46,12 @@ ENABLED = True
 # is, as Cycles' svm/closure.h sets them up (vase47); False: the guard there (glossyguard45,
 # for A/B runs). On since vase48 (instances covered, broken normals keep the guard).
 DIFFUSE = True
+# True: Principled materials with a sheen (and a diffuse lobe) keep their shading normal
+# too, the sheen set up and evaluated on it as Cycles' bsdf_sheen_setup / _eval do (the
+# view below it read at cos 0, only the light's side tested: closures/sheen.py); False:
+# the guard there (before smooth55, for A/B runs). A Shade Smooth cap's far rows read
+# 0.73-0.82 of Cycles with the guard (docs/accuracy.md, newuser55 / smooth55).
+SHEEN = True
 _GUARD_EPS = 1e-6  # face_shading_normals' threshold on wo . ns
 
 
@@ -60,16 +68,17 @@ def glossy_only(params: np.ndarray) -> np.ndarray:
 
 
 def diffuse_reflective(params: np.ndarray) -> np.ndarray:
-    """(M,) bool per material row: Principled without transmission, sheen or
-    translucency whose Metallic is below 1 (a diffuse lobe under the specular and coat
-    layers): Cycles turns the glossy closures' normal and leaves the diffuse closure's N
-    as it is (svm/closure.h: `maybe_ensure_valid_specular_reflection(sd, N)` for the
-    specular layers, the diffuse bsdf on N)."""
+    """(M,) bool per material row: Principled without transmission or translucency
+    whose Metallic is below 1 (a diffuse lobe under the specular and coat layers, a
+    sheen over them when SHEEN, else no sheen): Cycles turns the glossy closures' normal
+    and leaves the diffuse and sheen closures' N as it is (svm/closure.h:
+    `maybe_ensure_valid_specular_reflection(sd, N)` for the specular layers, the diffuse
+    and sheen bsdfs on N)."""
     params = np.asarray(params)
     node = params[:, pr.M_NODE]
-    return ((node == pr.NODE_PRINCIPLED) & (params[:, pr.M_METALLIC] < 1.0)
-            & (params[:, pr.M_TRANS] <= 0.0) & (params[:, pr.M_SHEEN_W] <= 0.0)
-            & (params[:, pr.M_TL] <= 0.0))
+    ok = ((node == pr.NODE_PRINCIPLED) & (params[:, pr.M_METALLIC] < 1.0)
+          & (params[:, pr.M_TRANS] <= 0.0) & (params[:, pr.M_TL] <= 0.0))
+    return ok if SHEEN else ok & (params[:, pr.M_SHEEN_W] <= 0.0)
 
 
 def camera_unguarded(geo, table, prim, u, v, d, material=None) -> np.ndarray | None:

@@ -42,18 +42,21 @@ def test_glossy_only_is_metal_and_glossy_nodes_without_other_lobes():
                                   [True, False, True, False, False, False, False])
 
 
-def test_diffuse_reflective_is_principled_below_metallic_1_without_other_lobes():
+def test_diffuse_reflective_is_principled_below_metallic_1_without_other_lobes(monkeypatch):
+    monkeypatch.setattr(turnedglossy, "SHEEN", True)
     p = np.zeros((7, pr.N_MAT))
     p[:, pr.M_NODE] = pr.NODE_PRINCIPLED
     p[0, pr.M_METALLIC] = 1.0                      # metal: glossy_only's
     p[1, pr.M_METALLIC] = 0.5                      # half diffuse: yes
     p[2, pr.M_NODE] = pr.NODE_GLOSSY               # Glossy BSDF: glossy_only's
-    p[3, pr.M_SHEEN_W] = 0.2                       # sheen: no (its lobe needs wo above N)
+    p[3, pr.M_SHEEN_W] = 0.2                       # sheen: yes (on N as Cycles: sheen55)
     p[4, pr.M_TRANS] = 1.0                         # transmission: turnedlight's rule
     p[5, pr.M_TL] = 0.5                            # translucent: no
     # row 6: plastic (Metallic 0): yes
     np.testing.assert_array_equal(turnedglossy.diffuse_reflective(p),
-                                  [False, True, False, False, False, False, True])
+                                  [False, True, False, True, False, False, True])
+    monkeypatch.setattr(turnedglossy, "SHEEN", False)  # the A/B switch: the guard there
+    assert not turnedglossy.diffuse_reflective(p)[3]
 
 
 def _top_hits(ctx, n=200, seed=4):

@@ -119,8 +119,19 @@ def _compensation(multi, E, E_avg, Fss):
 
 @kernel
 def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
+    """Lobes of N hits, every lobe set up at the view cosine cos_o (N,): setup_views
+    with the sheen's cosine equal to it (no hit's glossy normal raised, or the sheen
+    read where the glossy lobes are)."""
+    setup_views(mat, params, base, cos_o, cos_o, front, hit_alpha, prm, weights)
+
+
+@kernel
+def setup_views(mat, params, base, cos_o, cos_s, front, hit_alpha, prm, weights):
     """Lobes of N hits. mat (N,) material index, params (M, N_MAT) material columns,
-    base (N,3) base colour (texture applied), cos_o (N,) = ns . wo, front (N,) bool: the
+    base (N,3) base colour (texture applied), cos_o (N,) = ns . wo (wo . N' where the
+    glossy lobes' normal is raised: glossy_normals), cos_s (N,) = ns . wo the sheen's
+    view cosine (Cycles sets the sheen up on the unraised N: bsdf_sheen_setup reads its
+    tables at dot(N, wi), clamped to [0, 1]; sheen55), front (N,) bool: the
     ray arrived on the outside, hit_alpha (N,) the hit's alpha (the material's, or its
     alpha texture's value there). Writes prm (N, N_PACK) and weights (N, N_LOBES, 3).
     The material's columns are read in place (params[r, col], no row view a hit), and the
@@ -179,7 +190,8 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         # --- sheen (the top layer) ---
         shw = params[r, M_SHEEN_W]
         if shw > 0.0 and a > 0.0:
-            la, lb, alb = sheen.sheen_params(params[r, M_SHEEN_ROUGH], mu)
+            mu_s = min(max(cos_s[i], 0.0), 1.0)
+            la, lb, alb = sheen.sheen_params(params[r, M_SHEEN_ROUGH], mu_s)
             if alb > 0.0:
                 top = 0.0
                 Wsh = (W0, W1, W2)
@@ -630,7 +642,8 @@ def eval_reflection_parts(prm, i, ox, oy, oz, ix, iy, iz):
             r0 += prm[i, P_GLASS_RW] * _glass_F(prm[i, P_GLASS_F0], c, eta) * e
             r1 += prm[i, P_GLASS_RW + 1] * _glass_F(prm[i, P_GLASS_F0 + 1], c, eta) * e
             r2 += prm[i, P_GLASS_RW + 2] * _glass_F(prm[i, P_GLASS_F0 + 2], c, eta) * e
-    if oz <= 0.0 or iz <= 0.0:
+    # The sheen tests the light's side only (Cycles' bsdf_sheen_eval; smooth55).
+    if iz <= 0.0:
         return r0, r1, r2, 0.0, 0.0, 0.0
     if (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
             or prm[i, P_SHEEN_W + 2] > 0):
@@ -716,7 +729,7 @@ def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
             _, p, c = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
             eta = prm[i, P_GLASS_ETA]
             pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
-    if oz <= 0.0 or iz <= 0.0:
+    if iz <= 0.0:  # the sheen's side test: the light's only (smooth55)
         return pdf
     w = sel[i, L_SHEEN]
     if w > 0.0:

@@ -47,8 +47,11 @@ def _lobe_frame(ox, oy):
 
 @kernel
 def sheen_eval(a, b, ox, oy, oz, ix, iy, iz):
-    """(f * cos_i, pdf) of the unit-albedo lobe (the closure weight carries the albedo)."""
-    if oz <= 0.0 or iz <= 0.0:
+    """(f * cos_i, pdf) of the unit-albedo lobe (the closure weight carries the albedo).
+    Only the light's side is tested, as Cycles' bsdf_sheen_eval: a view below the
+    shading normal (oz <= 0, a smooth normal kept past the guard: turnedglossy) still
+    reflects, the lobe's frame turned towards wo's projection (smooth55)."""
+    if iz <= 0.0:
         return 0.0, 0.0
     tx, ty = _lobe_frame(ox, oy)
     x = ix * tx + iy * ty
