@@ -26,8 +26,8 @@ sun with an angle: Le as their own intersect / seen_at_infinity give it; the wor
 the background's radiance along the photon's direction; emissive meshes: the radiance
 of the triangle each photon left (emitted_triangles). Delta lights (a point or spot of
 radius 0, a sun of angle 0): Cycles cannot sample a caustic path that ends on them, so
-no clamp (|L_p|_1 = 0, w = 1). Grouped lights (lights/group.py) take each member's, a
-visual-importance RegionEmitter its light's.
+no clamp (|L_p|_1 = 0, w = 1). Grouped lights (lights/group.py) take each member's; a
+visual-importance RegionEmitter none (CLAMP_REGION_PHOTONS: its light's when on).
 Not followed: a flat passage's path state and a Soft Falloff light's first-hit scale
 (photons._soft_falloff_at_first_hit) keep c as it was.
 """
@@ -45,6 +45,14 @@ from .meshphotons import emitted_triangles
 # Per-photon Clamp Indirect (above). False: the estimates are clamped as a whole only
 # (sampleclamp: each sample's estimate), the photon pass keeps no radiance.
 PER_PHOTON = True
+# A visual-importance RegionEmitter's photons take their light's |Le| (True) or keep
+# no clamp (False, as before clampleft55 gave them one). Off: |Le| of a small sun (Le =
+# E / its solid angle) over-clamps the glow photons whose first scatter is a rough lobe,
+# where Cycles reaches the sun by next-event estimation and clamps tp x f x E cos, not
+# tp x Le: with it on, tests/blender/test_hair_cycles.py's tuft (a 0.5-degree sun, hair
+# of roughness 0.6) read blocks 0.908 of clamped Cycles (0.92 its bound). The natural
+# photons of such a light are over-clamped the same way (s55 note: next to fix).
+CLAMP_REGION_PHOTONS = False
 # The limit x Cycles' Russian roulette share along the photon's path (roulette_share);
 # False: the whole limit (Cycles with Min Light Bounces past the path's length).
 ROULETTE = True
@@ -69,6 +77,8 @@ def emitted_radiance(light, o, d, slot=None, key=None) -> np.ndarray:
     zero = np.zeros(m)
     from .visualimportance import RegionEmitter
     if isinstance(light, RegionEmitter):
+        if not CLAMP_REGION_PHOTONS:
+            return zero
         light = light.light  # (aimed at a region: its light's photons)
     kind = getattr(light, "kind", None)
     d = np.asarray(d, np.float64)

@@ -389,10 +389,11 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums(focus):
     assert np.allclose(plain[~over], want[~over], rtol=1e-12, atol=0.0)  # (the reference)
 
 
-def test_a_region_emitters_photons_take_its_lights_radiance():
-    """Visual importance's RegionEmitter (aimed and natural photons of one light): each
-    photon's c x |flux|_1 is its light's radiance, as the light's own photons' (it read
-    0: the emitter has no light kind of its own)."""
+def test_a_region_emitters_photons_take_its_lights_radiance(monkeypatch):
+    """Visual importance's RegionEmitter (aimed and natural photons of one light), with
+    photonclamp.CLAMP_REGION_PHOTONS on: each photon's c x |flux|_1 is its light's
+    radiance, as the light's own photons' (it read 0: the emitter has no light kind of
+    its own); off (the default, see there): no clamp, c = 0."""
     from engine.lights.emission import EmissionBuffers
     from engine.visualimportance import Region, RegionEmitter
     s = _two_lamps()
@@ -403,6 +404,9 @@ def test_a_region_emitters_photons_take_its_lights_radiance():
     out = EmissionBuffers(4000)
     m = emitter.emit_into(np.uint64(5), 0, 4000, 4000, out, 0)
     o32, _, d, power, slot = out.head(m)
+    assert not photonclamp.emission_ratios(emitter, o32, d, power, slot,
+                                           np.uint64(5)).any()
+    monkeypatch.setattr(photonclamp, "CLAMP_REGION_PHOTONS", True)
     le = photonclamp.emission_ratios(emitter, o32, d, power, slot, np.uint64(5)) \
         * np.abs(power).sum(axis=1)
     x = o32[:, 0].astype(np.float64) + ctx.geo.offset[0]
