@@ -2590,8 +2590,9 @@ class MaterialConverter:
             else:
                 tiles, pixels = None, _pixels(img)
             if img.is_float:
-                for px in ([pixels] if tiles is None else tiles.values()):
-                    self._float_texels(img, px, srgb)
+                # (a TIFF's alpha association is read from each tile's own file)
+                for number, px in ([(None, pixels)] if tiles is None else tiles.items()):
+                    self._float_texels(img, px, srgb, number)
             associate = cycles_associates_alpha(img)
             premultiplied = img.is_float and cycles_unassociates_alpha(img)
             if str(getattr(img, "alpha_mode", "STRAIGHT")) == "NONE":
@@ -2610,7 +2611,7 @@ class MaterialConverter:
         self.images[key] = tex
         return tex
 
-    def _float_texels(self, img, px, srgb):
+    def _float_texels(self, img, px, srgb, tile=None):
         """In place: a float image's RGB as Blender holds it (`img.pixels`, px HxWx4) ->
         the texels Cycles holds for it (measured: tests/blender/
         test_image_alpha_association_cycles.py).
@@ -2644,7 +2645,7 @@ class MaterialConverter:
             rgb = encode(rgb)
         if str(getattr(img, "alpha_mode", "STRAIGHT")) == "PREMUL":
             rgb = rgb * a
-        if file_alpha_unassociated(img):
+        if file_alpha_unassociated(img, tile):
             rgb = rgb * a
         px[:, :, :3] = rgb
 
@@ -2682,12 +2683,9 @@ class MaterialConverter:
     def _udim_tiles(self, img) -> dict:
         """{tile number: pixels} of a UDIM image, each tile read from its own file
         (Blender's `pixels` holds only the first tile)."""
-        path = bpy.path.abspath(img.filepath_raw or img.filepath)
         tiles = {}
         for t in img.tiles:
-            k = t.number - 1001
-            fname = path.replace("<UDIM>", str(t.number)).replace(
-                "<UVTILE>", f"u{k % 10 + 1}_v{k // 10 + 1}")
+            fname = image_file_path(img, t.number)
             if not os.path.isfile(fname):
                 self._warn(f"material '{self._mat.name}': UDIM tile {t.number} of image "
                            f"'{img.name}' has no file ({fname}); it renders as missing")
@@ -2749,16 +2747,31 @@ def cycles_unassociates_alpha(img) -> bool:
 STRAIGHT_ALPHA_FORMATS = ("PNG", "TARGA", "TARGA_RAW", "DDS", "PSD")
 
 
-def file_alpha_unassociated(img) -> bool:
+def image_file_path(img, tile=None) -> str:
+    """The absolute path of an image's file; for a UDIM image (source TILED) the file of
+    tile number `tile` (default: its first tile), its <UDIM> or <UVTILE> token filled in
+    as Blender does (1001 + u + 10 v; u1_v1 for 1001)."""
+    path = bpy.path.abspath(img.filepath_raw or img.filepath)
+    if getattr(img, "source", "FILE") != "TILED":
+        return path
+    if tile is None:
+        tile = img.tiles[0].number if len(img.tiles) else 1001
+    k = tile - 1001
+    return path.replace("<UDIM>", str(tile)).replace("<UVTILE>",
+                                                     f"u{k % 10 + 1}_v{k // 10 + 1}")
+
+
+def file_alpha_unassociated(img, tile=None) -> bool:
     """Whether Cycles, reading the image from its file, premultiplies its RGB by alpha at
     load (OIIOImageLoader::load_pixels): the format holds straight alpha (PNG, TGA), or a
-    TIFF whose ExtraSamples tag says unassociated alpha (Blender writes associated TIFFs).
-    EXR, HDR and the rest: never."""
+    TIFF whose ExtraSamples tag says unassociated alpha (Blender writes associated TIFFs;
+    a UDIM image's tile number `tile`: that tile's file, image_file_path). EXR, HDR and
+    the rest: never."""
     fmt = str(getattr(img, "file_format", ""))
     if fmt in STRAIGHT_ALPHA_FORMATS:
         return True
     if fmt == "TIFF":
-        return tiff_extra_sample(bpy.path.abspath(img.filepath_raw or img.filepath)) == 2
+        return tiff_extra_sample(image_file_path(img, tile)) == 2
     return False
 
 

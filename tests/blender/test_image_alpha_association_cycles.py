@@ -240,3 +240,23 @@ def test_float_rules_follow_the_loader_and_the_file(fresh_scene, bpy_addon, tmp_
                  "OPEN_EXR", "32")
     assert not file_alpha_unassociated(bpy.data.images.load(exr))
     assert tiff_extra_sample(png.filepath) == 0         # not a TIFF
+
+
+def test_a_udim_tiffs_alpha_is_read_from_each_tiles_file(fresh_scene, bpy_addon, tmp_path):
+    """A UDIM image's path holds a <UDIM> token, not a file: each tile's TIFF is asked
+    for its own ExtraSamples (Blender writes associated alpha; Pillow unassociated)."""
+    from PIL import Image
+    from addon.materials import file_alpha_unassociated, image_file_path
+    bpy = bpy_addon
+    _saved(bpy, fresh_scene, _float_image(bpy, "u", ASSOCIATED), tmp_path / "t.1001.tif",
+           "TIFF", "16")
+    Image.new("RGBA", (4, 4), (10, 20, 30, 128)).save(tmp_path / "t.1002.tif")
+    img = bpy.data.images.load(str(tmp_path / "t.1001.tif"))
+    img.source = "TILED"                                # Blender finds tile 1002 itself
+    assert [t.number for t in img.tiles] == [1001, 1002]
+    assert "<UDIM>" in img.filepath
+    assert image_file_path(img) == str(tmp_path / "t.1001.tif")
+    assert image_file_path(img, 1002) == str(tmp_path / "t.1002.tif")
+    assert not file_alpha_unassociated(img)             # the first tile's file
+    assert not file_alpha_unassociated(img, 1001)
+    assert file_alpha_unassociated(img, 1002)
