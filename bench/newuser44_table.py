@@ -215,6 +215,36 @@ def render(scene, a):
     print(f"RESULT {a.mode} cpu_s={t:.1f} wall_s={wall:.1f}", flush=True)
 
 
+def region_arguments(ap, bounces=True):
+    """Adds the new-user scripts' --bounces (Light Paths > Max Bounces of both engines;
+    left out with bounces=False) and --border (a Render Region, not cropped) to ap."""
+    if bounces:
+        ap.add_argument("--bounces", type=int,
+                        help="Light Paths > Max Bounces (both engines; 0: direct light only)")
+    ap.add_argument("--border", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
+                    help="a Render Region (fractions; y from the bottom), not cropped")
+    return ap
+
+
+def finish(scene, a, masks=None):
+    """The new-user scripts' end: a.bounces and a.border (region_arguments) set on scene,
+    then, with --masks and a masks(scene, width, height, path) function, the scene's own
+    masks; else render(scene, a) and, for ours, print_report()."""
+    if getattr(a, "bounces", None) is not None:
+        scene.cycles.max_bounces = a.bounces
+    if getattr(a, "border", None):
+        r = scene.render
+        r.use_border, r.use_crop_to_border = True, False
+        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = a.border
+    if a.masks and masks is not None:
+        scene.render.resolution_x, scene.render.resolution_y = a.res
+        scene.render.resolution_percentage = 100
+        return masks(scene, *a.res, a.masks)
+    render(scene, a)
+    if a.mode == "ours":
+        print_report()
+
+
 def print_report():
     """Print what the add-on's last render reported besides its effect lines: warnings,
     the export's counts and the stats (the new-user trials read them)."""

@@ -64,7 +64,7 @@ from mathutils import Vector  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import assign, camera, object_masks, principled  # noqa: E402
-from newuser44_table import arguments, print_report, render  # noqa: E402
+from newuser44_table import arguments, finish, region_arguments  # noqa: E402
 from studio48_stilllife import revolve, studio_world, write_hdr  # noqa: E402
 from tools.canonical_mesh import canonical_faces  # noqa: E402
 
@@ -327,6 +327,7 @@ def main():
     ap.add_argument("--hdr", default="/tmp/newuser51/kitchen.hdr")
     ap.add_argument("--passes", action="store_true",
                     help="a multilayer EXR with the light passes (bench/newuser46_passes.py)")
+    region_arguments(ap, bounces=False)
     a = ap.parse_args()
     write_hdr(a.hdr, kitchen_pixels())
     import addon
@@ -339,13 +340,7 @@ def main():
             for t in ("direct", "indirect", "color"):
                 setattr(vl, f"use_pass_{k}_{t}", True)
         vl.use_pass_emit = vl.use_pass_environment = True
-    if a.masks:
-        scene.render.resolution_x, scene.render.resolution_y = a.res
-        scene.render.resolution_percentage = 100
-        return grouped_masks(scene, *a.res, a.masks)
-    render(scene, a)
-    if a.mode == "ours":
-        print_report()
+    finish(scene, a, grouped_masks)
 
 
 if __name__ == "__main__":

@@ -58,7 +58,7 @@ from mathutils import Vector  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import assign, camera, principled, top_masks  # noqa: E402
-from newuser44_table import arguments, print_report, render  # noqa: E402
+from newuser44_table import arguments, finish, region_arguments  # noqa: E402
 from tools.canonical_mesh import canonical_faces  # noqa: E402
 from studio48_stilllife import revolve, studio_world, write_hdr  # noqa: E402
 
@@ -204,26 +204,15 @@ def main():
     ap.add_argument("--filter-glossy", type=float,
                     help="Light Paths > Filter Glossy (default: Blender's, 1.0)")
     ap.add_argument("--hdr", default="/tmp/newuser52/display.hdr")
-    ap.add_argument("--border", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
-                    help="a Render Region (fractions; y from the bottom), not cropped")
+    region_arguments(ap, bounces=False)
     a = ap.parse_args()
     write_hdr(a.hdr, display_pixels())
     import addon
     addon.register()
     scene = jewellery_scene(a.hdr, a.drop, a.only)
-    if a.border:
-        r = scene.render
-        r.use_border, r.use_crop_to_border = True, False
-        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = a.border
     if a.filter_glossy is not None:
         scene.cycles.blur_glossy = a.filter_glossy
-    if a.masks:
-        scene.render.resolution_x, scene.render.resolution_y = a.res
-        scene.render.resolution_percentage = 100
-        return caster_masks(scene, *a.res, a.masks)
-    render(scene, a)
-    if a.mode == "ours":
-        print_report()
+    finish(scene, a, caster_masks)
 
 
 if __name__ == "__main__":

@@ -60,7 +60,7 @@ from mathutils import Vector  # noqa: E402
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import (assign, camera, cube, cylinder, new_material,  # noqa: E402
                               principled, top_masks, world_colour)
-from newuser44_table import arguments, print_report, render  # noqa: E402
+from newuser44_table import arguments, finish, region_arguments  # noqa: E402
 from studio48_stilllife import revolve  # noqa: E402
 from tools.canonical_mesh import primitive_uv_sphere_add  # noqa: E402
 
@@ -194,23 +194,12 @@ def main():
     ap.add_argument("--strength", type=float, default=40.0, help="the flames' Strength")
     ap.add_argument("--plain-wood", action="store_true",
                     help="the table's Base Color a constant brown, no Wave Texture")
-    ap.add_argument("--border", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
-                    help="a Render Region (fractions; y from the bottom), not cropped")
+    region_arguments(ap, bounces=False)
     a = ap.parse_args()
     import addon
     addon.register()
     scene = candles_scene(a.strength, a.drop, a.only, a.plain_wood)
-    if a.border:
-        r = scene.render
-        r.use_border, r.use_crop_to_border = True, False
-        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = a.border
-    if a.masks:
-        scene.render.resolution_x, scene.render.resolution_y = a.res
-        scene.render.resolution_percentage = 100
-        return table_masks(scene, *a.res, a.masks)
-    render(scene, a)
-    if a.mode == "ours":
-        print_report()
+    finish(scene, a, table_masks)
 
 
 if __name__ == "__main__":

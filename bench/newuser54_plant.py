@@ -66,7 +66,7 @@ from mathutils import Matrix, Vector  # noqa: E402
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import (assign, camera, cube, cylinder, new_material,  # noqa: E402
                               principled, world_colour)
-from newuser44_table import arguments, print_report, render  # noqa: E402
+from newuser44_table import arguments, finish, region_arguments  # noqa: E402
 from studio48_stilllife import revolve  # noqa: E402
 
 LEAF_N = 128  # the leaf image's size (texels)
@@ -294,27 +294,12 @@ def main():
                     help="the image's Alpha left unlinked: square opaque leaf cards")
     ap.add_argument("--leaf-specular", type=float, default=0.5,
                     help="the leaves' Specular IOR Level (the node's 0.5)")
-    ap.add_argument("--bounces", type=int,
-                    help="Light Paths > Max Bounces (both engines; 0: direct light only)")
-    ap.add_argument("--border", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
-                    help="a Render Region (fractions; y from the bottom), not cropped")
+    region_arguments(ap, bounces=True)
     a = ap.parse_args()
     import addon
     addon.register()
     scene = plant_scene(a.leaves, a.edge_colour, not a.opaque_leaves, a.leaf_specular)
-    if a.bounces is not None:
-        scene.cycles.max_bounces = a.bounces
-    if a.border:
-        r = scene.render
-        r.use_border, r.use_crop_to_border = True, False
-        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = a.border
-    if a.masks:
-        scene.render.resolution_x, scene.render.resolution_y = a.res
-        scene.render.resolution_percentage = 100
-        return plant_masks(scene, *a.res, a.masks)
-    render(scene, a)
-    if a.mode == "ours":
-        print_report()
+    finish(scene, a, plant_masks)
 
 
 if __name__ == "__main__":
