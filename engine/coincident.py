@@ -477,16 +477,18 @@ class CoincidentSurfaces:
         return len(done) + len(rows)
 
     def meet_hits(self, o32, d, from_tri, off, geom, prim32, u32, v32, tfar, starts,
-                  slot=None, arrived=None) -> int:
+                  arrived=None) -> int:
         """meet on an Accel.intersect_hits answer (geom, prim32 (N,) int32, u32, v32, tfar
         (N,) float32, starts (G,) int64 over the full table's rows) of photon rays o32
         (N,3) float32, d (N,3) that left triangles from_tri (N,) int64 (< 0: a light) at
         o32 - off, off (N,3) the origins' offsets (photonkernels.scatter's nx_from,
-        nx_off). slot (N,) the photons' slots in their chunk and arrived (S,) bool by
-        slot, the chunk's record of which photons' last hit was a touching glass face
-        met from inside (kept here from bounce to bounce): the photons reflected back
-        inside there go into the touching surface (reflected_inside) and end, as a miss;
-        None: not tracked. Returns how many rows changed."""
+        nx_off). arrived (N,) bool per ray: whether the hit each ray left was a touching
+        glass face met from inside (per ray, not per photon slot: a copy passing behind
+        a surface shares its photon's slot, not its hits; photons.py carries each
+        continued ray's from its row, photonkernels.scatter's nx_row), overwritten with
+        this bounce's hits' record: the photons reflected back inside there go into the
+        touching surface (reflected_inside) and end, as a miss; None: not tracked.
+        Returns how many rows changed."""
         # meet's two steps, the changed rows written back in Embree's layout.
         n = 0
         changed = []
@@ -508,7 +510,7 @@ class CoincidentSurfaces:
                     # ray from the surface reflected there meets it again on its front.)
                     out_ = np.take(self.side, np.take(ft, done)) == GLASS
                     if arrived is not None:
-                        out_ &= np.take(arrived, np.take(slot, done))
+                        out_ &= np.take(arrived, done)
                     if out_.any():
                         gone_out = done[out_]
                         done, mtri, up, vp = done[~out_], mtri[~out_], up[~out_], vp[~out_]
@@ -524,7 +526,7 @@ class CoincidentSurfaces:
         gone = np.zeros(0, np.int64)
         if len(rows) and arrived is not None:
             rest = rows if not len(done) else np.setdiff1d(rows, done)
-            rest = rest[np.take(arrived, np.take(slot, rest))]
+            rest = rest[np.take(arrived, rest)]
             if len(rest):
                 of = np.take(off, rest, axis=0)
                 gone = rest[self.reflected_inside(np.take(o32, rest, axis=0) - of, of,
@@ -558,13 +560,13 @@ class CoincidentSurfaces:
             n += len(gone)
         if arrived is not None:
             # This bounce's record: hits on a touching glass face crossing it outwards.
-            arrived[slot] = False
+            arrived[:] = False
             tri = np.where(geom >= 0, np.take(starts, np.maximum(geom, 0)) + prim32, -1)
             at = np.nonzero((np.take(self.side, np.maximum(tri, 0)) == GLASS) & (tri >= 0))[0]
             if len(at):
                 out_ = np.einsum("ij,ij->i", self._ng(tri[at]),
                                  np.take(d, at, axis=0)) > 0.0
-                arrived[np.take(slot, at[out_])] = True
+                arrived[at[out_]] = True
         return n
 
 

@@ -203,28 +203,24 @@ def media_after(rows, material, e1, e2, sigma, d_in, keep, d_out, medium_in, med
 
 
 @kernel
-def attenuate_hits(geom, prim, starts, material, e1, e2, sigma, d, t, power, slot,
-                   medium, hit_row, hit_d):
+def attenuate_hits(geom, prim, starts, material, e1, e2, sigma, d, t, power, medium,
+                   hit_row):
     """The photons' side of attenuate_rows, for hits as Embree answers them (geom, prim
     (m,) int32, geom < 0 a miss, the triangle row starts[geom] + prim; t (m,) float32):
-    power (m,3) *= its last segment's transmittance in the photon's medium (medium,
-    indexed by its slot (m,): the photons keep their slot for life). Records each
-    photon's hit row (-1: a miss) and arriving direction in hit_row, hit_d (by slot) for
-    photon_media_after. Returns the count attenuated."""
+    power (m,3) *= its last segment's transmittance in the photon's medium (medium (m,)
+    int64, each photon ray's own: a copy passing behind a surface shares its photon's
+    slot, not its medium). Records each hit's triangle row (-1: a miss) in hit_row (m,)
+    for photon_media_after. Returns the count attenuated."""
     out = np.empty(3)
     k = 0
     for i in range(geom.shape[0]):
         g = geom[i]
-        s = slot[i]
         if g < 0:
-            hit_row[s] = -1
+            hit_row[i] = -1
             continue
         r = starts[g] + prim[i]
-        hit_row[s] = r
-        hit_d[s, 0] = d[i, 0]
-        hit_d[s, 1] = d[i, 1]
-        hit_d[s, 2] = d[i, 2]
-        if _segment(e1, e2, r, material[r], medium[s], sigma, d[i, 0], d[i, 1], d[i, 2],
+        hit_row[i] = r
+        if _segment(e1, e2, r, material[r], medium[i], sigma, d[i, 0], d[i, 1], d[i, 2],
                     float(t[i]), out):
             power[i, 0] *= out[0]
             power[i, 1] *= out[1]
@@ -234,17 +230,20 @@ def attenuate_hits(geom, prim, starts, material, e1, e2, sigma, d, t, power, slo
 
 
 @kernel
-def photon_media_after(slot, d_out, material, e1, e2, sigma, medium, hit_row, hit_d):
-    """The photons' media after the scatter: each continued photon (slot (K,), its new
-    direction d_out (K,3)) updates medium[slot] from the hit attenuate_hits recorded for
-    its slot (_crossed)."""
-    for k in range(slot.shape[0]):
-        s = slot[k]
-        r = hit_row[s]
+def photon_media_after(parent, d_out, material, e1, e2, sigma, medium, hit_row, d_in,
+                       medium_out):
+    """The photons' media after the scatter: each continued photon k (K,), which came
+    from row parent[k] of the bounce's rays (arriving along d_in (m,3) in medium (m,) at
+    the hit attenuate_hits recorded in hit_row (m,)) and goes on along d_out[k], gets
+    medium_out[k] (_crossed; its photon's medium where that row met no surface)."""
+    for k in range(parent.shape[0]):
+        i = parent[k]
+        r = hit_row[i]
         if r < 0:
+            medium_out[k] = medium[i]
             continue
-        medium[s] = _crossed(e1, e2, r, material[r], sigma, hit_d[s, 0], hit_d[s, 1],
-                             hit_d[s, 2], d_out[k, 0], d_out[k, 1], d_out[k, 2], medium[s])
+        medium_out[k] = _crossed(e1, e2, r, material[r], sigma, d_in[i, 0], d_in[i, 1],
+                                 d_in[i, 2], d_out[k, 0], d_out[k, 1], d_out[k, 2], medium[i])
 
 
 def attenuated(geo, sigma, prim, d, t, tp, medium) -> np.ndarray:
@@ -290,38 +289,41 @@ def _outside(medium: np.ndarray, outside: int) -> np.ndarray:
 
 
 class PhotonMedia:
-    """The media of one chunk's photons (engine/photons.py _bounces), by slot: the medium
-    each is in (-1: none known) and the hit of its current bounce."""
+    """The media of one chunk's photon rays (engine/photons.py _bounces), per ray of the
+    current bounce (not per slot: a copy passing behind a surface, photonkernels._scatter's
+    split-off, shares its photon's slot but not its path): `medium` (m,) int64 the medium
+    each ray is in (-1: none known), and the hits of the bounce (attenuate)."""
 
-    def __init__(self, sigma, slots: int):
+    def __init__(self, sigma, rays: int, start: int = -1):
         self.sigma = sigma
-        self.medium = np.full(slots, -1, np.int64)
-        self.hit_row = np.full(slots, -1, np.int64)
-        self.hit_d = np.zeros((slots, 3))
+        self.medium = np.full(rays, start, np.int64)
+        self.hit_row = np.full(rays, -1, np.int64)
 
-    def attenuate(self, geom, prim, starts, material, e1, e2, d, t, power, slot) -> int:
-        """power (m,3) float64 x its last segment's transmittance, in place
-        (attenuate_hits); the hits recorded for after_scatter."""
+    def attenuate(self, geom, prim, starts, material, e1, e2, d, t, power) -> int:
+        """power (m,3) float64 x its last segment's transmittance in each ray's medium, in
+        place (attenuate_hits); the hits recorded for after_scatter."""
         if len(geom) == 0:
             return 0
         self.tables = (_int32(material), _f64(e1), _f64(e2))
+        if len(self.hit_row) < len(geom):
+            self.hit_row = np.empty(len(geom), np.int64)
+        self.d_in = _f64(d)
         return attenuate_hits(np.ascontiguousarray(geom, np.int32),
                               np.ascontiguousarray(prim, np.int32),
                               np.ascontiguousarray(starts, np.int64), *self.tables,
-                              self.sigma, _f64(d), np.ascontiguousarray(t, np.float32),
-                              power, np.ascontiguousarray(slot, np.int64), self.medium,
-                              self.hit_row, self.hit_d)
+                              self.sigma, self.d_in, np.ascontiguousarray(t, np.float32),
+                              power, self.medium, self.hit_row)
 
-    def after_scatter(self, slot, d_out, outside: int = -1):
-        """The continued photons' (slot (K,), direction d_out (K,3)) media; outside:
-        after_continuation's."""
-        if len(slot) == 0:
-            return
-        slot = np.ascontiguousarray(slot, np.int64)
-        photon_media_after(slot, _f64(d_out), *self.tables, self.sigma, self.medium,
-                           self.hit_row, self.hit_d)
-        if outside >= 0:
-            self.medium[slot] = _outside(self.medium[slot], outside)
+    def after_scatter(self, parent, d_out, outside: int = -1):
+        """The continued rays' media (photon_media_after), which become `medium`: parent
+        (K,) each one's row of the bounce's rays (photonkernels.scatter's nx_row), d_out
+        (K,3) its direction; outside: after_continuation's."""
+        out = np.empty(len(parent), np.int64)
+        if len(parent):
+            photon_media_after(np.ascontiguousarray(parent, np.int64), _f64(d_out),
+                               *self.tables, self.sigma, self.medium, self.hit_row,
+                               self.d_in, out)
+        self.medium = _outside(out, outside)
 
 
 def _int32(a):
@@ -348,6 +350,6 @@ def _warm_up():
                 np.empty(1, np.int64))
     pm = PhotonMedia(sigma, 1)
     pm.attenuate(np.zeros(1, np.int32), np.zeros(1, np.int32), one, mat, e1, e2, d,
-                 np.ones(1, np.float32), tp, one)
+                 np.ones(1, np.float32), tp)
     pm.after_scatter(one, d)
     leaving_transmittance(e1, e2, 0, 0, sigma, 0.0, 0.0, 1.0, 1.0, np.empty(3))

@@ -142,8 +142,10 @@ def uniform(key, slot, bounce, dim):
 
 @kernel
 def uniforms(key, slot, bounce, dim, out):
-    """out[i] = uniform(key, slot[i], bounce, dim): the stream read outside the kernels
-    (meshphotons.emitted_triangles: a mesh light photon's triangle) and by the tests."""
+    """out[i] = uniform(key, slot[i], bounce, dim) (slot (n,) int64, out (n,) float64):
+    the photon stream's numbers at (slot, bounce, dim) for numpy code, the same bits as
+    the kernels' own: meshphotons.emitted_triangles re-derives from it the triangle each
+    mesh light photon was emitted from (the emission key's number at EMIT_BOUNCE)."""
     for i in range(slot.shape[0]):
         out[i] = uniform(key, slot[i], bounce, dim)
 
@@ -445,17 +447,18 @@ def flat_tables(geo, table):
 
 _NO_ANISO_TAN = np.zeros((0, 3, 3))
 _NO_MAY_DIFFUSE = np.zeros(0, np.bool_)
-NO_BLUR_SLOT = np.zeros(0)  # scatter: no Filter Glossy state kept
+NO_BLUR = np.zeros(0)  # scatter: no Filter Glossy state kept
 NO_CLAMP = np.zeros(0)  # scatter: no Clamp Indirect radiance ratio kept
+NO_ROWS = np.zeros(0, np.int64)  # scatter: the continued rays' rows not written
 
 # _scatter's argument `plain`: its position in the argument list.
 _PLAIN_ARG = 31
 
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
-            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur_slot=NO_BLUR_SLOT,
+            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur=NO_BLUR,
             passage_blur=None, gather_blur=0.0, split_slots=0, clamp=NO_CLAMP,
-            nx_clamp=NO_CLAMP):
+            nx_clamp=NO_CLAMP, nx_blur=NO_BLUR, nx_row=NO_ROWS):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -469,9 +472,10 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     where the hit's diffuse weight is > 0. pane_tri (T,) int64: the next-event pane
     (engine/panelight.py) of each triangle row, -1 for none, SHADE_TRANSLUCENT or
     SHADE_GLASS a next-event lamp shade's (engine/shadelight.py); empty (the default, and
-    for photons of lights served by neither): none. blur_slot (slots,) float64: the
-    photons' Filter Glossy state by slot (_scatter; -1 at emission), empty (the default):
-    none kept, every stored photon's blur pdf inf. passage_blur: None, or (Filter Glossy,
+    for photons of lights served by neither): none. blur (m,) float64: each photon's
+    Filter Glossy state (_scatter; -1 at emission), with nx_blur (as many rows as nx_*)
+    for the continued photons'; empty (the default): none kept, every stored photon's
+    blur pdf inf. passage_blur: None, or (Filter Glossy,
     blurredpassage.table(), blurredpassage.IOR): a photon out of a flat passage keeps
     passage_factor of its power at the blur of cos / pi, cos its direction's to the
     glass's normal (Cycles blurs the slab after the diffuse bounce at the hit it lights;
@@ -480,11 +484,13 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     (_scatter's gather_fg; docs/accuracy.md "photonblur49"). split_slots: with gather_blur
     > 0, the slot offset of the blurred copies of photons split at their first
     non-diffuse scatter (the chunk's slot count; nx_* then need room for one more copy
-    per hit, blur_slot 2 x split_slots rows); 0 (the default): no split (_scatter).
+    per hit); 0 (the default): no split (_scatter).
     clamp (m,) float64: each photon's |L|_1 / |power|_1 (_scatter; set at emission by
     engine/photonclamp.py), with the stored photons' radiance array (store_arrays(m,
     True)) and nx_clamp (as many rows as nx_*) for the continued photons'; empty (the
-    default): none kept."""
+    default): none kept. nx_row (as many rows as nx_*) int64: the row of d each continued
+    photon came from (its continuation's or its copy's), for the caller's own per-ray
+    state (media, coincident faces); empty (the default): not written."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -496,8 +502,8 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     fg, ptab, pior = (0.0, _NO_PASSAGE_TAB, _NO_PASSAGE_IOR) if passage_blur is None \
         else passage_blur
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-                    GLASS_ADJOINT_MODE, bend_cos, blur_slot, float(fg), ptab, pior,
-                    float(gather_blur), int(split_slots), clamp, nx_clamp)
+                    GLASS_ADJOINT_MODE, bend_cos, blur, float(fg), ptab, pior,
+                    float(gather_blur), int(split_slots), clamp, nx_clamp, nx_blur, nx_row)
 
 
 _NO_PASSAGE_TAB, _NO_PASSAGE_IOR = np.ones((2, 2, 2)), np.array([1.0, 2.0])
@@ -891,8 +897,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface, st_blur,
              st_rad, nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
-             adjoint_mode, bend_cos, blur_slot, passage_fg, passage_tab, passage_ior,
-             gather_fg, split_slots, clamp, nx_clamp):
+             adjoint_mode, bend_cos, blur, passage_fg, passage_tab, passage_ior,
+             gather_fg, split_slots, clamp, nx_clamp, nx_blur, nx_row):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -934,12 +940,14 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     scatter passes the module's settings).
 
     Filter Glossy's reverse pdfs (engine/glossysplit.py, docs/compatibility.md
-    "fgphoton46"): blur_slot (slots,) float64 per photon slot, the path's state: -1 (no
+    "fgphoton46"): blur (m,) float64 per photon ray, the path's state: -1 (no
     non-diffuse scatter since the light or the last diffuse bounce), else the minimum of
     reverse_pdf over its non-diffuse scatters S_2 .. S_k since then (inf after S_1 alone).
     Each stored photon writes that minimum to st_blur (float32; inf for -1), each
-    continued one the state after its scatter (a diffuse bounce: -1; a pass: unchanged).
-    Empty blur_slot: no state, st_blur inf.
+    continued one the state after its scatter to nx_blur (a diffuse bounce: -1; a pass:
+    unchanged), a copy passing behind the surface its own (per ray, not per slot, as
+    clamp). Empty blur: no state, st_blur inf, nx_blur not written.
+    nx_row (empty: not written): each continued photon's row i of the input.
     Cycles' Clamp Indirect on photon estimates (engine/photonclamp.py): clamp (m,)
     float64, each photon's c = |L|_1 / |power|_1 (L the radiance a Cycles path reversed
     along the photon carries, Le x the chain's throughput, of power's colour), set at
@@ -973,8 +981,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     Each map then holds an unbiased estimate of its own light: the caustic map's as
     without the split, bit for bit, the gather map's with every scatter of its paths
     blurred, as Cycles' paths past the camera's diffuse bounce are. Per-slot state of a
-    blurred copy (blur_slot) starts from its photon's; the caller copies its own
-    (media, coincident faces) from slot to slot + split_slots.
+    blurred copy (blur, clamp) starts from its photon's, and nx_row gives the caller its
+    photon's row for its own (media, coincident faces).
 
     Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
     what is left); the power is divided by that probability and multiplied by the sampled
@@ -1036,7 +1044,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     # reference count; plain materials write only their two lobes, the only ones read).
     wj = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
-    blur_on = blur_slot.shape[0] > 0
+    blur_on = blur.shape[0] > 0
+    row_on = nx_row.shape[0] > 0
     clamp_on = clamp.shape[0] > 0
     # The alpha to which a gather-bound photon's lobes are raised (0: none).
     gather_alpha = blur_alpha(gather_fg, GATHER_PDF) if gather_fg > 0.0 else 0.0
@@ -1195,7 +1204,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 for c in range(4):
                     st_bnc[ns_, c] = min((bi >> (_B_BITS * c)) & _B_MASK, BOUNCE_SATURATED)
                 st_surface[ns_] = object_id[t]
-                bs = blur_slot[slot[i]] if blur_on else -1.0
+                bs = blur[i] if blur_on else -1.0
                 st_blur[ns_] = np.inf if bs < 0.0 else bs
                 if clamp_on:
                     st_rad[ns_] = clamp[i] * (abs(st_power[ns_, 0]) + abs(st_power[ns_, 1])
@@ -1265,7 +1274,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     and not (flat_on and flat_mat[material[t]])):
                 n_cp = 2
             lobe0 = lobe
-            old_blur = blur_slot[slot[i]] if blur_on else -1.0
+            old_blur = blur[i] if blur_on else -1.0
             old_clamp = clamp[i] if clamp_on else 0.0
             for copy in range(n_cp):
                 lobe = lobe0
@@ -1491,17 +1500,20 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     nf |= F_UNBLURRED if copy == 0 else F_BLURRED
                 # --- Filter Glossy's reverse pdf state (glossysplit, "fgphoton46") ---
                 if blur_on:
-                    old = old_blur
+                    nb_ = old_blur
                     if lobe == pr.L_DIFFUSE:
-                        blur_slot[sl] = -1.0
+                        nb_ = -1.0
                     elif lobe != pr.L_PASS:
-                        if old < 0.0:
-                            blur_slot[sl] = np.inf  # S_1: its pdf blurs nothing after it
+                        if old_blur < 0.0:
+                            nb_ = np.inf  # S_1: its pdf blurs nothing after it
                         elif jc >= 0 and pr.is_rough(prm, jc, lobe):
                             rp = reverse_pdf(prm, rsel, jc, wj, probs, transmitted,
                                              ix, iy, iz, lx, ly, lz)
-                            if rp < old:
-                                blur_slot[sl] = rp
+                            if rp < old_blur:
+                                nb_ = rp
+                    nx_blur[nn] = nb_
+                if row_on:
+                    nx_row[nn] = i
                 if clamp_on:
                     nx_clamp[nn] = old_clamp / scale  # (L takes f cos / pdf alone)
                 # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
@@ -1522,8 +1534,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 nn += 1
     if vis_on:
         # The kinds that do not see this surface pass on behind it in a split-off copy
-        # (same slot, so the same random numbers; its own clamp ratio); the photon
-        # stopped here for the others.
+        # (same slot, so the same random numbers; its own clamp ratio and Filter Glossy
+        # state: its path unscattered here); the photon stopped here for the others.
         for k in range(n_beh):
             i = beh_row[k]
             t = beh_tri[k]
@@ -1541,6 +1553,10 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             nx_bnc[nn] = bnc[i]
             if clamp_on:
                 nx_clamp[nn] = clamp[i]  # (its path unscattered here)
+            if blur_on:
+                nx_blur[nn] = blur[i]
+            if row_on:
+                nx_row[nn] = i
             if keep_from:
                 nx_from[nn] = -1
                 nx_off[nn, 0], nx_off[nn, 1], nx_off[nn, 2] = 0.0, 0.0, 0.0

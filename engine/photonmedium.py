@@ -86,10 +86,13 @@ class PhotonScattering:
     from for_chunk when no material scatters, Volume bounces is 0 or the shot stores
     caustics only."""
 
-    def __init__(self, tables, scatters: int, slots: int, limits):
+    def __init__(self, tables, scatters: int, rays: int, limits):
         self.sigma_t, self.sigma_s, self.g = tables
         self.scatters = scatters
-        self.count = np.zeros(slots, np.int16)  # each slot's volume scatters so far
+        # Each ray's volume scatters so far (per ray, not per slot: a copy passing behind
+        # a surface shares its photon's slot, not its path; photons.py takes the continued
+        # rays' from their rows, photonkernels.scatter's nx_row).
+        self.count = np.zeros(rays, np.int16)
         self.max_total = int(np.asarray(limits)[pk.B_TOTAL])
         self.scattering = np.any(self.sigma_s > 0.0, axis=1)  # (M,) a medium that scatters
         # Density textures (engine/heterogeneous.py; set by photons._bounces): the
@@ -98,22 +101,22 @@ class PhotonScattering:
         self.hetero = None
 
     @classmethod
-    def for_chunk(cls, table, settings, slots: int, caustic_only: bool):
+    def for_chunk(cls, table, settings, rays: int, caustic_only: bool):
         scatters = max_scatters(getattr(settings, "volume_bounces", 0))
         if scatters <= 0 or caustic_only:
             return None
         tables = scattering_tables(table)
         if tables is None:
             return None
-        return cls(tables, scatters, slots, settings.bounce_limits)
+        return cls(tables, scatters, rays, settings.bounce_limits)
 
     def flights(self, key, bounce: int, o32, d, tfar, geom, power, slot, bnc, medium,
                 clamp=None):
         """Sample each photon's free flight on its segment (photons o32, d (m,3), d unit,
         segment lengths tfar (m,) float32, a miss's the unbounded tmax; geom (m,) int32
         Embree's, < 0 a miss; power (m,3) float64 W; slot (m,); bnc (m,) int64 packed
-        bounce counts (photonkernels, B_TOTAL lowest); medium (slots,) each
-        slot's medium, -1 none known). In place: the passing photons' power x 1 /
+        bounce counts (photonkernels, B_TOTAL lowest); medium (m,) int64 each
+        ray's medium, -1 none known; self.count (m,) each ray's scatters). In place: the passing photons' power x 1 /
         P(pass); the scattering ones' geom set to -1 (the surface scatter treats them as
         lost: no store, no continuation, no attenuation). clamp (m,) float64 or None: the
         photons' Clamp Indirect ratio c = |L|_1 / |power|_1 (photonkernels._scatter's),
@@ -124,11 +127,11 @@ class PhotonScattering:
         survived the roulette, or None."""
         if len(geom) == 0:
             return None
-        med = medium[slot]
+        med = medium
         rows = np.flatnonzero((med >= 0))
         if len(rows) == 0:
             return None
-        rows = rows[self.scattering[med[rows]] & (self.count[slot[rows]] < self.scatters)]
+        rows = rows[self.scattering[med[rows]] & (self.count[rows] < self.scatters)]
         if len(rows) == 0:
             return None
         s_rows = slot[rows]
@@ -181,12 +184,12 @@ class PhotonScattering:
             return None
         r, s, w, p_keep = r[live], s[live], w[live], p_keep[live]
         slots_r = slot[r]
-        self.count[slots_r] += 1
+        self.count[r] += 1
         dr = np.asarray(d, np.float64)[r]
         x = np.asarray(o32, np.float64)[r] + s[:, None] * dr
         u1 = uniforms(key, slots_r, bounce, 3)
         u2 = uniforms(key, slots_r, bounce, 4)
-        m_live = medium[slots_r]
+        m_live = medium[r]
         w_new = sample_hg(dr, self.g[m_live], u1, u2)
         p_new = power[r] * (w / p_keep[:, None])
         if clamp is not None and len(clamp):
@@ -195,14 +198,17 @@ class PhotonScattering:
 
 
 def continue_scattered(nxt, n_nx: int, found, flags, kinds, bnc, slot, clamp=None,
-                       nx_clamp=None) -> int:
+                       nx_clamp=None, nx_row=None, nx_blur=None) -> int:
     """Write the scattered photons found = flights(...) (rows into the bounce's arrays
     flags, kinds, bnc, slot) after the n_nx continued photons of the next-ray buffers nxt
     (photonkernels.next_arrays' order: o32, d32, d, power, flags, kinds, slot, bnc, from,
     off): their path is indirect (F_DIFFUSE, as a diffuse bounce: CAUSTIC_DIFFUSE after a
     specular path, its light one scatter later), every non-camera ray kind, B_TOTAL one
     more; clamp (m,) / nx_clamp (rows of nxt) the Clamp Indirect ratios (flights'
-    rescaled ones; None or empty: none kept). Returns the new count."""
+    rescaled ones; None or empty: none kept); nx_row, nx_blur (rows of nxt) each
+    continued ray's row of the bounce and Filter Glossy state (photonkernels._scatter's;
+    a medium's scatter is a diffuse bounce: -1; None or empty: not kept). Returns the new
+    count."""
     r, x, w_new, p_new = found
     k = len(r)
     end = n_nx + k
@@ -222,6 +228,10 @@ def continue_scattered(nxt, n_nx: int, found, flags, kinds, bnc, slot, clamp=Non
     sl_o[n_nx:end] = np.asarray(slot)[r]
     if clamp is not None and len(clamp):
         nx_clamp[n_nx:end] = np.asarray(clamp)[r]
+    if nx_row is not None and len(nx_row):
+        nx_row[n_nx:end] = r
+    if nx_blur is not None and len(nx_blur):
+        nx_blur[n_nx:end] = -1.0
     b = np.asarray(bnc, np.int64)[r]
     bn_o[n_nx:end] = np.where((b & _B_MASK) == _B_MASK, b, b + _B_ONE)
     if len(frm):

@@ -223,6 +223,12 @@ def _clamp_ratios(m: int):
     return (np.empty(m),)
 
 
+def _ray_state(m: int):
+    """A continued-ray set's per-ray state (photonkernels._scatter's nx_row, nx_blur) for
+    m rays, as a set for _Buffers."""
+    return (np.empty(m, np.int64), np.empty(m))
+
+
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
                   should_cancel=None, targets=None, first_hit=None, label=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
@@ -453,23 +459,24 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
     # Filter Glossy's split of pre-diffuse photons (photonkernels._scatter's split_slots):
-    # the blurred copies take the slots after the chunk's own (their random numbers and
-    # per-slot state); 0: no split.
+    # the blurred copies take the slots after the chunk's own (their own random
+    # numbers); 0: no split.
     fg = float(getattr(settings, "cycles_filter_glossy", 0.0) or 0.0)
     n_slots = int(slot.max()) + 1 if len(slot) else 0
     split_slots = (n_slots if BLUR_GATHER_PHOTONS and SPLIT_GATHER_PHOTONS and fg > 0.0
                    and not caustic_only else 0)
-    slots = n_slots + split_slots
-    # Absorbing media inside objects (engine/media.py): each photon's medium by its slot
-    # (None: no absorbing material, nothing done).
+    # The paths' state is kept per ray, not per slot (a copy passing behind a surface
+    # shares its photon's slot and random numbers, not its path): the scatter writes each
+    # continued ray's row of the bounce's rays (nx_row), from which the media, the volume
+    # scatters and the touching-glass record of the next bounce are taken (and the
+    # Filter Glossy state, nx_blur, as nx_clamp: docs/accuracy.md "slots56").
+    # Absorbing media inside objects (engine/media.py): each ray's medium (None: no
+    # absorbing material, nothing done); a lamp inside a fog cube: its photons start in it.
     sigma = media.absorption_table(table)
-    pmed = media.PhotonMedia(sigma, slots) if sigma.shape[0] else None
-    if pmed is not None and start_medium >= 0:
-        pmed.medium[:] = start_medium  # a lamp inside a fog cube: its photons start in it
+    pmed = media.PhotonMedia(sigma, len(o), max(start_medium, -1)) if sigma.shape[0] else None
     world_row = worldmedium.medium_row(ctx)
     # Scattering media (engine/photonmedium.py; None: no photon scatters in a medium).
-    vol = (photonmedium.PhotonScattering.for_chunk(table, settings, len(pmed.medium),
-                                                   caustic_only)
+    vol = (photonmedium.PhotonScattering.for_chunk(table, settings, len(o), caustic_only)
            if pmed is not None else None)
     het = getattr(ctx, "hetero", None)
     if het is None or not het.fields or pmed is None:
@@ -477,10 +484,14 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     elif vol is not None:
         vol.hetero = het  # (the free flights' scatter weights)
     limits = settings.bounce_limits
-    # Cycles' Filter Glossy on the maps' paths (engine/glossysplit.py): each photon's
-    # reverse-pdf state by slot (photonkernels._scatter's blur_slot; -1: none yet).
-    blur_slot = (np.full(slots, -1.0)
-                 if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR_SLOT)
+    # Cycles' Filter Glossy on the maps' paths (engine/glossysplit.py): each ray's
+    # reverse-pdf state (photonkernels._scatter's blur / nx_blur; -1: none yet).
+    blur = (np.full(len(o), -1.0)
+            if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR)
+    # The scatter's nx_row and nx_blur, one set per buffer set (as nxt_sets); nx_row only
+    # where some per-ray state is kept here.
+    rows_on = pmed is not None or coincident is not None
+    state_sets = [None, None]
     # Clamp Indirect's |L|_1 / |power|_1 per ray (not per slot: a copy passing behind
     # a surface shares its photon's slot, not its path); the scatter writes the
     # continued rays' into the set of the bounce's output (clamp_sets[k], as nxt_sets).
@@ -491,11 +502,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     passage_blur = ((fg, blurredpassage.table(), blurredpassage.IOR)
                     if blurredpassage.CYCLES_BLUR and BLUR_PASSAGE_PHOTONS and fg > 0.0
                     and len(flat[0]) else None)
-    # Which photons' last hit was a touching glass face met from inside, by slot
+    # Which rays' last hit was a touching glass face met from inside
     # (CoincidentSurfaces.meet_hits; None: no glass touches anything).
-    arrived = np.zeros(slots, bool) if coincident is not None else None
-    # The blurred copies born so far, by their photon's slot (split_slots > 0).
-    born = np.zeros(n_slots if split_slots else 0, bool)
+    arrived = np.zeros(len(o), bool) if coincident is not None else None
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -522,7 +531,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # meet the other one there; photons inside the glass reaching the floor
             # under it leave the glass first (engine/coincident.py).
             coincident.meet_hits(o, d, frm, off, geom, prim32, u, v, tfar[:m], starts,
-                                 slot, arrived)
+                                 arrived)
         if bounce == 0 and link_row is not None:
             # Light Linking: a photon whose first hit is on an object its light does not
             # light ends there, as a miss (not stored, not bounced; engine/lightlinking.py).
@@ -586,7 +595,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # A photon that travelled inside an absorbing object's medium keeps
             # exp(-sigma_a s) of its power over the segment (Beer-Lambert), before the
             # scatter stores or continues it.
-            pmed.attenuate(geom, prim32, starts, material, e1, e2, d, tfar[:m], power, slot)
+            pmed.attenuate(geom, prim32, starts, material, e1, e2, d, tfar[:m], power)
             if het is not None:
                 # Density textures (engine/heterogeneous.py): the mean density's
                 # stand-in times the ratio-tracked correction over the segment (the
@@ -614,6 +623,17 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 clamp_sets[k] = None
                 clamp_sets[k] = pool.take(_clamp_ratios, need)
             nx_clamp = clamp_sets[k][0]
+        nx_row, nx_blur = pk.NO_ROWS, pk.NO_BLUR
+        if rows_on or len(blur):
+            if state_sets[k] is None or len(state_sets[k][0]) < need:
+                if state_sets[k] is not None:
+                    pool.give(state_sets[k], _ray_state)
+                state_sets[k] = None
+                state_sets[k] = pool.take(_ray_state, need)
+            if rows_on:
+                nx_row = state_sets[k][0]
+            if len(blur):
+                nx_blur = state_sets[k][1]
         n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim32,
                                 starts, u, v, v0, e1, e2, normals, material, table.base_color,
                                 table.alpha, given, *surf_m, bump[:m] if numpy_hits else _NO_BUMP,
@@ -621,52 +641,37 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 visibility, object_id, caster, mode, bool(caustic_only),
                                 vis_on, limits, *stored.room(m), *nxt_sets[k], hit_rows,
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
-                                may_diffuse=may_diffuse, blur_slot=blur_slot,
+                                may_diffuse=may_diffuse, blur=blur,
                                 passage_blur=passage_blur,
                                 gather_blur=fg if BLUR_GATHER_PHOTONS else 0.0,
                                 split_slots=split_slots, clamp=clamp, nx_clamp=nx_clamp,
+                                nx_blur=nx_blur, nx_row=nx_row,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
-        if split_slots:
-            _inherit_split(nxt_sets[k][6][:n_nx], split_slots, born, pmed, vol, arrived)
         if scattered is not None:
+            # (a medium's scatter is a diffuse bounce to the reverse pdfs' state: -1)
             n_nx = photonmedium.continue_scattered(nxt_sets[k], n_nx, scattered, flags, kinds,
-                                                   bnc, slot, clamp, nx_clamp)
-            if len(blur_slot):
-                # (a medium's scatter is a diffuse bounce to the reverse pdfs' state)
-                blur_slot[np.asarray(slot)[scattered[0]]] = -1.0
+                                                   bnc, slot, clamp, nx_clamp, nx_row, nx_blur)
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
         if len(nx_clamp):
             clamp = nx_clamp[:n_nx]
+        if len(blur):
+            blur = nx_blur[:n_nx]
+        parent = nx_row[:n_nx]
         if pmed is not None:
             # refracted in or out of a medium; out of an object's medium into the world
             # volume's, if any (worldmedium.py)
-            pmed.after_scatter(slot, d, outside=world_row)
+            pmed.after_scatter(parent, d, outside=world_row)
+        if vol is not None:
+            vol.count = vol.count[parent]
+        if arrived is not None:
+            arrived = arrived[parent]
     for arrays in clamp_sets:
         if arrays is not None:
             pool.give(arrays, _clamp_ratios)
-
-
-def _inherit_split(nx_slot, split_slots, born, pmed, vol, arrived):
-    """The per-slot state of the blurred copies the scatter just split off (slots >=
-    split_slots not in born; photonkernels._scatter's split): their photon's medium and
-    last hit (media.PhotonMedia), volume scatters (photonmedium.PhotonScattering) and
-    touching-glass record (coincident), as they were at the shared hit; born updated."""
-    parent = np.asarray(nx_slot)[np.asarray(nx_slot) >= split_slots] - split_slots
-    if not len(parent):
-        return
-    parent = np.unique(parent[~born[parent]])
-    if not len(parent):
-        return
-    born[parent] = True
-    child = parent + split_slots
-    if pmed is not None:
-        for a in (pmed.medium, pmed.hit_row, pmed.hit_d):
-            a[child] = a[parent]
-    if vol is not None:
-        vol.count[child] = vol.count[parent]
-    if arrived is not None:
-        arrived[child] = arrived[parent]
+    for arrays in state_sets:
+        if arrays is not None:
+            pool.give(arrays, _ray_state)
 
 
 class _Buffers:
