@@ -71,6 +71,12 @@ class GatherPassages:
         self.entry[idx] = -1
         self.pre[idx] = 0.0
 
+    def end(self, idx) -> None:
+        """The rays of hit rows idx (K,) went on by no passage (outside every glass)."""
+        self.clear[idx] = 0.0
+        self.entry[idx] = -1
+        self.pre[idx] = 0.0
+
     def clear_rows(self, idx) -> np.ndarray:
         """(K',) int64: the rows of idx (K,) (a step's rays, by hit row) whose ray met its
         current hit across passages alone (outside every window glass)."""
