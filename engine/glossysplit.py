@@ -343,7 +343,9 @@ class GatherChains:
     mesh side none samples (splitfix47); so do transparent passes (leaves55) and, in any
     order and number, both (self.passages: gatherpassages.GatherPassages' state, as
     camera_passage steps it; a pane's carried lights stay carried on past transparent
-    passes: passages55)."""
+    passes: passages55). A pane met past transparent passes alone carries its lights as
+    at the first vertex: its shadow rays cross those passes (panelight._past_passes,
+    passages56)."""
 
     def __init__(self, ctx, n: int, fg: float, d_pdf: DiffusePdf):
         from . import integrator as it
@@ -423,13 +425,15 @@ class GatherChains:
             return np.zeros(len(idx), bool)
         return np.take(self.passages.clear, idx) > 0.0
 
-    def carrier_bits(self, prim) -> np.ndarray:
+    def carrier_bits(self, prim, panes_only=False) -> np.ndarray:
         """(K,) int64: per triangle row of prim (K,), bit j set where it carries the light
-        of self.carried[j] by next-event shadow rays (shadelight.carried_at)."""
+        of self.carried[j] by next-event shadow rays (shadelight.carried_at; panes_only:
+        a next-event pane's triangles alone, not a lamp shade's)."""
         from .shadelight import carried_at
         bits = np.zeros(len(prim), np.int64)
         for j, (_, tri) in enumerate(self.carried):
-            bits |= carried_at(tri, prim).astype(np.int64) << j
+            at = (np.take(tri, prim) >= 0) if panes_only else carried_at(tri, prim)
+            bits |= at.astype(np.int64) << j
         return bits
 
     def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None, depth=0,
@@ -446,8 +450,10 @@ class GatherChains:
         of the others cross flat passages as those limits allow.
         depth: the chain's vertex number (0: the gather rays' own
         hits), where a next-event pane or lamp shade's refraction leaves its lights to
-        panelight / shadelight (self.carried, depth 0) and window glass its passage's
-        to every light's shadow rays (self.window, depths 0 and 1).
+        panelight / shadelight (self.carried, depth 0; a pane deeper too where the ray
+        met it across transparent passes alone: passages56) and window glass its
+        passage's to every light's shadow rays (self.window, depths 0 and 1; deeper
+        where met clear).
         used: (M,) int64 the transparent passes the hits' paths crossed (camera path and
         chain; None: none): their shadow rays cross only the rest of Light Paths > Max
         Bounces > Transparent, as every shadow ray of a path (transparent48)."""
@@ -467,8 +473,12 @@ class GatherChains:
         self._carrier = None
         self._depth = depth
         bits = passage = None
-        if depth == 0 and self.carried:
-            bits = self.carrier_bits(np.asarray(y.prim, np.int64))
+        if self.carried and (depth == 0 or self.passages is not None):
+            bits = self.carrier_bits(np.asarray(y.prim, np.int64), panes_only=depth > 0)
+            if depth > 0:
+                # (deeper: a pane met across transparent passes alone, which its shadow
+                # rays cross before it, panelight._past_passes; a shade's cross none)
+                bits = np.where(self.passages.passes_only(rows_idx), bits, 0)
             bits = bits if bits.any() else None
         prim_y = np.asarray(y.prim, np.int64)
         if self.passages is not None:
@@ -594,7 +604,8 @@ class GatherChains:
             through = (np.einsum("ij,ij->i", ngr, np.asarray(d, np.float64))
                        * np.einsum("ij,ij->i", ngr, np.take(wo, rows_y, axis=0))) < 0.0
             if bits is not None:
-                self.left_carrier[rows_idx] = np.where(through, np.take(bits, rows_y), 0)
+                # (|: past transparent passes, an earlier pane's carried lights stay)
+                self.left_carrier[rows_idx] |= np.where(through, np.take(bits, rows_y), 0)
             if passage is not None:
                 left = through & np.take(passage, rows_y)
                 self.left_passage[rows_idx] = left
