@@ -63,6 +63,9 @@ class GatherPassages:
         self.clear = np.zeros(n)  # 1.0: clear (a float: camera_passage's pdf slot)
         self.entry = np.full(n, -1, np.int64)
         self.pre = np.zeros(n)
+        # Whether the ray entered window glass since its hit (a clear ray then crossed a
+        # window passage; else transparent passes alone: passes_only).
+        self.glass = np.zeros(n, bool)
         return self
 
     def start(self, idx) -> None:
@@ -70,11 +73,24 @@ class GatherPassages:
         self.clear[idx] = 1.0
         self.entry[idx] = -1
         self.pre[idx] = 0.0
+        self.glass[idx] = False
+
+    def end(self, idx) -> None:
+        """The rays of hit rows idx (K,) went on by no passage (outside every glass)."""
+        self.clear[idx] = 0.0
+        self.entry[idx] = -1
+        self.pre[idx] = 0.0
 
     def clear_rows(self, idx) -> np.ndarray:
         """(K',) int64: the rows of idx (K,) (a step's rays, by hit row) whose ray met its
         current hit across passages alone (outside every window glass)."""
         return np.flatnonzero(np.take(self.clear, idx) > 0.0)
+
+    def passes_only(self, idx) -> np.ndarray:
+        """(K,) bool: per hit row of idx (K,), whether its ray met its current hit across
+        transparent passes alone (clear, no window glass entered): the surfaces a next-event
+        pane's shadow rays cross before the pane (panelight._past_passes)."""
+        return (np.take(self.clear, idx) > 0.0) & ~np.take(self.glass, idx)
 
     def at_passage(self, idx) -> np.ndarray:
         """(K,) bool: per hit row of idx (K,), whether its ray met its current hit across
@@ -110,9 +126,11 @@ class GatherPassages:
                        zeros_m, entry_in, pre_in, zeros_m, zeros_m, clear_out, scratch[0],
                        scratch[1], entry_out, pre_out, scratch[2], scratch[3])
         rows = np.take(idx, keep)
+        glass = np.take(self.glass, rows) | (entry_out >= 0)
         self.clear[rows] = clear_out
         self.entry[rows] = entry_out
         self.pre[rows] = pre_out
+        self.glass[rows] = glass
 
     def _step_shared(self, prim, d_in, idx, keep, d_out, clear_in, entry_in, pre_in):
         """step on shared instance rows: camera_passage's transparent-pass rule (a

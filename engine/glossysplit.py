@@ -343,7 +343,9 @@ class GatherChains:
     mesh side none samples (splitfix47); so do transparent passes (leaves55) and, in any
     order and number, both (self.passages: gatherpassages.GatherPassages' state, as
     camera_passage steps it; a pane's carried lights stay carried on past transparent
-    passes: passages55)."""
+    passes: passages55). A pane met past transparent passes alone carries its lights as
+    at the first vertex: its shadow rays cross those passes (panelight._past_passes,
+    passages56)."""
 
     def __init__(self, ctx, n: int, fg: float, d_pdf: DiffusePdf):
         from . import integrator as it
@@ -388,18 +390,17 @@ class GatherChains:
         self.window = window_glass(ctx)
         self.in_glass = np.zeros(n, bool)
         self.left_passage = np.zeros(n, bool)
-        # Per gathering hit row: whether its ray has crossed nothing but transparent
-        # passes since D (the pass lobe: alpha cut-outs, Transparent BSDFs). Light
-        # through those alone (L T* D) is D's direct light, carried by D's transparent
-        # shadow rays (docs/design.md, Transparent shadows): such a ray counts no
-        # emission of a light they sample, as a window passage's (leaves55: a constant
-        # world seen through cut-out leaves was counted twice, the leaves 1.08-1.20x
-        # Cycles).
-        self.clear = np.zeros(n, bool)
-        # ... and in any order with window passages (passages55: a card behind a window
-        # pane, or before it, left the world counted twice): the gather rays' passage
-        # state, as gather_indirect's own (engine/gatherpassages.py; None: shadow rays
-        # cross no surface), stepped at each continuation from the hits vertex() keeps.
+        # Per gathering hit row: whether its ray has crossed nothing since D but the
+        # surfaces D's shadow rays cross - transparent passes (alpha cut-outs, Transparent
+        # BSDFs) and window glass, in any order and number: the gather rays' passage
+        # state of engine/gatherpassages.py (GatherPassages.clear, camera_passage's rule),
+        # stepped at each continuation from the hits vertex() keeps; None: shadow rays
+        # cross no surface, so no ray is clear past its first hit. Light through those
+        # alone is D's direct light, carried by its shadow rays (docs/design.md,
+        # Transparent shadows): such a ray counts no emission of a light they sample, as
+        # a window passage's (leaves55: a constant world seen through cut-out leaves was
+        # counted twice, the leaves 1.08-1.20x Cycles; passages55: a card behind a window
+        # pane, or before it).
         from .gatherpassages import GatherPassages
         self.passages = GatherPassages.for_context(ctx, n)
         self._hits = None  # (prim (M,), wo (M,3), p (M,3), hit rows (M,)) of vertex()'s y
@@ -413,17 +414,26 @@ class GatherChains:
         normals ns (n,3) by hit row): min_pdf = D's one-sample MIS pdf (DiffusePdf, the
         maps' own predicate; cos / pi on a Lambert-only D)."""
         self.min_pdf[idx] = self.d_pdf.pdf(idx, d, ns)
-        self.clear[idx] = True
-        if getattr(self, "passages", None) is not None:
+        if self.passages is not None:
             self.passages.start(idx)
 
-    def carrier_bits(self, prim) -> np.ndarray:
+    def clear_rows(self, idx) -> np.ndarray:
+        """(K,) bool: per hit row of idx (K,), whether its ray crossed nothing since D but
+        transparent passes and window passages (self.passages' state; all False without
+        one)."""
+        if self.passages is None:
+            return np.zeros(len(idx), bool)
+        return np.take(self.passages.clear, idx) > 0.0
+
+    def carrier_bits(self, prim, panes_only=False) -> np.ndarray:
         """(K,) int64: per triangle row of prim (K,), bit j set where it carries the light
-        of self.carried[j] by next-event shadow rays (shadelight.carried_at)."""
+        of self.carried[j] by next-event shadow rays (shadelight.carried_at; panes_only:
+        a next-event pane's triangles alone, not a lamp shade's)."""
         from .shadelight import carried_at
         bits = np.zeros(len(prim), np.int64)
         for j, (_, tri) in enumerate(self.carried):
-            bits |= carried_at(tri, prim).astype(np.int64) << j
+            at = (np.take(tri, prim) >= 0) if panes_only else carried_at(tri, prim)
+            bits |= at.astype(np.int64) << j
         return bits
 
     def vertex(self, y, rows_idx, tp, E, G, rng, counters, counts=None, depth=0,
@@ -440,8 +450,10 @@ class GatherChains:
         of the others cross flat passages as those limits allow.
         depth: the chain's vertex number (0: the gather rays' own
         hits), where a next-event pane or lamp shade's refraction leaves its lights to
-        panelight / shadelight (self.carried, depth 0) and window glass its passage's
-        to every light's shadow rays (self.window, depths 0 and 1).
+        panelight / shadelight (self.carried, depth 0; a pane deeper too where the ray
+        met it across transparent passes alone: passages56) and window glass its
+        passage's to every light's shadow rays (self.window, depths 0 and 1; deeper
+        where met clear).
         used: (M,) int64 the transparent passes the hits' paths crossed (camera path and
         chain; None: none): their shadow rays cross only the rest of Light Paths > Max
         Bounces > Transparent, as every shadow ray of a path (transparent48)."""
@@ -461,8 +473,12 @@ class GatherChains:
         self._carrier = None
         self._depth = depth
         bits = passage = None
-        if depth == 0 and self.carried:
-            bits = self.carrier_bits(np.asarray(y.prim, np.int64))
+        if self.carried and (depth == 0 or self.passages is not None):
+            bits = self.carrier_bits(np.asarray(y.prim, np.int64), panes_only=depth > 0)
+            if depth > 0:
+                # (deeper: a pane met across transparent passes alone, which its shadow
+                # rays cross before it, panelight._past_passes; a shade's cross none)
+                bits = np.where(self.passages.passes_only(rows_idx), bits, 0)
             bits = bits if bits.any() else None
         prim_y = np.asarray(y.prim, np.int64)
         if self.passages is not None:
@@ -557,18 +573,19 @@ class GatherChains:
         one-sample MIS pdf of the continuation (filterglossy.mis_pdf, the form the
         photons' reverse pdfs take: one predicate on both sides). rows_y None: by pdf
         itself. passed: (K,) bool, the rays the transparent pass lobe made
-        (continue_specular's want_pass); a ray stays clear (self.clear) only through
-        those; None: none was a pass."""
+        (continue_specular's want_pass; None: none was a pass): a pane's carried lights
+        stay carried past those. Whether a ray is still clear (clear_rows) is
+        self.passages' step on the vertex's hits (rows_y None: no ray is)."""
         from .filterglossy import mis_pdf
         self.from_blurred[rows_idx] = self.min_pdf[rows_idx] < self.fg
-        self.clear[rows_idx] = (False if passed is None
-                                else np.take(self.clear, rows_idx) & np.asarray(passed, bool))
-        passages = getattr(self, "passages", None)
-        if passages is not None and rows_y is not None and self._hits is not None:
-            # (window passages and transparent passes in any order: camera_passage's rule)
-            prim_y, wo_y, p_y, idx_y = self._hits
-            passages.step(prim_y, -wo_y, p_y, idx_y, rows_y, d)
-            self.clear[rows_idx] |= np.take(passages.clear, rows_idx) > 0.0
+        if self.passages is not None:
+            if rows_y is not None and self._hits is not None:
+                # (window passages and transparent passes in any order: camera_passage's
+                # rule on the vertex's hits)
+                prim_y, wo_y, p_y, idx_y = self._hits
+                self.passages.step(prim_y, -wo_y, p_y, idx_y, rows_y, d)
+            else:
+                self.passages.end(rows_idx)  # (no hits known: no passage shown)
         # The rays refracted through a first vertex that carries lights (vertex(first)):
         # those lights' emission is panelight's / shadelight's, and stays theirs on past
         # transparent passes (a pane's shadow rays cross those beyond it: panelight).
@@ -587,7 +604,8 @@ class GatherChains:
             through = (np.einsum("ij,ij->i", ngr, np.asarray(d, np.float64))
                        * np.einsum("ij,ij->i", ngr, np.take(wo, rows_y, axis=0))) < 0.0
             if bits is not None:
-                self.left_carrier[rows_idx] = np.where(through, np.take(bits, rows_y), 0)
+                # (|: past transparent passes, an earlier pane's carried lights stay)
+                self.left_carrier[rows_idx] |= np.where(through, np.take(bits, rows_y), 0)
             if passage is not None:
                 left = through & np.take(passage, rows_y)
                 self.left_passage[rows_idx] = left
@@ -636,8 +654,9 @@ class GatherChains:
         # the lights they sample (shadow_carried); a light without shadow rays and the
         # mesh sides none samples stay the chains' (splitfix47: Emission Sampling None
         # through a slab was lost, 0.037 for 1.46). So do the rays that crossed only
-        # transparent passes since D (self.clear: D's transparent shadow rays carry it).
-        passage = np.take(self.left_passage, rows_idx) | np.take(self.clear, rows_idx)
+        # transparent passes and window passages since D (clear_rows: D's shadow rays
+        # cross those and carry it).
+        passage = np.take(self.left_passage, rows_idx) | self.clear_rows(rows_idx)
         k = len(go)
         cls = np.ascontiguousarray(np.broadcast_to(np.asarray(cls, np.int64), (len(d),))[go])
         o = np.ascontiguousarray(np.take(o, go, axis=0), np.float64)

@@ -403,8 +403,10 @@ def _through(ctx, panes, k, pane, p, ns, ng, offset, w0, wc, inside, on_k, shado
                        buf.tmax)
     if not M:
         return _NO_ROWS, _NO_TRANS, 0
-    # First surface along w_t: this pane, at the plane.
+    # First surface along w_t: this pane, at the plane (past the transparent passes
+    # before it: _past_passes).
     t_hit, prim, _, _ = ctx.accel.intersect(buf.o[:M], buf.d[:M], buf.tmax[:M], cls=SHADOW)
+    t_hit, prim, before, n_rays = _past_passes(ctx, shadow, buf, M, t_hit, prim, scale, used)
     keep = np.empty(M, np.int64)
     o32, d32 = np.empty((M, 3), np.float32), np.empty((M, 3), np.float32)
     t32 = np.empty(M, np.float32)
@@ -414,7 +416,7 @@ def _through(ctx, panes, k, pane, p, ns, ng, offset, w0, wc, inside, on_k, shado
                          buf.t_plane, buf.o, buf.d, buf.side, buf.w, pane.n, scale,
                          keep, o32, d32, t32)
     if not M2:
-        return _NO_ROWS, _NO_TRANS, M
+        return _NO_ROWS, _NO_TRANS, M + n_rays
     keep, o32, d32, t32 = keep[:M2], o32[:M2], d32[:M2], t32[:M2]
     blocked = np.empty(M2, np.bool_)
     keep_t = t32.copy()
@@ -427,7 +429,63 @@ def _through(ctx, panes, k, pane, p, ns, ng, offset, w0, wc, inside, on_k, shado
         trans[bl] = shadow.transmittance(
             o32[bl], d32[bl], keep_t[bl], cls=SHADOW,
             used=None if used is None else np.take(used, np.take(buf.idx, keep[bl])))
-    return keep, trans, M + M2
+    if before is not None:
+        trans *= before[keep]
+    return keep, trans, M + n_rays + M2
+
+
+def _past_passes(ctx, shadow, buf, M, t_hit, prim, scale, used):
+    """_through's first rays (buf.o, buf.d, buf.t_plane, buf.tmax (M,)) whose closest hit
+    (t_hit, prim (M,)) is a transparent pass (ShadowTransmittance.transparent_materials:
+    a cut-out card, a Transparent BSDF) short of the pane's plane: their transmittance
+    (ctx.shadow's walk, (1 - alpha) x tint, 0 past an opaque surface or the path's
+    transparent limit; no flat passage: a slab before the pane makes its photons
+    caustic) to just short of the plane, and their closest hit from there on. Light
+    through a pane, then cut-outs, is the receiver's direct light as through cut-outs
+    alone (docs/design.md, Transparent shadows; its photons stay direct:
+    photonkernels.F_PANE_PLANE); before, a card between the pane and the floor stopped
+    these rays and the light rested on the caustic map (docs/accuracy.md "passages56").
+    Returns (t_hit (M,) float64, prim (M,) int64, transmittance (M,3) or None for none,
+    rays traced)."""
+    from .geometry import SHADOW
+    t_hit = np.asarray(t_hit, np.float64)
+    prim = np.asarray(prim, np.int64)
+    if shadow is None:
+        return t_hit, prim, None, 0
+    mat_pass = once_on(ctx, "_pane_passes", lambda: np.asarray(
+        shadow.transparent_materials(ctx.table), bool))
+    if not mat_pass.any():
+        return t_hit, prim, None, 0
+    tp = buf.t_plane[:M]
+    t_end = tp * (1.0 - 1e-3) - 1e-6 * scale  # (short of second_rays' band about the plane)
+    hit = prim >= 0
+    rows = np.flatnonzero(hit & (t_hit < t_end))
+    if len(rows):
+        rows = rows[mat_pass[np.take(ctx.geo.material, prim[rows])]]
+    if not len(rows):
+        return t_hit, prim, None, 0
+    o, d, te = buf.o[rows], buf.d[rows], t_end[rows]
+    trans = shadow.transmittance(
+        o.astype(np.float32), d.astype(np.float32), te.astype(np.float32), cls=SHADOW,
+        passages=np.zeros(len(rows), np.int64),
+        used=None if used is None else np.take(used, np.take(buf.idx, rows)))
+    t_hit, prim = t_hit.copy(), prim.copy()
+    prim[rows] = -1
+    go = np.flatnonzero(trans.max(axis=1) > 0.0)
+    n_rays = len(rows)
+    if len(go):
+        r = rows[go]
+        t2, p2, _, _ = ctx.accel.intersect(np.ascontiguousarray(o[go] + d[go] * te[go, None]),
+                                           np.ascontiguousarray(d[go]),
+                                           np.ascontiguousarray(buf.tmax[r] - te[go]),
+                                           cls=SHADOW)
+        p2 = np.asarray(p2, np.int64)
+        prim[r] = p2
+        t_hit[r] = np.where(p2 >= 0, np.asarray(t2, np.float64) + te[go], np.inf)
+        n_rays += len(go)
+    before = np.ones((M, 3))
+    before[rows] = trans
+    return t_hit, prim, before, n_rays
 
 
 def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None, used=None):

@@ -62,9 +62,14 @@ F_PATH = 15        # the bits above: the path's own state
 F_IN_GLASS = 16
 # A sun's or the world's photon that crossed a next-event pane (engine/panelight.py), or a
 # lamp's that crossed its shade (engine/shadelight.py), as its first scatter and is still
-# direct: a transparent pass or a second crossing after it makes it caustic
-# (the pane's shadow rays cross neither).
+# direct: a second crossing after it makes it caustic (its shadow rays cross none), and so
+# does a transparent pass after a shade (the shade's shadow rays cross none before it).
 F_PANE = 32
+# ... with F_PANE, set where a pane (not a shade) was crossed: transparent passes after it
+# keep the photon direct, as the pane's shadow rays cross them between the receiver and
+# the pane (panelight._through; docs/accuracy.md "passages56"). Above the pre-glass bits
+# (8-11), below the entry triangle's (32-62).
+F_PANE_PLANE = 1 << 12
 # The two copies of a photon split by Filter Glossy at its first non-diffuse scatter before
 # any diffuse bounce (_scatter's split_slots; docs/accuracy.md "photonblur50"): the
 # unblurred one keeps only its CAUSTIC stores (the caustic map's), the blurred one only
@@ -1442,6 +1447,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 nf = fl & ~np.int64(F_IN_GLASS) & ((np.int64(1) << _PRE_SHIFT) - 1)
                 passage = fl & F_IN_GLASS
                 pane = fl & F_PANE
+                pane_plane = fl & F_PANE_PLANE
                 nf &= ~np.int64(F_PANE)
                 if lobe == pr.L_DIFFUSE:
                     # The first diffuse bounce after a caustic path starts L S+ D; any further
@@ -1452,9 +1458,13 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                         nf |= F_CAUSTIC_DIFF
                     nf |= F_DIFFUSE
                 elif lobe == pr.L_PASS:
-                    if pane:
-                        # Past a pane, a transparent pass: the pane's shadow rays do not cross
-                        # it (engine/panelight.py), so this light is the caustic map's.
+                    if pane and pane_plane:
+                        # Past a pane, a transparent pass: the pane's shadow rays cross it
+                        # (engine/panelight.py), so this light is still direct.
+                        nf |= F_PANE | F_PANE_PLANE
+                    elif pane:
+                        # Past a shade, a transparent pass: the shade's shadow rays do not
+                        # cross it (engine/shadelight.py), so this light is the caustic map's.
                         nf |= F_SPECULAR
                 else:
                     # Every other lobe is continued by the camera side too (which reads no photon
@@ -1490,6 +1500,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                         # still direct (the pane's / the shade's shadow rays carry it;
                         # engine/panelight.py, engine/shadelight.py).
                         nf |= F_PANE
+                        if pane_tri[t] >= 0:
+                            nf |= F_PANE_PLANE
                     else:
                         pre = nf
                         nf |= F_SPECULAR

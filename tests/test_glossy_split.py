@@ -255,7 +255,7 @@ def test_maps_and_chains_decide_each_path_alike():
         chains.fg, chains.d_pdf = fg, d_pdf
         chains.min_pdf = np.full(k, np.inf)
         chains.from_blurred = np.zeros(k, bool)
-        chains.clear = np.zeros(k, bool)
+        chains.passages = None  # (no surface shadow rays cross)
         chains.start(rows, towards_s.astype(np.float32).astype(np.float64), hit.ns)
         chains._vertex, chains._carrier, chains._depth = None, None, 1
         chains.left_carrier = np.zeros(k, np.int64)
