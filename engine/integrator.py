@@ -2582,8 +2582,9 @@ def world_gather(ctx, clamping: bool):
     shadow rays' pdf is a mixture), the world not sampled by shadow rays, the light tree,
     Light Linking, transparent shadows, panes or shades (their light samples share the
     world's count), absorbing media or a world volume, objects some ray class does not
-    see, lamps a gather ray can meet, guided gather rays (not cosine-distributed), or
-    Cycles' clamps (each ray is held apart)."""
+    see, guided gather rays (not cosine-distributed), or Cycles' clamps (each ray is held
+    apart). (Lamps' surfaces stop neither kind of ray: the gather rays and the world's
+    shadow rays pass them alike, as Cycles' rays pass its lamps.)"""
     s = ctx.settings
     if not WORLD_GATHER_MIS or clamping or not s.photon_mapping:
         return None
@@ -2600,8 +2601,6 @@ def world_gather(ctx, clamping: bool):
     if (light.environment is not None or len(getattr(light, "portal_rects", ())) or
             not light.ray_kinds & SHADOW or not light.shadow_sampled or
             ctx.plan.light_samples.get(light.name, 0) <= 0):
-        return None
-    if any(other.has_surface for other in ctx.lights):
         return None
     if (selector_for(ctx, False) is not None or getattr(ctx, "links", None) is not None
             or getattr(ctx, "shadow", None) is not None or panes_for(ctx) is not None
