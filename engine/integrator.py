@@ -145,7 +145,7 @@ def _passage_filter_glossy(ctx, shadow) -> float:
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                       skip_mesh_lights=False, bsdf=None, buffers=None, rows=None,
                       counts=None, shade_glossy=None, glossy_out=None,
-                      used=None) -> np.ndarray:
+                      used=None, world_gather=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
@@ -176,7 +176,10 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     the light passes' Glossy Direct, engine/lightpasses.py): direct_light's glossy.
     used: (n,) int64, the transparent bounces each hit's camera path made before it: its
     shadow rays cross that many fewer transparent surfaces (Cycles' transparent_bounce,
-    path-wide; directlight.direct_light's used); None: 0 (first hits)."""
+    path-wide; directlight.direct_light's used); None: 0 (first hits).
+    world_gather: (li, G) of integrator.world_gather: the constant world li's shadow rays
+    each count 1 / (n_s + G) (the hits' G gather rays that escape count the rest: the
+    caller's); None: 1 / n_s."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     light_cut = None
@@ -190,6 +193,11 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                                 reflection=light_cut is not None)
     if n == 0 or not samples:
         return np.zeros((n, 3))
+    if world_gather is not None:
+        # (the kernels divide each entry by its count: a float is taken as it is)
+        wli, G = world_gather
+        samples = [(li, tr, cnt + G if li == wli else cnt, u1, u2, s3)
+                   for li, tr, cnt, u1, u2, s3 in samples]
     packed = ctx.packed_lights or pack_lights(ctx.lights)
     if bsdf is not None:
         fd, prm, sel = bsdf
@@ -1096,7 +1104,7 @@ GUIDE_REGATHERS = False
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     level=0, should_cancel=None, lean=_UNSET, extra=None,
                     glow_only=False, caustic=None, passes=None, d_pdf=None,
-                    clamp=None) -> np.ndarray:
+                    clamp=None, world=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -1135,7 +1143,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     E_g (its lookups, regathers and emission; its chain's light into caustic apart, a
     contribution of its own) scaled so that |w x G x E_g|_1 <= limit, w the camera path's
     clamp throughput x the gathering lobe's f (G x E_g x f: the radiance one path through
-    the ray carries); the result sums the held E_g. None: no clamp (the caller's)."""
+    the ray carries); the result sums the held E_g. None: no clamp (the caller's).
+    world: (out (N,3) float64, scale (3,)) at level 0 (integrator.world_gather): each ray
+    that leaves a hit and meets nothing adds its throughput x scale to out at its hit (the
+    constant world's direct light, its balance-heuristic share beside the shadow rays';
+    WORLD_GATHER_MIS), none of it to the result; None: the escaping rays add nothing."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -1328,6 +1340,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             bvh = _closest_bvh(ctx.accel, ray_cls)
             meet = coincident is not None and bool(near.any())
             esc = None
+            # (the rays' hit rows and throughputs before the compaction: those missing
+            # from its hits escaped into the world)
+            world_esc = ((idx.copy(), tp.copy()) if world is not None and depth == 0
+                         and level == 0 else None)
             if turned_refl is not None and depth > 0 and turned_refl.escapes:
                 # The rays whose chain took a turned reflection, before the hits are
                 # compacted in place: those missing after it escaped.
@@ -1368,6 +1384,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                      medium_h, E, G, rng, counters)
                 # The hits, compacted in place (gatherkernels.keep_hits).
                 m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
+            if world_esc is not None and m < len(world_esc[0]):
+                # The rays that met nothing straight from their hit: the world.
+                alive = np.zeros(n, np.bool_)
+                alive[idx[:m]] = True
+                gone = np.flatnonzero(~alive[world_esc[0]])
+                world[0][world_esc[0][gone]] += world_esc[1][gone] * world[1]
+            world_esc = None
             if m < len(idx):
                 o, d, tp, idx, prim, u, v, t = (a[:m] for a in (o, d, tp, idx, prim, u, v, t))
                 if per_ray:
@@ -2538,6 +2561,67 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
     return spp / -(-spp // stride)
 
 
+# A constant world at a diffuse hit is found by its shadow rays (cosine-distributed, n_s a
+# sample: effects' plan.light_samples) and by the final gather's rays that escape (cosine-
+# distributed too, G a sample): the same pdf, so the two strategies' balance-heuristic
+# weights are n_s / (n_s + G) and G / (n_s + G), and every ray of either kind counts
+# 1 / (n_s + G) of the world's f x pi x L (Veach 1997, sec. 9.2; the multi-sample
+# estimator). Before (False), the gather rays that escaped were thrown away: the world's
+# direct light read n_s rays' visibility where n_s + G had been traced (docs/
+# performance.md "worlds56"). Cycles finds a constant world by its BSDF ray alone.
+WORLD_GATHER_MIS = True
+
+
+def world_gather(ctx, clamping: bool):
+    """(li, G, scale) for WORLD_GATHER_MIS at the camera's diffuse hits: li the constant
+    world's light index, G the final gather's rays a hit at level 0, scale (3,) float64
+    pi x L_world / (n_s + G) (the irradiance one escaping gather ray of throughput 1 adds
+    to the direct term; n_s the world's shadow rays a sample); None where it does not
+    apply: no final gathering, a Light Paths limit below one diffuse bounce, no world or
+    not a constant one (an environment map: its own light sampling), light portals (the
+    shadow rays' pdf is a mixture), the world not sampled by shadow rays, the light tree,
+    Light Linking, transparent shadows, panes or shades (their light samples share the
+    world's count), absorbing media or a world volume, objects some ray class does not
+    see, guided gather rays (not cosine-distributed), or Cycles' clamps (each ray is held
+    apart). (Lamps' surfaces stop neither kind of ray: the gather rays and the world's
+    shadow rays pass them alike, as Cycles' rays pass its lamps.)"""
+    s = ctx.settings
+    if not WORLD_GATHER_MIS or clamping or not s.photon_mapping:
+        return None
+    if getattr(ctx, "gather_map", None) is None or s.gather_rays <= 0:
+        return None
+    lim = s.bounce_limits
+    if lim[0] < 1 or lim[1] < 1:
+        return None  # (gather_indirect traces no ray at level 0)
+    worlds = [li for li, light in enumerate(ctx.lights) if light.kind == WORLD]
+    if len(worlds) != 1:
+        return None
+    li = worlds[0]
+    light = ctx.lights[li]
+    if (light.environment is not None or len(getattr(light, "portal_rects", ())) or
+            not light.ray_kinds & SHADOW or not light.shadow_sampled or
+            ctx.plan.light_samples.get(light.name, 0) <= 0):
+        return None
+    if (selector_for(ctx, False) is not None or getattr(ctx, "links", None) is not None
+            or getattr(ctx, "shadow", None) is not None or panes_for(ctx) is not None
+            or shades_for(ctx) is not None):
+        return None
+    if (media.absorption_table(ctx.table).shape[0] or worldmedium.medium_row(ctx) >= 0
+            or getattr(ctx.accel, "has_invisible", False)
+            or getattr(ctx.gather_map, "guide", None) is not None):
+        return None
+    scene = ctx.scene
+    if getattr(scene, "environment", None) is not None or worldmedium.active(scene):
+        return None
+    bg = np.asarray(worldmedium.background(scene, np.array([[0.0, 0.0, 1.0]])),
+                    np.float64)[0]
+    if not (np.all(np.isfinite(bg)) and np.any(bg > 0)):
+        return None
+    G = s.gather_rays
+    n_s = ctx.plan.light_samples[light.name]
+    return li, G, bg * (math.pi / (n_s + G))
+
+
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
                   rows=None, bounce=None, extra=None, clamp_tp=None, shade_glossy=None,
@@ -2573,14 +2657,18 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
+    # The constant world's light by the shadow rays and the escaping gather rays
+    # (WORLD_GATHER_MIS; None: by the shadow rays alone).
+    wg = world_gather(ctx, clamp_tp is not None or sampleclamp.enabled(ctx.settings))
+    wsh = None if wg is None else wg[:2]
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
                                    buffers=buffers, rows=rows, counts=extra,
                                    shade_glossy=shade_glossy, glossy_out=glossy_out,
-                                   used=used)
+                                   used=used, world_gather=wsh)
     else:
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
-                                   rows=rows, counts=extra, used=used)
+                                   rows=rows, counts=extra, used=used, world_gather=wsh)
         np.multiply(f, direct, out=direct)  # f x E, in place
     if bounce is not None:
         counters.count("camera shadow", bounce, counters.shadow_rays - shadow_rays_before)
@@ -2597,19 +2685,27 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
             sub = hit.take(dsel)
             if sampler is not None:
                 sampler = sampler.subset(dsel)
+            seen = None if wg is None else (np.zeros((len(dsel), 3)), wg[2])
             c, ind = _photon_terms(ctx, sub, f[dsel], rng, counters, sampler,
                                    None if sample_id is None else sample_id[dsel],
                                    None if footprint is None else footprint[dsel],
                                    should_cancel, None if scattered is None else scattered[dsel],
                                    None if extra is None else extra[dsel],
                                    None if clamp_tp is None else clamp_tp[dsel],
-                                   None if used is None else used[dsel])
+                                   None if used is None else used[dsel], world=seen)
             caustic[dsel] = c
             indirect[dsel] = ind
+            if seen is not None:
+                # (a new array: direct may be the direct stage's buffers)
+                direct = direct.copy()
+                direct[dsel] += f[dsel] * seen[0]
             return direct, caustic, indirect
+    seen = None if wg is None else (np.zeros_like(f), wg[2])
     caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
                                       footprint, should_cancel, scattered, extra, clamp_tp,
-                                      used)
+                                      used, world=seen)
+    if seen is not None:
+        direct = direct + f * seen[0]  # (a new array, as above)
     return direct, caustic, indirect
 
 
@@ -2716,11 +2812,12 @@ def _gather_clamp(s, clamp_tp, f):
 
 
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
-                  scattered=None, extra=None, clamp_tp=None, used=None):
+                  scattered=None, extra=None, clamp_tp=None, used=None, world=None):
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
     extra, clamp_tp, used: shade_diffuse's (each estimate clamped on its own, as Cycles
     clamps each path's contributions apart; the gather's chains count their transparent
-    bounces from used, gather_indirect's passes)."""
+    bounces from used, gather_indirect's passes). world: gather_indirect's (the constant
+    world's irradiance by the escaping gather rays, WORLD_GATHER_MIS), or None."""
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
@@ -2755,7 +2852,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra,
                                        caustic=chained, passes=used, d_pdf=d_pdf,
-                                       clamp=gclamp)
+                                       clamp=gclamp, world=world)
         if clamp_tp is not None and gclamp is None:
             # (the mean's clamp: Clamp Indirect off, only its non-finite rows zeroed, or
             # CLAMP_PER_GATHER_RAY off)
