@@ -2582,8 +2582,9 @@ def world_gather(ctx, clamping: bool):
     shadow rays' pdf is a mixture), the world not sampled by shadow rays, the light tree,
     Light Linking, transparent shadows, panes or shades (their light samples share the
     world's count), absorbing media or a world volume, objects some ray class does not
-    see, guided gather rays (not cosine-distributed), or Cycles' clamps (each ray is held
-    apart). (Lamps' surfaces stop neither kind of ray: the gather rays and the world's
+    see, guided gather rays (not cosine-distributed), or a Cycles clamp on the hit's light
+    (clamping: Clamp Direct at the camera's first hit, Clamp Indirect past it; each ray
+    is held apart). (Lamps' surfaces stop neither kind of ray: the gather rays and the world's
     shadow rays pass them alike, as Cycles' rays pass its lamps.)"""
     s = ctx.settings
     if not WORLD_GATHER_MIS or clamping or not s.photon_mapping:
@@ -2659,7 +2660,14 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     shadow_rays_before = counters.shadow_rays
     # The constant world's light by the shadow rays and the escaping gather rays
     # (WORLD_GATHER_MIS; None: by the shadow rays alone).
-    wg = world_gather(ctx, clamp_tp is not None or sampleclamp.enabled(ctx.settings))
+    # (Cycles clamps a diffuse hit's world light, by shadow ray or escaping BSDF ray, with
+    # Clamp Direct at the camera's first hit and Clamp Indirect past it: film_clamp_light's
+    # bounce. Blender's defaults, Direct 0 and Indirect 10, leave the first hits unclamped.)
+    if bounce is None:
+        clamped = clamp_tp is not None or sampleclamp.enabled(ctx.settings)
+    else:
+        clamped = bool(np.isfinite(sampleclamp.limits(ctx.settings)[1 if bounce else 0]))
+    wg = world_gather(ctx, clamped)
     wsh = None if wg is None else wg[:2]
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
