@@ -27,9 +27,49 @@ the background's radiance along the photon's direction; emissive meshes: the rad
 of the triangle each photon left (emitted_triangles). Delta lights (a point or spot of
 radius 0, a sun of angle 0): Cycles cannot sample a caustic path that ends on them, so
 no clamp (|L_p|_1 = 0, w = 1). Grouped lights (lights/group.py) take each member's; a
-visual-importance RegionEmitter none (CLAMP_REGION_PHOTONS: its light's when on).
+visual-importance RegionEmitter its light's.
 Not followed: a flat passage's path state and a Soft Falloff light's first-hit scale
 (photons._soft_falloff_at_first_hit) keep c as it was.
+
+The light's first scatter (issue 14, docs/accuracy.md "clampnee56"). At the photon's
+first hit x off a lobe with a density (diffuse, rough glossy or glass, sheen,
+translucent), Cycles' path arriving at x from the photon's next vertex (direction wo)
+reaches the light along wi = -d by two strategies, combined by the power heuristic
+(kernel/integrator/shade_surface.h: integrate_surface_direct_light, its
+light_sample_mis_weight_nee; the BSDF ray that meets the light: shade_light.h /
+shade_background.h, light_sample_mis_weight_forward; kernel/light/common.h,
+power_heuristic): next-event estimation with pdf p_l (the light's solid-angle pdf at x
+x its pick probability) and weight w_l = p_l^2 / (p_l^2 + p_b^2), and BSDF sampling with
+p_b (the closures' MIS pdf of wi given wo) and w_b = 1 - w_l. Each sample's value is
+clamped on its own (kernel/film/light_passes.h, film_write_direct_light and
+film_write_emission_or_background: film_clamp_light per contribution). With g = |tp x
+f x Le x cos|_1 (the path's contribution density at wi) the expected clamped
+contribution per unit solid angle is
+
+    p_l min(g w_l / p_l, limit) + p_b min(g w_b / p_b, limit) = g x W,
+    W = min(a, r x) + min(1 - a, x),  a = w_l,  r = p_l / p_b,  x = limit p_b / g
+
+(mis_clamped_share). Without the pair (Cycles by BSDF sampling alone) it is g x min(1,
+x): what w_p gives for c after the scatter as before, whose |L_p| stands for Le f cos /
+p_b (L takes the lobe's f cos / pdf). W is concave and piecewise linear in x, 1 for
+large x, (1 + r) x for small x (both strategies clamped): a single weight min(1, x / k)
+equals it in both regimes with k = p_b / (p_l + p_b) (nee_share): c after the first
+scatter is multiplied by k (photonkernels._scatter, light_pdf), i.e. L_p = Le f cos /
+(p_l + p_b), the balance heuristic's value. Where one strategy is clamped and the other
+not it gives more than W (e.g. r = 3: 0.8 for W = 0.7 at x = 0.2); exact at r = 1 and
+as r -> 0 or inf. A 0.5-degree sun (p_l = 1 / Omega ~ 5e4 sr^-1) takes k
+~ p_b Omega: L_p ~ E f cos, finite, as Cycles' light samples clamp it. Later scatters
+keep c / scale: the path's other vertices (towards the camera) are BSDF-sampled by
+Cycles, one strategy only; a delta lobe (smooth mirror or glass) at x keeps c too: there
+Cycles reaches the light by BSDF sampling alone. Approximations: p_b is reverse_pdf's
+(the lobes' albedo maxima as their pick weights, the diffuse weight's mean); the lobe's
+own f cos / pdf stands for the material's f cos / p_b (exact for one lobe; a Transparent
+share or a second lobe makes it differ); p_l (light_pdfs) is our camera side's light
+pdf (integrator.mis_light_pdf) x the light tree's pick where the camera side picks
+(selection.selector_for; every light its own shadow rays up to SAMPLE_ALL_UP_TO lights,
+where Cycles' tree would pick among them), the world's with the hit's geometric normal
+for its shading normal; emissive meshes, and lights whose shadow rays do not see
+surfaces (no SHADOW visibility), keep c.
 """
 from __future__ import annotations
 
@@ -45,14 +85,11 @@ from .meshphotons import emitted_triangles
 # Per-photon Clamp Indirect (above). False: the estimates are clamped as a whole only
 # (sampleclamp: each sample's estimate), the photon pass keeps no radiance.
 PER_PHOTON = True
-# A visual-importance RegionEmitter's photons take their light's |Le| (True) or keep
-# no clamp (False, as before clampleft55 gave them one). Off: |Le| of a small sun (Le =
-# E / its solid angle) over-clamps the glow photons whose first scatter is a rough lobe,
-# where Cycles reaches the sun by next-event estimation and clamps tp x f x E cos, not
-# tp x Le: with it on, tests/blender/test_hair_cycles.py's tuft (a 0.5-degree sun, hair
-# of roughness 0.6) read blocks 0.908 of clamped Cycles (0.92 its bound). The natural
-# photons of such a light are over-clamped the same way (s55 note: next to fix).
-CLAMP_REGION_PHOTONS = False
+# A photon's first scatter off a lobe with a density takes Cycles' light-sample strategy
+# there into its c (nee_share, photonkernels._scatter's light_pdf; docs/accuracy.md
+# "clampnee56"); False: c as that scatter's BSDF sample alone (over-clamps the glow of
+# small bright lights).
+NEE_FIRST_SCATTER = True
 # The limit x Cycles' Russian roulette share along the photon's path (roulette_share);
 # False: the whole limit (Cycles with Min Light Bounces past the path's length).
 ROULETTE = True
@@ -77,8 +114,6 @@ def emitted_radiance(light, o, d, slot=None, key=None) -> np.ndarray:
     zero = np.zeros(m)
     from .visualimportance import RegionEmitter
     if isinstance(light, RegionEmitter):
-        if not CLAMP_REGION_PHOTONS:
-            return zero
         light = light.light  # (aimed at a region: its light's photons)
     kind = getattr(light, "kind", None)
     d = np.asarray(d, np.float64)
@@ -142,6 +177,91 @@ def emission_ratios(light, o, d, power, slot, key=None) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.where(flux > 0, Le / flux, 0.0)
     return np.where(np.isfinite(c), c, 0.0)
+
+
+def mis_clamped_share(x, p_light, p_bsdf) -> np.ndarray:
+    """(...) float64 W: the share of a path's contribution density g at a light-adjacent
+    vertex that Cycles keeps in expectation when it reaches the light there by light
+    sampling (pdf p_light) and BSDF sampling (p_bsdf), power-heuristic weighted, each
+    sample clamped to the limit on its own: W = min(a, r x) + min(1 - a, x), a = p_l^2 /
+    (p_l^2 + p_b^2), r = p_l / p_b, x = limit x p_b / g (module docstring). Broadcast;
+    p_bsdf > 0."""
+    x = np.asarray(x, np.float64)
+    pl = np.asarray(p_light, np.float64)
+    pb = np.asarray(p_bsdf, np.float64)
+    a = pl * pl / (pl * pl + pb * pb)
+    return np.minimum(a, pl / pb * x) + np.minimum(1.0 - a, x)
+
+
+def nee_share(p_light, p_bsdf) -> np.ndarray:
+    """(...) float64 k = p_b / (p_l + p_b): the factor on c = |L|_1 / |flux|_1 at a
+    photon's first scatter off a lobe with a density (photonkernels._scatter's light_pdf):
+    min(1, x / k) equals mis_clamped_share where both strategies are clamped and where
+    neither is (module docstring). p_light <= 0 (no light sample): 1."""
+    pl = np.maximum(np.asarray(p_light, np.float64), 0.0)
+    pb = np.asarray(p_bsdf, np.float64)
+    return pb / (pl + pb)
+
+
+def light_pdfs(ctx, light, x, wi, ng, slot=None) -> np.ndarray:
+    """(M,) float64 p_l: the solid-angle pdf (1/sr) with which the camera side's shadow
+    rays at points x (M,3) sample unit directions wi (M,3) towards `light` (the photons'
+    light: a Light, a LightGroup, whose members take their slots in order, or a
+    RegionEmitter, its light's), times its pick probability there (the light tree's,
+    LightSelector.pmf with normals ng, where selector_for picks; else 1): Cycles' p_l of
+    the next-event strategy at a photon's first scatter (module docstring). ng (M,3):
+    the hits' normals (the world's cosine sampling and the tree's orientation bound).
+    0: a light not sampled that way (delta lights, emissive meshes, lights whose shadow
+    rays are off: Cycles' pair does not apply, c kept)."""
+    x = np.asarray(x, np.float64).reshape(-1, 3)
+    wi = np.asarray(wi, np.float64).reshape(-1, 3)
+    ng = np.asarray(ng, np.float64).reshape(-1, 3)
+    m = len(x)
+    if hasattr(light, "counts") and hasattr(light, "lights"):
+        out, lo = np.zeros(m), 0
+        s = np.asarray(slot, np.int64)
+        for member, c in zip(light.lights, light.counts):
+            sel = np.flatnonzero((s >= lo) & (s < lo + c))
+            if len(sel):
+                out[sel] = light_pdfs(ctx, member, x[sel], wi[sel], ng[sel])
+            lo += c
+        return out
+    from .visualimportance import RegionEmitter
+    if isinstance(light, RegionEmitter):
+        light = light.light
+    from .geometry import SHADOW
+    from .integrator import mis_light_pdf
+    from .lights.selection import selector_for
+    from .lights.world import WORLD
+    from .scene import AREA, POINT, SPOT, SUN
+    kind = getattr(light, "kind", None)
+    if not m or not int(getattr(light, "ray_kinds", 0)) & SHADOW:
+        return np.zeros(m)
+    if kind == SUN:
+        if not light.has_size:
+            return np.zeros(m)
+        pdf = np.full(m, 1.0 / light.solid_angle)
+    elif kind == WORLD:
+        pdf = light.pdf(wi, ng, x)
+    elif kind in (POINT, SPOT):
+        if not light.radius > 0:
+            return np.zeros(m)
+        pdf = mis_light_pdf(light, x, wi, np.full(m, np.inf))
+    elif kind == AREA:
+        # (the distance along wi to the light's plane: mis_light_pdf's t)
+        n_l = np.asarray(light.dir, np.float64)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = ((np.asarray(light.pos, np.float64) - x) @ n_l) / (wi @ n_l)
+        t = np.where(np.isfinite(t) & (t > 0.0), t, np.inf)
+        pdf = np.where(np.isfinite(t), mis_light_pdf(light, x, wi, np.where(
+            np.isfinite(t), t, 1.0)), 0.0)
+    else:
+        return np.zeros(m)
+    chosen = selector_for(ctx) if ctx is not None else None
+    if chosen is not None:
+        idx = [k for k, other in enumerate(ctx.lights) if other is light]
+        pdf = pdf * (chosen[0].pmf(x, ng, idx[0]) if idx else 1.0)
+    return np.where(np.isfinite(pdf) & (pdf > 0.0), pdf, 0.0)
 
 
 def roulette_share(scale, chain) -> np.ndarray:

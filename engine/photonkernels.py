@@ -463,7 +463,7 @@ _PLAIN_ARG = 31
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
             may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur=NO_BLUR,
             passage_blur=None, gather_blur=0.0, split_slots=0, clamp=NO_CLAMP,
-            nx_clamp=NO_CLAMP, nx_blur=NO_BLUR, nx_row=NO_ROWS):
+            nx_clamp=NO_CLAMP, nx_blur=NO_BLUR, nx_row=NO_ROWS, light_pdf=NO_CLAMP):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -495,7 +495,10 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     True)) and nx_clamp (as many rows as nx_*) for the continued photons'; empty (the
     default): none kept. nx_row (as many rows as nx_*) int64: the row of d each continued
     photon came from (its continuation's or its copy's), for the caller's own per-ray
-    state (media, coincident faces); empty (the default): not written."""
+    state (media, coincident faces); empty (the default): not written. light_pdf (m,)
+    float64: with clamp, each photon's light's solid-angle pdf towards the light at its
+    hit (photonclamp.light_pdfs; <= 0: none), which its first non-delta scatter's
+    nx_clamp takes (_scatter); empty (the default): none."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -508,7 +511,8 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
         else passage_blur
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
                     GLASS_ADJOINT_MODE, bend_cos, blur, float(fg), ptab, pior,
-                    float(gather_blur), int(split_slots), clamp, nx_clamp, nx_blur, nx_row)
+                    float(gather_blur), int(split_slots), clamp, nx_clamp, nx_blur, nx_row,
+                    light_pdf)
 
 
 _NO_PASSAGE_TAB, _NO_PASSAGE_IOR = np.ones((2, 2, 2)), np.array([1.0, 2.0])
@@ -903,7 +907,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_rad, nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
              adjoint_mode, bend_cos, blur, passage_fg, passage_tab, passage_ior,
-             gather_fg, split_slots, clamp, nx_clamp, nx_blur, nx_row):
+             gather_fg, split_slots, clamp, nx_clamp, nx_blur, nx_row, light_pdf):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -961,7 +965,12 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     nx_clamp is c / scale; a copy passing behind the surface keeps c (a ray's own, not
     its slot's: the copy and the continuation share a slot). A stored photon writes c x
     |power|_1 (its |L|_1) to st_rad (float32). Empty clamp: none kept, st_rad and
-    nx_clamp not written (may be empty).
+    nx_clamp not written (may be empty). At a photon's first scatter (no bounce counted
+    yet) off a lobe with a density, light_pdf[i] > 0 (the light's pdf p_l towards -d,
+    photonclamp.light_pdfs) multiplies its nx_clamp by p_b / (p_l + p_b), p_b the pdf
+    with which Cycles' path arriving from the photon's next vertex samples -d
+    (reverse_pdf; a PLAIN hit's diffuse share of it): Cycles reaches the light there by
+    next-event estimation too (photonclamp.nee_share). Empty light_pdf: not applied.
 
     Filter Glossy on the gather map's light (gather_fg > 0: the render's Filter Glossy;
     0: off, the same bits): a photon that has made a diffuse bounce (F_DIFFUSE) can only
@@ -1052,6 +1061,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     blur_on = blur.shape[0] > 0
     row_on = nx_row.shape[0] > 0
     clamp_on = clamp.shape[0] > 0
+    nee_on = clamp_on and light_pdf.shape[0] > 0
     # The alpha to which a gather-bound photon's lobes are raised (0: none).
     gather_alpha = blur_alpha(gather_fg, GATHER_PDF) if gather_fg > 0.0 else 0.0
     split_on = split_slots > 0 and gather_alpha > 0.0 and not caustic_only
@@ -1528,6 +1538,28 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     nx_row[nn] = i
                 if clamp_on:
                     nx_clamp[nn] = old_clamp / scale  # (L takes f cos / pdf alone)
+                    if (nee_on and (bnc[i] & _B_MASK) == 0 and lobe != pr.L_PASS
+                            and light_pdf[i] > 0.0):
+                        # The light's first scatter: Cycles' MIS pair there
+                        # (photonclamp.nee_share); a delta lobe (pb inf) keeps c, and
+                        # so does pb 0 (a shading normal's asymmetry: not Cycles' pair).
+                        pb = np.inf
+                        if jc == -PLAIN:
+                            w_dif = (wj[pr.L_DIFFUSE, 0] + wj[pr.L_DIFFUSE, 1]
+                                     + wj[pr.L_DIFFUSE, 2]) / 3.0
+                            cos_l = -(dx * n0 + dy * n1 + dz * n2)
+                            if w_dif > 0.0 and cos_l > 0.0:
+                                pb = w_dif / (w_dif + probs[pr.L_PASS]) * cos_l / math.pi
+                        elif jc >= 0 and lobe == pr.L_DIFFUSE:
+                            lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
+                            ix, iy, iz = pr.frame_local(n0, n1, n2, ox, oy, oz)
+                            pb = reverse_pdf(prm, rsel, jc, wj, probs, False,
+                                             ix, iy, iz, lx, ly, lz)
+                        elif jc >= 0 and pr.is_rough(prm, jc, lobe):
+                            pb = reverse_pdf(prm, rsel, jc, wj, probs, transmitted,
+                                             ix, iy, iz, lx, ly, lz)
+                        if 0.0 < pb < np.inf:
+                            nx_clamp[nn] *= pb / (light_pdf[i] + pb)
                 # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
                 off = off_b[j] if ox * gx + oy * gy + oz * gz >= 0.0 else -off_b[j]
                 nx_o[nn, 0] = p_b[j, 0] + off * gx

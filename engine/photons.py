@@ -383,7 +383,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
                  coincident, make_next, pane_tri, soft_falloff_sources(light, n),
                  start_medium=_light_medium(ctx, light), link_row=link_row,
-                 mesh_links=mesh_links, past=past, flat=flat, clamp0=clamp0)
+                 mesh_links=mesh_links, past=past, flat=flat, clamp0=clamp0,
+                 clamp_light=light)
     except BaseException:
         stored.release()
         raise
@@ -443,7 +444,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
              make_next, pane_tri=None, soft=None, start_medium=-1, link_row=None,
-             mesh_links=None, past=None, flat=None, clamp0=None):
+             mesh_links=None, past=None, flat=None, clamp0=None, clamp_light=None):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
@@ -453,7 +454,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     start_medium: the medium the light is in (_light_medium; -1: none known); link_row,
     mesh_links, past: _trace_chunk's; flat: the flat-passage tables its photons cross
     (photonkernels.flat_tables; None: the scene's); clamp0: photonclamp.emission_ratios'
-    (M,) (a ratio per emitted ray) or None (no Clamp Indirect radiance kept)."""
+    (M,) (a ratio per emitted ray) or None (no Clamp Indirect radiance kept);
+    clamp_light: with clamp0, the photons' light, whose next-event pdf at each photon's
+    first scatter that scatter's ratio takes (photonclamp.light_pdfs; None: not taken)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     if flat is None:
         flat = pk.flat_tables(geo, table)
@@ -634,6 +637,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 nx_row = state_sets[k][0]
             if len(blur):
                 nx_blur = state_sets[k][1]
+        light_pdf = pk.NO_CLAMP
+        if clamp0 is not None and clamp_light is not None and photonclamp.NEE_FIRST_SCATTER:
+            # Cycles' light sample beside its BSDF sample at the light's first scatter
+            # (photonclamp, "The light's first scatter").
+            light_pdf = _first_scatter_light_pdfs(ctx, clamp_light, o, d, tfar[:m], geom,
+                                                  prim32, starts, bnc, slot, e1, e2)
         n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim32,
                                 starts, u, v, v0, e1, e2, normals, material, table.base_color,
                                 table.alpha, given, *surf_m, bump[:m] if numpy_hits else _NO_BUMP,
@@ -646,6 +655,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 gather_blur=fg if BLUR_GATHER_PHOTONS else 0.0,
                                 split_slots=split_slots, clamp=clamp, nx_clamp=nx_clamp,
                                 nx_blur=nx_blur, nx_row=nx_row,
+                                light_pdf=light_pdf,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         if scattered is not None:
@@ -672,6 +682,32 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     for arrays in state_sets:
         if arrays is not None:
             pool.give(arrays, _ray_state)
+
+
+def _first_scatter_light_pdfs(ctx, light, o, d, t, geom, prim, starts, bnc, slot, e1, e2):
+    """(m,) float64: photonclamp.light_pdfs at the hits of the photons that have not
+    scattered yet (no bounce counted; 0 elsewhere and for misses), for the scatter's
+    light_pdf: o, d (m,3) the rays, t (m,) their hit distances, geom, prim, starts the
+    hits (as the scatter reads them: triangle row starts[geom] + prim of e1, e2), bnc
+    (m,) packed bounce counts, slot (m,) (a LightGroup's member by slot). The hit's
+    geometric normal, turned towards the light, stands for its normal."""
+    m = len(d)
+    out = np.zeros(m)
+    g = np.asarray(geom)[:m]
+    t = np.asarray(t[:m], np.float64)
+    rows = np.flatnonzero((g >= 0) & ((np.asarray(bnc)[:m] & pk._B_MASK) == 0)
+                          & np.isfinite(t))
+    if not len(rows):
+        return out
+    tri = np.asarray(starts, np.int64)[g[rows]] + np.asarray(prim)[rows]
+    ng = np.cross(np.asarray(e1)[tri], np.asarray(e2)[tri]).astype(np.float64)
+    ng /= np.maximum(np.linalg.norm(ng, axis=1), 1e-300)[:, None]
+    wi = -np.asarray(d, np.float64)[rows]
+    ng *= np.where(np.einsum("ij,ij->i", ng, wi) < 0.0, -1.0, 1.0)[:, None]
+    x = np.asarray(o, np.float64)[rows] + t[rows, None] * -wi
+    out[rows] = photonclamp.light_pdfs(ctx, light, x, wi, ng, np.asarray(slot)[rows])
+    return out
+
 
 
 class _Buffers:

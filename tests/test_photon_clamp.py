@@ -141,10 +141,136 @@ def test_photon_pass_carries_the_radiance_of_the_reversed_path():
     assert under.sum() > 5_000
     assert np.allclose(ratio[under], 1.0, rtol=1e-5)
     # Past a diffuse bounce (the floor, albedo 0.5, to the slab's underside and back,
-    # or further): Le x 0.5^k, the roulette's pick of the diffuse lobe the flux's alone.
+    # or further): Le x 0.5^k, the roulette's pick of the diffuse lobe the flux's alone,
+    # where the first scatter was the glass (delta: Cycles' BSDF sample alone); where it
+    # was the floor, x nee_share(1 / Omega, cos / pi) (Cycles' light sample beside it;
+    # the sun straight down: cos within 1e-4 of 1).
+    nee = photonclamp.nee_share(1.0 / _solid_angle(), 1.0 / math.pi)
     k = np.log2(ratio[~first])
-    assert (~first).sum() > 100 and np.allclose(k, np.round(k), atol=1e-5), k
-    assert (np.round(k) <= -1).all()
+    k_nee = np.log2(ratio[~first] / nee)
+    glass_first = np.abs(k - np.round(k)) < 1e-5
+    floor_first = np.abs(k_nee - np.round(k_nee)) < 2e-4
+    assert (~first).sum() > 100 and (glass_first | floor_first).all()
+    assert glass_first.sum() > 100 and floor_first.sum() > 10
+    assert (np.round(k[glass_first]) <= -1).all()
+    assert (np.round(k_nee[floor_first]) <= -1).all()
+    # The switch off: the floor's first scatter as its BSDF sample alone (Le x 0.5^k).
+    was = photonclamp.NEE_FIRST_SCATTER
+    photonclamp.NEE_FIRST_SCATTER = False
+    try:
+        off = _shot(RenderSettings(photons=60_000, seed=3, clamp_indirect=10))
+    finally:
+        photonclamp.NEE_FIRST_SCATTER = was
+    k = np.log2(off.radiance[off.kind == INDIRECT] / Le)
+    assert np.allclose(k, np.round(k), atol=1e-5)
+
+
+def _solid_angle():
+    """The sun's solid angle (sr): 2 pi (1 - cos(angle / 2))."""
+    return 2.0 * math.pi * (1.0 - math.cos(math.radians(ANGLE) / 2))
+
+
+def test_mis_clamped_share_is_cycles_clamped_pair_at_one_vertex():
+    """One vertex of a Lambertian surface (albedo 0.7, tp 1) under a sun of half-angle
+    10 degrees, 40 degrees off the normal (|Le|_1 constant): Cycles' two strategies
+    simulated as it runs them (a light sample uniform in the sun's cone, pdf p_l =
+    1 / Omega, power-heuristic weight, and a cosine-sampled BSDF ray, pdf p_b = cos /
+    pi, that lands in the cone, weight 1 - w_l; each value clamped on its own) average to
+    the integral of g x mis_clamped_share over the cone, g = f cos Le; the pair is over
+    the limit in part (W < 1). nee_share's single weight min(1, x / k) is W where both
+    samples are clamped and where neither is, above it in between."""
+    rng = np.random.default_rng(7)
+    n = 400_000
+    half, tilt, rho, Le = math.radians(10.0), math.radians(40.0), 0.7, 3.0
+    omega = 2.0 * math.pi * (1.0 - math.cos(half))
+    axis = np.array([math.sin(tilt), 0.0, math.cos(tilt)])
+    t = np.cross(axis, [0.0, 1.0, 0.0])
+    t /= np.linalg.norm(t)
+    b = np.cross(axis, t)
+
+    def cone(u1, u2):
+        c = 1.0 - u1 * (1.0 - math.cos(half))
+        s = np.sqrt(1.0 - c * c)
+        return (c[:, None] * axis + (s * np.cos(2 * math.pi * u2))[:, None] * t
+                + (s * np.sin(2 * math.pi * u2))[:, None] * b)
+
+    p_l = 1.0 / omega
+
+    def g(w):
+        return rho / math.pi * np.maximum(w[:, 2], 0.0) * Le
+
+    limit = 0.6 * rho / math.pi * math.cos(tilt) * Le * omega  # (the light sample's scale)
+    wl = cone(rng.random(n), rng.random(n))
+    pb_l = np.maximum(wl[:, 2], 0.0) / math.pi
+    v_light = np.minimum(g(wl) / p_l * p_l ** 2 / (p_l ** 2 + pb_l ** 2), limit)
+    u1, u2 = rng.random(n), rng.random(n)
+    r = np.sqrt(u1)
+    wb = np.c_[r * np.cos(2 * math.pi * u2), r * np.sin(2 * math.pi * u2), np.sqrt(1 - u1)]
+    inside = wb @ axis >= math.cos(half)
+    pb = wb[:, 2] / math.pi
+    v_bsdf = np.where(inside, np.minimum(g(wb) / pb * pb ** 2 / (p_l ** 2 + pb ** 2),
+                                         limit), 0.0)
+    cycles = v_light.mean() + v_bsdf.mean()
+    # The integral over the cone by the same light samples: g W / p_l.
+    x = limit * pb_l / g(wl)
+    share = photonclamp.mis_clamped_share(x, p_l, pb_l)
+    formula = (g(wl) * share / p_l).mean()
+    assert 0.3 < share.mean() < 0.9
+    assert formula == pytest.approx(cycles, rel=0.01)
+    # Unclamped the pair sums to the integral of g (MIS weights summing to 1).
+    assert (g(wl) / p_l).mean() > 1.2 * cycles
+    # The single weight: equal at both ends, not below between.
+    pl, pb1 = 3.0, 1.0
+    a = pl * pl / (pl * pl + pb1 * pb1)
+    k = photonclamp.nee_share(pl, pb1)
+    assert k == pytest.approx(0.25, rel=1e-12)
+    xs = np.array([0.01, 1 - a, 0.2, a / 3.0, 0.5, 2.0])
+    W = photonclamp.mis_clamped_share(xs, pl, pb1)
+    one = np.minimum(1.0, xs / k)
+    assert np.allclose(one[[0, 1, 3, 4, 5]], W[[0, 1, 3, 4, 5]], rtol=1e-12)
+    assert one[2] == pytest.approx(0.8) and W[2] == pytest.approx(0.7)
+    # No light sample: 1 (c kept).
+    assert photonclamp.nee_share(0.0, 0.4) == 1.0
+
+
+def test_light_pdfs_are_the_camera_sides_light_pdfs():
+    """photonclamp.light_pdfs: a sun's 1 / Omega (its pick 1: one light), a sphere lamp's
+    cone 1 / (2 pi (1 - cos a)), an area light's t^2 / (A cos) (a disk, t the distance
+    along wi to its plane); 0 for a sun without angle. Two lights (at most
+    SAMPLE_ALL_UP_TO: each its own shadow rays): no pick factor."""
+    s = PaperScene(width=8, height=8)
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    s.add_sun((0, 0, -1), strength=SUN_E, angle_degrees=ANGLE)
+    s.set_camera((0, -5, 3), (0, 0, 0))
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    sun = ctx.lights[0]
+    x = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 0.0]])
+    up = np.tile([0.0, 0.0, 1.0], (2, 1))
+    assert np.allclose(photonclamp.light_pdfs(ctx, sun, x, up, up), 1.0 / _solid_angle(),
+                       rtol=1e-9)
+    sun.cos_half_angle = 1.0
+    assert not photonclamp.light_pdfs(ctx, sun, x, up, up).any()
+    s2 = PaperScene(width=8, height=8)
+    s2.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s2.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    s2.add_point_light((0, 0, 2), power=100.0, radius=0.5, soft_falloff=False)
+    s2.add_rect_area_light((0, 0, 3), size=1.0, power=100.0, disk=True)
+    s2.set_camera((0, -5, 3), (0, 0, 0))
+    ctx = prepare_context(s2, RenderSettings(workers=1))
+    lamp = next(li for li in ctx.lights if li.kind != AREA)
+    area = next(li for li in ctx.lights if li.kind == AREA)
+    off = ctx.geo.offset
+    got = photonclamp.light_pdfs(ctx, lamp, x - off, up, up)
+    d2 = np.array([4.0, 9.0])  # (squared distances to the lamp's centre)
+    cone = 1.0 / (2.0 * math.pi * (1.0 - np.sqrt(1.0 - 0.25 / d2)))
+    assert np.allclose(got, cone, rtol=1e-9)
+    wi = np.array([[0.0, 0.0, 1.0], [-0.1, -0.2, 1.0]])
+    wi /= np.linalg.norm(wi, axis=1)[:, None]
+    x2 = np.array([[0.0, 0.0, 0.0], [0.3, 0.6, 0.0]])
+    got = photonclamp.light_pdfs(ctx, area, x2 - off, wi, up)
+    t = 3.0 / wi[:, 2]
+    assert np.allclose(got, t * t / (math.pi * 0.25 * wi[:, 2]), rtol=1e-9)
 
 
 def test_emitted_radiance_is_each_light_kinds_own():
@@ -389,11 +515,11 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums(focus):
     assert np.allclose(plain[~over], want[~over], rtol=1e-12, atol=0.0)  # (the reference)
 
 
-def test_a_region_emitters_photons_take_its_lights_radiance(monkeypatch):
-    """Visual importance's RegionEmitter (aimed and natural photons of one light), with
-    photonclamp.CLAMP_REGION_PHOTONS on: each photon's c x |flux|_1 is its light's
-    radiance, as the light's own photons' (it read 0: the emitter has no light kind of
-    its own); off (the default, see there): no clamp, c = 0."""
+def test_a_region_emitters_photons_take_its_lights_radiance():
+    """Visual importance's RegionEmitter (aimed and natural photons of one light): each
+    photon's c x |flux|_1 is its light's radiance, as the light's own photons' (it read
+    0: the emitter has no light kind of its own; clampleft55's switch that kept it so is
+    gone with clampnee56's first-scatter pair)."""
     from engine.lights.emission import EmissionBuffers
     from engine.visualimportance import Region, RegionEmitter
     s = _two_lamps()
@@ -404,9 +530,6 @@ def test_a_region_emitters_photons_take_its_lights_radiance(monkeypatch):
     out = EmissionBuffers(4000)
     m = emitter.emit_into(np.uint64(5), 0, 4000, 4000, out, 0)
     o32, _, d, power, slot = out.head(m)
-    assert not photonclamp.emission_ratios(emitter, o32, d, power, slot,
-                                           np.uint64(5)).any()
-    monkeypatch.setattr(photonclamp, "CLAMP_REGION_PHOTONS", True)
     le = photonclamp.emission_ratios(emitter, o32, d, power, slot, np.uint64(5)) \
         * np.abs(power).sum(axis=1)
     x = o32[:, 0].astype(np.float64) + ctx.geo.offset[0]
