@@ -41,6 +41,7 @@ from .jit import kernel, register_warm_up
 # The pre-test (rows with no other surface near are not traced) lives in plain Python
 # (engine/onesurface.py), so that editing it does not recompile these kernels.
 from .onesurface import one_surface_cells
+from .photonkernels import B_TOTAL
 from .photonlayout import read_power, read_vector, snap_chord2
 from .photonmap import _query_lift, _ray_ends
 from .rayoffset import G32_PLANE, ulp32_scalar
@@ -352,18 +353,18 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
             rows, hid = _hidden_pairs(pmap, accel, *here, todo, todo, count, photons)
             rows_out.append(rows + a)
             photons_out.append(hid)
+        dropped = over = None
         if reject is not None:
-            rows, hid = _with_rejected(rows, hid, listed, listed, count, photons, a,
-                                       reject, len(pmap))
-        over = None
+            dropped = _rejected_lists(listed, listed, count, photons, a, reject)
         if clamp is not None:
             # (Clamp Indirect per photon: each listed photon's weight, and the rows where
             # some photon is over the limit, summed again with the hidden ones)
-            over = photonclamp.list_weights(pmap, (count, photons), listed, listed,
-                                            clamp[0][a:b], clamp[1])
-        if (visible or reject is not None) and (len(rows) or over is not None):
+            over = clamp_weights(pmap, (count, photons), listed, listed, clamp[0][a:b],
+                                 clamp[1])
+        if ((visible or reject is not None)
+                and (len(rows) or over is not None or dropped is not None)):
             _visible_sums(pmap, limits, counts_here, E[a:b], rows, rows, hid,
-                          (count, photons, weight, factor), over)
+                          (count, photons, weight, factor), over, dropped)
         if len(wide):
             rows = hid = _NO_PAIRS
             if accel is not None:
@@ -372,18 +373,18 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
                                           *wide_read[:2])
                 rows_out.append(rows + a)
                 photons_out.append(hid)
+            dropped = over = None
             if reject is not None:
-                rows, hid = _with_rejected(rows, hid, wide, np.arange(len(wide)),
-                                           *wide_read[:2], a, reject, len(pmap))
-            over = None
+                dropped = _rejected_lists(wide, np.arange(len(wide)), *wide_read[:2], a,
+                                          reject)
             if clamp is not None:
-                over = photonclamp.list_weights(pmap, wide_read[:2], wide,
-                                                np.arange(len(wide)), clamp[0][a:b],
-                                                clamp[1])
-            if (visible or reject is not None) and (len(rows) or over is not None):
+                over = clamp_weights(pmap, wide_read[:2], wide, np.arange(len(wide)),
+                                     clamp[0][a:b], clamp[1])
+            if ((visible or reject is not None)
+                    and (len(rows) or over is not None or dropped is not None)):
                 # (each wide row's slot: its place in wide, which is ascending)
                 _visible_sums(pmap, limits, counts_here, E[a:b], rows,
-                              np.searchsorted(wide, rows), hid, wide_read, over)
+                              np.searchsorted(wide, rows), hid, wide_read, over, dropped)
     if not rows_out:
         return E, np.zeros(0, np.int64), np.zeros(0, np.int64)
     rows, photons = np.concatenate(rows_out), np.concatenate(photons_out)
@@ -394,23 +395,111 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
 _NO_PAIRS = np.zeros(0, np.int64)
 
 
-def _with_rejected(rows, hid, qrows, slots, count, photons, a, reject, n_map):
-    """(rows, hid) hidden pairs (by row of the block) with the read pairs reject leaves
-    out added (the rows qrows (Q,) of the block, their read lists photons[slots[r],
-    :count[slots[r]]]; a: the block's first row of p, reject's rows are p's), each pair
-    once, sorted by row then photon."""
+def _rejected_lists(qrows, slots, count, photons, a, reject):
+    """The read pairs reject leaves out, as a mask over the read lists: qrows (Q,) the
+    rows of the block whose lists photons[slots[r], :count[slots[r]]] are asked (a: the
+    block's first row of p; reject's rows are p's, each pair answered alone). None where
+    reject keeps every pair, else (rows (D,) int64, slots (D,) int64, dropped (L, W)
+    bool): the rows that lose some photon, their lists, and the mask (photons' shape,
+    False outside the asked lists) for _visible_rows. A mask in place of the pairs
+    (row, photon) spares their keys' sort and _visible_rows' second, bisecting pass over
+    pairs not in the lists' order (docs/performance.md "percost56")."""
+    slots = np.asarray(slots, np.int64)
     c = np.take(count, slots)
-    if not c.sum():
-        return rows, hid
+    width = int(c.max()) if len(c) else 0
+    if width == 0:
+        return None
+    lists = np.take(photons, slots, axis=0)[:, :width]
+    inside = np.arange(width)[None, :] < c[:, None]
     pr = np.repeat(np.asarray(qrows, np.int64), c)
-    lists = np.take(photons, slots, axis=0)
-    ph = lists[np.arange(lists.shape[1])[None, :] < c[:, None]].astype(np.int64)
-    drop = np.asarray(reject(pr + a, ph), bool)
+    drop = np.asarray(reject(pr + a, lists[inside]), bool)
     if not drop.any():
-        return rows, hid
-    key = np.unique(np.concatenate([np.asarray(rows, np.int64) * (n_map + 1) + hid,
-                                    pr[drop] * (n_map + 1) + ph[drop]]))
-    return key // (n_map + 1), key % (n_map + 1)
+        return None
+    sub = np.zeros(inside.shape, bool)
+    sub[inside] = drop
+    dropped = np.zeros(photons.shape, bool)
+    dropped[slots, :width] = sub
+    some = sub.any(axis=1)
+    return np.asarray(qrows, np.int64)[some], slots[some], dropped
+
+
+def clamp_weights(pmap, read, qrows, slots, scale, limit):
+    """photonclamp.list_weights (same arguments, same answer, bit for bit: None, or
+    (rows (V,), slots (V,), clamp_w (L, W) float64)) in one compiled pass over the read
+    lists (_clamp_list_weights) with no (rows, width, 3) temporaries: Cycles' Russian
+    roulette share Q (photonclamp.roulette_share, numpy's pow) tabled per row and chain
+    length, the rest of photonclamp.photon_weights per photon. The numpy stage took 4.7
+    of the candles' 31 profiled camera CPU s (docs/performance.md "percost56");
+    tests/test_hotspot_kernels.py compares the two."""
+    ph = pmap.photons
+    if ph.radiance is None or not len(qrows):
+        return None
+    count, photons = read
+    qrows = np.ascontiguousarray(qrows, np.int64)
+    slots = np.ascontiguousarray(slots, np.int64)
+    bounces = getattr(ph, "bounces", None)
+    if bounces is None or not photonclamp.ROULETTE:
+        share, bounces = _NO_SHARE, _NO_BOUNCES
+    else:
+        chains = np.arange(_longest_chain(pmap) + 1, dtype=np.float64)
+        share = np.ascontiguousarray(photonclamp.roulette_share(
+            np.take(scale, qrows, axis=0)[:, None, :], chains[None, :]), dtype=np.float64)
+    clamp_w = np.ones(photons.shape)
+    over = np.zeros(len(qrows), bool)
+    _clamp_list_weights(ph.power, ph.radiance, bounces, B_TOTAL, share,
+                        np.ascontiguousarray(scale, dtype=np.float64), qrows, slots, count,
+                        photons, float(limit), clamp_w, over)
+    if not over.any():
+        return None
+    return qrows[over], slots[over], clamp_w
+
+
+def _longest_chain(pmap) -> int:
+    """The map's most scatters since the light (Photons.bounces[:, B_TOTAL].max()),
+    found once per bounces array and kept on the map."""
+    bounces = pmap.photons.bounces
+    got = vars(pmap).get("longest_chain")
+    if got is None or got[0] is not bounces:
+        got = (bounces, int(bounces[:, B_TOTAL].max()) if len(bounces) else 0)
+        vars(pmap)["longest_chain"] = got
+    return got[1]
+
+
+_NO_SHARE = np.zeros((0, 0))  # _clamp_list_weights: Q = 1 (no roulette share)
+_NO_BOUNCES = np.zeros((0, 4), np.uint8)
+
+
+@kernel
+def _clamp_list_weights(power, radiance, bounces, b_total, share, scale, qrows, slots,
+                        count, photons, limit, clamp_w, over):
+    """clamp_weights' pass: for each r, the read list s = slots[r] (photons[s,
+    :count[s]]) of row qrows[r] at its clamp throughput x albedo scale[qrows[r]] (3,):
+    clamp_w[s, j] = photonclamp.photon_weights' w_p = min(1, Q x limit / contrib),
+    contrib = radiance x |scale x flux|_1 / |flux|_1 (0 where no flux; a non-finite w
+    is 1), Q = share[r, bounces[photon, b_total]] (share (Q, chains) or (0, 0): 1),
+    its float64 operations in numpy's order; over[r] whether some w_p < 1."""
+    use_share = share.shape[0] > 0
+    for r in range(qrows.shape[0]):
+        i = qrows[r]
+        s = slots[r]
+        s0, s1, s2 = scale[i, 0], scale[i, 1], scale[i, 2]
+        clamped = False
+        for jj in range(count[s]):
+            pj = photons[s, jj]
+            f0, f1, f2 = read_power(power, pj)  # (photonlayout: float32 or RGBE)
+            flux = abs(f0) + abs(f1) + abs(f2)
+            c = abs(s0 * f0) + abs(s1 * f1) + abs(s2 * f2)
+            lim = limit
+            if use_share:
+                lim = limit * share[r, bounces[pj, b_total]]
+            contrib = np.float64(radiance[pj]) * c / flux if flux > 0.0 else 0.0
+            w = lim / contrib if contrib > lim else 1.0
+            if not math.isfinite(w):
+                w = 1.0
+            clamp_w[s, jj] = w
+            if w < 1.0:
+                clamped = True
+        over[r] = clamped
 
 
 def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None,
@@ -457,7 +546,8 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     return E
 
 
-def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read, over=None):
+def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read, over=None,
+                  dropped=None):
     """E[rows] estimated again from each row's visible photons alone, from its read list:
     rows (H,) int64 the pairs' rows of E (M,3) (with repeats), photons (H,) the hidden
     map photons, slots (H,) each pair row's entry in read = (count, photons, weight,
@@ -466,9 +556,12 @@ def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read, over=None
     neither hidden from the row nor unusable at its counts (counts (M,4) or None, with
     limits: chaincounts' masks): PhotonMap.knn_irradiance's masked sum over the same
     search (its other photons weigh 0 or are masked), so the bits of _reestimate.
-    over: None, or photonclamp.list_weights' (rows (V,), slots (V,), clamp_w (lists,
+    over: None, or clamp_weights' (rows (V,), slots (V,), clamp_w (lists,
     width)): those rows of E summed again too (with or without hidden photons) and every
-    photon's weight times its clamp_w (Clamp Indirect per photon). Writes into E.
+    photon's weight times its clamp_w (Clamp Indirect per photon). dropped: None, or
+    _rejected_lists' (rows (D,), slots (D,), mask (lists, width) bool): those rows of E
+    summed again too, the photons the mask marks left out as hidden ones are. Writes
+    into E.
 
     _hidden_pairs lists each row's pairs together, in its read list's order: the sums
     walk both lists at once. Pairs in any other order are sorted (by row, then photon)
@@ -476,33 +569,37 @@ def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read, over=None
     if len(rows) > 1 and (rows[1:] < rows[:-1]).any():
         order = np.argsort(rows, kind="stable")
         rows, photons, slots = rows[order], photons[order], slots[order]
-    args = _visible_args(pmap, limits, counts, rows, photons, slots, read, E, over)
+    args = _visible_args(pmap, limits, counts, rows, photons, slots, read, E, over, dropped)
     if _visible_rows(*args, False):
         # (some row's hidden photons not in its list's order) each row's hidden photons
         # ascending, bisected
         order = np.lexsort((photons, rows))
         rows, photons, slots = rows[order], photons[order], slots[order]
         _visible_rows(*_visible_args(pmap, limits, counts, rows, photons, slots, read, E,
-                                     over), True)
+                                     over, dropped), True)
 
 
-def _visible_args(pmap, limits, counts, rows, photons, slots, read, E, over=None):
+def _visible_args(pmap, limits, counts, rows, photons, slots, read, E, over=None,
+                  dropped=None):
     """_visible_rows' arguments for _visible_sums' pairs (grouped by row; rows sorted)
-    and over's rows (each row once, its hidden photons the range bounds gives it,
-    empty for a row without)."""
+    and over's and dropped's rows (each row once, its hidden photons the range bounds
+    gives it, empty for a row without)."""
     rows = np.asarray(rows, np.int64)
-    if over is None:
+    clamp_w = _NO_CLAMP_W if over is None else over[2]
+    mask = _NO_DROPPED if dropped is None else dropped[2]
+    more = [x for x in (over, dropped) if x is not None]
+    if not more:
         starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
         hiding = rows[starts]
         slot_of = np.asarray(slots)[starts]
         bounds = np.r_[starts, len(rows)].astype(np.int64)
-        clamp_w = _NO_CLAMP_W
     else:
-        o_rows, o_slots, clamp_w = over
-        # (the pairs' rows and over's, each once, ascending; a row's pairs are
+        # (the pairs' rows, over's and dropped's, each once, ascending; a row's pairs are
         # rows[bounds[r]:bounds[r + 1]], consecutive as the rows are sorted)
-        hiding, first = np.unique(np.r_[rows, o_rows], return_index=True)
-        slot_of = np.r_[np.asarray(slots, np.int64), np.asarray(o_slots, np.int64)][first]
+        hiding, first = np.unique(np.concatenate([rows] + [x[0] for x in more]),
+                                  return_index=True)
+        slot_of = np.concatenate([np.asarray(slots, np.int64)]
+                                 + [np.asarray(x[1], np.int64) for x in more])[first]
         bounds = np.r_[np.searchsorted(rows, hiding), len(rows)].astype(np.int64)
     if (counts is not None and limits is not None
             and getattr(pmap.photons, "bounces", None) is not None):
@@ -519,28 +616,32 @@ def _visible_args(pmap, limits, counts, rows, photons, slots, read, E, over=None
     count, listed, weight, factor = read
     return (pmap.photons.power, hiding, np.ascontiguousarray(slot_of, dtype=np.int64),
             bounds, np.ascontiguousarray(photons, dtype=np.int64), usable, cls, count,
-            listed, weight, clamp_w, factor, E)
+            listed, weight, clamp_w, mask, factor, E)
 
 
 _ALL_USABLE = np.zeros((0, 0), np.bool_)  # _visible_rows: every photon usable
 _NO_CLAMP_W = np.zeros((0, 0))  # _visible_rows: no Clamp Indirect weights
+_NO_DROPPED = np.zeros((0, 0), np.bool_)  # _visible_rows: no photon dropped by mask
 
 
 @kernel
 def _visible_rows(power, rows, slots, bounds, hidden, usable, cls, count, photons, weight,
-                  clamp_w, factor, E, ascending):
+                  clamp_w, dropped, factor, E, ascending):
     """_visible_sums' sums: for each r, E[rows[r]] = factor[s] x the sum over the read
     list s = slots[r] (photons[s, :count[s]], weights weight[s]) of weight x
     float64(power) for its photons not in hidden[bounds[r]:bounds[r + 1]] and usable
     (usable[cls[r]], or usable empty: all), in the list's order:
     photonmap._irradiance_rows' masked sum (its float64 operations in its order).
     clamp_w (lists, width) or (0, 0): each listed photon's Clamp Indirect weight
-    (photonclamp.list_weights), one more factor of its weight (x 1.0: the same bits).
+    (clamp_weights), one more factor of its weight (x 1.0: the same bits). dropped
+    (lists, width) bool or (0, 0): listed photons left out as hidden ones are
+    (_rejected_lists).
     ascending: each row's hidden photons are ascending (bisected); else in the list's
     order (walked along it). Returns the rows whose hidden photons were not all met
     in the list's order (not ascending only; their E is then wrong: sort and ask again)."""
     bad = 0
     clamped = clamp_w.shape[0] > 0
+    masked = dropped.shape[0] > 0
     for r in range(rows.shape[0]):
         i = rows[r]
         s = slots[r]
@@ -564,6 +665,8 @@ def _visible_rows(power, rows, slots, bounds, hidden, usable, cls, count, photon
                         hi = mid
                 if lo < h_hi and hidden[lo] == pj:
                     continue
+            if masked and dropped[s, jj]:
+                continue
             if usable.shape[0] and not usable[c, pj]:
                 continue
             w = weight[s, jj]
@@ -645,4 +748,8 @@ def _warm_up():
     one = np.zeros(1, np.int64)
     _visible_rows(pmap.photons.power, one, one, np.int64([0, 1]), one, _ALL_USABLE, one,
                   np.ones(1, np.int64), np.zeros((1, 8), np.int64), np.ones((1, 8)),
-                  _NO_CLAMP_W, np.ones(1), np.zeros((1, 3)), False)
+                  _NO_CLAMP_W, _NO_DROPPED, np.ones(1), np.zeros((1, 3)), False)
+    _clamp_list_weights(pmap.photons.power, np.ones(8, np.float32), _NO_BOUNCES, B_TOTAL,
+                        _NO_SHARE, np.ones((1, 3)), one, one, np.ones(1, np.int64),
+                        np.zeros((1, 8), np.int64), 1.0, np.ones((1, 8)),
+                        np.zeros(1, bool))

@@ -7,7 +7,9 @@ the diffuse weight and the Lambert rows (a lobe weight of zero may carry the oth
 numpy's maximum of 0.0 and -0.0 is its second argument; every reader tests w > 0.0 and
 psum's sum starts at 0.0, so no result bit depends on it); and
 camerakernels.bsdf_pdf_rows (DiffusePdf.pdf) gives principled.bsdf_pdf_many's bits on
-gathered rows."""
+gathered rows. percost56's photonvisibility.clamp_weights against photonclamp.list_weights
+(Clamp Indirect's per-photon weights) and _rejected_lists' mask against the rejected pairs
+it replaced."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -300,3 +302,114 @@ def test_touch_near_kernel_marks_the_numpy_stages_rows():
         want = _near_numpy(cs, q, tri)
         np.testing.assert_array_equal(cs.near(q, tri), want)
         assert 0.01 < want.mean() < 0.5
+
+
+def _clamp_map(rng, n, rgbe, bounces):
+    """A stand-in map for the clamp's weights (the fields list_weights reads): powers
+    over five decades (some zero), |L_p|_1 over five (some NaN, infinite, zero), chains
+    of 0-12 scatters or no bounces."""
+    from engine.photonlayout import encode_power
+    power = (rng.random((n, 3)) * 10.0 ** rng.uniform(-4, 1, (n, 1))).astype(np.float32)
+    power[rng.random(n) < 0.03] = 0.0
+    rad = (rng.random(n) * 10.0 ** rng.uniform(-1, 4, n)).astype(np.float32)
+    rad[rng.random(n) < 0.01] = np.nan
+    rad[rng.random(n) < 0.01] = np.inf
+    rad[rng.random(n) < 0.02] = 0.0
+    b = rng.integers(0, 13, (n, 4)).astype(np.uint8) if bounces else None
+    return SimpleNamespace(photons=SimpleNamespace(
+        power=encode_power(power) if rgbe else power, radiance=rad, bounces=b))
+
+
+def test_clamp_weights_kernel_gives_list_weights_bits(monkeypatch):
+    """photonvisibility.clamp_weights (percost56: one kernel pass over the read lists)
+    against photonclamp.list_weights, the numpy stage it replaced: the same rows, slots
+    and weights bit for bit (or None alike), powers float32 or RGBE, with and without
+    the photons' bounces, with the roulette share off, rows of zero scale, lists in any
+    slot order and of any length (zero too)."""
+    from engine import photonclamp
+    from engine.photonvisibility import clamp_weights
+    rng = np.random.default_rng(5600)
+    n, lists, width = 4000, 300, 64
+    seen_over = seen_none = 0
+    for trial in range(16):
+        pmap = _clamp_map(rng, n, rgbe=trial % 2 == 1, bounces=trial % 4 != 3)
+        if trial == 8:
+            monkeypatch.setattr(photonclamp, "ROULETTE", False)
+        if trial == 9:
+            monkeypatch.setattr(photonclamp, "ROULETTE", True)
+        count = rng.integers(0, width + 1, lists)
+        photons = rng.integers(0, n, (lists, width))
+        qrows = np.sort(rng.choice(lists, 200, replace=False))
+        slots = qrows.copy() if trial % 3 else rng.permutation(lists)[:200]
+        scale = rng.random((lists, 3)) * 10.0 ** rng.uniform(-3, 1, (lists, 1))
+        scale[:20] = 0.0
+        limit = 10.0 if trial < 14 else np.inf  # (nothing over it: None)
+        want = photonclamp.list_weights(pmap, (count, photons), qrows, slots, scale, limit)
+        got = clamp_weights(pmap, (count, photons), qrows, slots, scale, limit)
+        if want is None:
+            assert got is None
+            seen_none += 1
+            continue
+        seen_over += 1
+        assert got is not None and len(got) == 3
+        for a, b in zip(got, want):
+            assert a.dtype == b.dtype and np.array_equal(a, b)
+        assert 0 < (want[2] < 1.0).sum() < want[2].size
+    assert seen_over >= 12 and seen_none >= 2
+
+
+def test_rejected_mask_sums_are_the_pairs_sums():
+    """photonvisibility._rejected_lists' mask (percost56) in _visible_sums against the
+    pairs it replaced (each rejected pair listed as a hidden one, with the traced
+    pairs, sorted and bisected, as _with_rejected gave them): the same bits in every row
+    estimated again, every other row's bits kept; rows with both kinds, with rejected
+    photons only, and with hidden ones only."""
+    from engine import photonvisibility as pv
+    from engine.photonmap import PhotonMap
+    from engine.photons import CAUSTIC, Photons
+    rng = np.random.default_rng(5601)
+    n, m = 1500, 120
+    pos = np.c_[rng.random((n, 2)), np.zeros(n)].astype(np.float32)
+    up = np.tile(np.float32([0, 0, 1]), (n, 1))
+    power = (0.005 + 0.02 * rng.random((n, 3))).astype(np.float32)
+    pmap = PhotonMap(Photons(pos, power, -up, up.copy(), np.full(n, CAUSTIC, np.uint8)))
+    p = np.c_[0.1 + 0.8 * rng.random((m, 2)), np.zeros(m)]
+    nrm = np.tile([0.0, 0.0, 1.0], (m, 1))
+    E, count, photons, weight, factor, _ = pv._estimate_read(
+        pmap, None, None, p, nrm, 0.1, 40, 8, "knn_simpson", None)
+    count, photons = count.copy(), photons.copy()
+    read = (count, photons, weight.copy(), factor.copy())
+    listed = np.flatnonzero(count > 0)
+    assert len(listed) == m
+    # hidden pairs: a photon in 7 of the rows < 60, in list order (as _hidden_pairs)
+    h_rows, h_ph = [], []
+    for i in range(60):
+        for j in range(count[i]):
+            if rng.random() < 1 / 7:
+                h_rows.append(i)
+                h_ph.append(photons[i, j])
+    h_rows, h_ph = np.int64(h_rows), np.int64(h_ph)
+    a = 1000  # (the block's first row of p: reject's rows are p's)
+
+    def reject(rows, ph):
+        rows = np.asarray(rows)
+        return ((rows - a) >= 30) & ((rows - a) < 90) & ((rows + ph) % 4 == 0)
+
+    dropped = pv._rejected_lists(listed, listed, count, photons, a, reject)
+    assert dropped is not None
+    got = E.copy()
+    pv._visible_sums(pmap, None, None, got, h_rows, h_rows, h_ph, read, None, dropped)
+    # the pairs: hidden and rejected, each once, by row then photon
+    pr = np.repeat(listed, count[listed])
+    ph = np.concatenate([photons[i, :count[i]] for i in listed])
+    drop = reject(pr + a, ph)
+    key = np.unique(np.r_[h_rows * (n + 1) + h_ph, pr[drop] * (n + 1) + ph[drop]])
+    rows, hid = key // (n + 1), key % (n + 1)
+    want = E.copy()
+    pv._visible_sums(pmap, None, None, want, rows, rows, hid, read)
+    assert np.array_equal(got, want)
+    changed = (got != E).any(axis=1)
+    assert changed[:30].sum() > 5 and changed[30:60].sum() > 5 and changed[60:90].sum() > 5
+    assert not changed[90:].any()
+    assert set(rows) == set(dropped[0]) | set(h_rows)
+    assert set(np.flatnonzero(changed)) <= set(np.unique(rows))
