@@ -78,8 +78,6 @@ import math
 import numpy as np
 
 from . import sampleclamp
-from .photonlayout import decode_power
-from .photonkernels import B_TOTAL
 from .meshphotons import emitted_triangles
 
 # Per-photon Clamp Indirect (above). False: the estimates are clamped as a whole only
@@ -300,40 +298,3 @@ def photon_weights(radiance, power, scale, limit, chain=None) -> np.ndarray:
         contrib = np.where(flux > 0, np.asarray(radiance, np.float64) * c / flux, 0.0)
         w = np.where(contrib > limit, limit / contrib, 1.0)
     return np.where(np.isfinite(w), w, 1.0)
-
-
-def list_weights(pmap, read, qrows, slots, scale, limit):
-    """Clamp Indirect's photon_weights over an estimate's read lists, for
-    photonvisibility._visible_sums: read = (count, photons) (photonvisibility.
-    _estimate_read's lists, (L,) and (L, W)), qrows (Q,) the rows of the block whose
-    lists slots (Q,) are whole, scale (B,3) each row's clamp throughput x albedo, limit
-    Clamp Indirect's. Returns None where no listed photon is over the limit (every
-    weight 1: the estimates keep their bits), else (rows (V,), slots (V,), clamp_w (L,
-    W) float64): the rows with some photon over the limit, their lists, and each listed
-    photon's w_p (1 past a list's count and for lists not in slots)."""
-    radiance = pmap.photons.radiance
-    if radiance is None or not len(qrows):
-        return None
-    count, photons = read
-    c = np.take(count, slots)
-    width = int(c.max()) if len(c) else 0
-    if width == 0:
-        return None
-    lists = np.take(photons, slots, axis=0)[:, :width]
-    inside = np.arange(width)[None, :] < c[:, None]
-    ph = np.where(inside, lists, 0)
-    pw = pmap.photons.power
-    pw = decode_power(pw[ph.reshape(-1)]) if pw.dtype == np.uint8 else \
-        pw[ph.reshape(-1)].astype(np.float64)
-    pw = pw.reshape(len(qrows), width, 3)
-    bounces = getattr(pmap.photons, "bounces", None)
-    chain = None if bounces is None else bounces[ph, B_TOTAL]
-    w = photon_weights(radiance[ph], pw, np.take(scale, qrows, axis=0)[:, None, :], limit,
-                       chain)
-    w = np.where(inside, w, 1.0)
-    over = np.flatnonzero((w < 1.0).any(axis=1))
-    if not len(over):
-        return None
-    clamp_w = np.ones(photons.shape)
-    clamp_w[np.asarray(slots, np.int64)[:, None], np.arange(width)[None, :]] = w
-    return (np.asarray(qrows, np.int64)[over], np.asarray(slots, np.int64)[over], clamp_w)

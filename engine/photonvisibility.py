@@ -314,8 +314,8 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     (H,)) -> (H,) bool, the read pairs to leave out of E as well (counted as hidden ones
     are, the same search and disc; not in the returned pairs), or None. accel None: no
     pair is traced (reject's alone). clamp: (scale (M,3), limit) or None: with visible,
-    each photon of E weighed by Clamp Indirect's w_p (photonclamp.list_weights; scale
-    the rows' clamp throughput x albedo), where the map keeps Photons.radiance: the rows
+    each photon of E weighed by Clamp Indirect's w_p (clamp_weights; scale the rows'
+    clamp throughput x albedo), where the map keeps Photons.radiance: the rows
     where some photon is over the limit are summed again (_visible_sums, with their
     hidden photons left out), every other row keeps its bits."""
     m = len(p)
@@ -424,13 +424,19 @@ def _rejected_lists(qrows, slots, count, photons, a, reject):
 
 
 def clamp_weights(pmap, read, qrows, slots, scale, limit):
-    """photonclamp.list_weights (same arguments, same answer, bit for bit: None, or
-    (rows (V,), slots (V,), clamp_w (L, W) float64)) in one compiled pass over the read
-    lists (_clamp_list_weights) with no (rows, width, 3) temporaries: Cycles' Russian
-    roulette share Q (photonclamp.roulette_share, numpy's pow) tabled per row and chain
-    length, the rest of photonclamp.photon_weights per photon. The numpy stage took 4.7
-    of the candles' 31 profiled camera CPU s (docs/performance.md "percost56");
-    tests/test_hotspot_kernels.py compares the two."""
+    """Clamp Indirect's photonclamp.photon_weights over an estimate's read lists, for
+    _visible_sums: read = (count, photons) (_estimate_read's lists, (L,) and (L, W)),
+    qrows (Q,) the rows of the block whose lists slots (Q,) are whole, scale (B,3) each
+    row's clamp throughput x albedo, limit Clamp Indirect's. Returns None where no listed
+    photon is over the limit (every weight 1: the estimates keep their bits), else (rows
+    (V,), slots (V,), clamp_w (L, W) float64): the rows with some photon over the limit,
+    their lists, and each listed photon's w_p (1 past a list's count and for lists not in
+    slots). One compiled pass over the read lists (_clamp_list_weights) with no (rows,
+    width, 3) temporaries: Cycles' Russian roulette share Q (photonclamp.roulette_share,
+    numpy's pow) tabled per row and chain length, the rest of photonclamp.photon_weights
+    per photon. The numpy stage it replaced took 4.7 of the candles' 31 profiled camera
+    CPU s (docs/performance.md "percost56"); tests/test_hotspot_kernels.py keeps it as
+    the reference, bit for bit."""
     ph = pmap.photons
     if ph.radiance is None or not len(qrows):
         return None

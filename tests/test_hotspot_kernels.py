@@ -7,7 +7,7 @@ the diffuse weight and the Lambert rows (a lobe weight of zero may carry the oth
 numpy's maximum of 0.0 and -0.0 is its second argument; every reader tests w > 0.0 and
 psum's sum starts at 0.0, so no result bit depends on it); and
 camerakernels.bsdf_pdf_rows (DiffusePdf.pdf) gives principled.bsdf_pdf_many's bits on
-gathered rows. percost56's photonvisibility.clamp_weights against photonclamp.list_weights
+gathered rows. percost56's photonvisibility.clamp_weights against the numpy stage it replaced
 (Clamp Indirect's per-photon weights) and _rejected_lists' mask against the rejected pairs
 it replaced."""
 from types import SimpleNamespace
@@ -320,9 +320,50 @@ def _clamp_map(rng, n, rgbe, bounces):
         power=encode_power(power) if rgbe else power, radiance=rad, bounces=b))
 
 
+def _list_weights_numpy(pmap, read, qrows, slots, scale, limit):
+    """The numpy stage photonvisibility.clamp_weights replaced (kept here as its
+    reference): Clamp Indirect's photonclamp.photon_weights over an estimate's read
+    lists: read = (count, photons) (photonvisibility.
+    _estimate_read's lists, (L,) and (L, W)), qrows (Q,) the rows of the block whose
+    lists slots (Q,) are whole, scale (B,3) each row's clamp throughput x albedo, limit
+    Clamp Indirect's. Returns None where no listed photon is over the limit (every
+    weight 1: the estimates keep their bits), else (rows (V,), slots (V,), clamp_w (L,
+    W) float64): the rows with some photon over the limit, their lists, and each listed
+    photon's w_p (1 past a list's count and for lists not in slots)."""
+    from engine import photonclamp
+    from engine.photonkernels import B_TOTAL
+    from engine.photonlayout import decode_power
+    radiance = pmap.photons.radiance
+    if radiance is None or not len(qrows):
+        return None
+    count, photons = read
+    c = np.take(count, slots)
+    width = int(c.max()) if len(c) else 0
+    if width == 0:
+        return None
+    lists = np.take(photons, slots, axis=0)[:, :width]
+    inside = np.arange(width)[None, :] < c[:, None]
+    ph = np.where(inside, lists, 0)
+    pw = pmap.photons.power
+    pw = decode_power(pw[ph.reshape(-1)]) if pw.dtype == np.uint8 else \
+        pw[ph.reshape(-1)].astype(np.float64)
+    pw = pw.reshape(len(qrows), width, 3)
+    bounces = getattr(pmap.photons, "bounces", None)
+    chain = None if bounces is None else bounces[ph, B_TOTAL]
+    w = photonclamp.photon_weights(radiance[ph], pw,
+                                   np.take(scale, qrows, axis=0)[:, None, :], limit, chain)
+    w = np.where(inside, w, 1.0)
+    over = np.flatnonzero((w < 1.0).any(axis=1))
+    if not len(over):
+        return None
+    clamp_w = np.ones(photons.shape)
+    clamp_w[np.asarray(slots, np.int64)[:, None], np.arange(width)[None, :]] = w
+    return (np.asarray(qrows, np.int64)[over], np.asarray(slots, np.int64)[over], clamp_w)
+
+
 def test_clamp_weights_kernel_gives_list_weights_bits(monkeypatch):
     """photonvisibility.clamp_weights (percost56: one kernel pass over the read lists)
-    against photonclamp.list_weights, the numpy stage it replaced: the same rows, slots
+    against _list_weights_numpy, the numpy stage it replaced: the same rows, slots
     and weights bit for bit (or None alike), powers float32 or RGBE, with and without
     the photons' bounces, with the roulette share off, rows of zero scale, lists in any
     slot order and of any length (zero too)."""
@@ -344,7 +385,7 @@ def test_clamp_weights_kernel_gives_list_weights_bits(monkeypatch):
         scale = rng.random((lists, 3)) * 10.0 ** rng.uniform(-3, 1, (lists, 1))
         scale[:20] = 0.0
         limit = 10.0 if trial < 14 else np.inf  # (nothing over it: None)
-        want = photonclamp.list_weights(pmap, (count, photons), qrows, slots, scale, limit)
+        want = _list_weights_numpy(pmap, (count, photons), qrows, slots, scale, limit)
         got = clamp_weights(pmap, (count, photons), qrows, slots, scale, limit)
         if want is None:
             assert got is None
