@@ -272,7 +272,8 @@ def plain_surfaces(table: MaterialTable) -> bool:
 
 
 def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, want_glossy,
-                      out, material=None, blur=None) -> tuple[SurfaceHit, int]:
+                      out, material=None, blur=None,
+                      mean_weights=False) -> tuple[SurfaceHit, int]:
     """surface_hit and camerakernels.shade_lobes on N hits in one kernel
     (camerakernels.surface_lobes), for tables with plain_surfaces: (the SurfaceHit, with
     prm set to out's packed lobes, K the number of rows to shade). tp (N,3) throughputs,
@@ -280,7 +281,8 @@ def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, wa
     arrays shade_lobes writes (integrator.BounceBuffers.take(N)), written as it writes
     them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py).
     material: as surface_hit's; blur (N,) Cycles' Filter Glossy alpha per hit
-    (engine/filterglossy.py) or None: none."""
+    (engine/filterglossy.py) or None: none; mean_weights: shade_lobes' (the lobe choice
+    by the albedos' mean channel, the camera's first hits)."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
     p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
@@ -292,7 +294,8 @@ def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, wa
                       np.ascontiguousarray(table.alpha, np.float64),
                       np.ascontiguousarray(tp, np.float64), bool(want_glossy), p, ng, ns, wo,
                       front, mat, base, offset, bary, prm, sel, q, pw, psum, glossy, rows, wd,
-                      NO_BLUR if blur is None else np.ascontiguousarray(blur, np.float64))
+                      NO_BLUR if blur is None else np.ascontiguousarray(blur, np.float64),
+                      bool(mean_weights))
     _offset_floor(geo, prim, p, ng, offset)
     if table.emission.any():
         emission = hit_emission(table, ShadingGeometry(geo, ns, wo, ~front), mat, prim, u, v)

@@ -289,7 +289,7 @@ def _max3(a, b, c):
 
 @kernel
 def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha, tp,
-                want_glossy, prm, sel, q, p, psum, glossy, rows, wd, blur):
+                want_glossy, prm, sel, q, p, psum, glossy, rows, wd, blur, mean_weights):
     """One camera bounce's lobes over N hits in one call (hit_closures, choose_lobes, the
     glossy rows of integrator.light_modes and the rows the diffuse stage shades), writing
     to memory only what the bounce reads.
@@ -313,7 +313,14 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
     When some row is glossy the direct stage reads every shaded row's prm and sel, so
     then every row is written: prm equals hit_closures' (zeros and the glossy normal on
     diffuse-only rows) and sel choose_lobes' everywhere. Returns K. Same floating-point operations as the
-    kernels it fuses (tests/test_fused_camera.py)."""
+    kernels it fuses (tests/test_fused_camera.py).
+    mean_weights (bool): the non-diffuse lobes' weights p are their albedos' mean channel,
+    Cycles' closure sample weights (bsdf_alloc's average(weight) x average(the microfacet
+    albedo estimate)), instead of choose_lobes' max channel; the camera's first hits take
+    them (studio56: a red metal under a clear coat, the coat's white reflections most of
+    the luminance, picked the coat 0.09 of the time by the max channel, ~0.2 by the mean,
+    as Cycles). Diffuse-only rows keep the max channel (their pass lobe is their only
+    choice)."""
     n = ns.shape[0]
     k_lobes = pr.N_LOBES - 1
     per_hit_alpha = hit_alpha.shape[0] > 0
@@ -370,7 +377,7 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
                 gl = pr.has_rough_reflection(prm, i)
             wi = w_c[j]
             j += 1
-            s, qi = _choose_row(wi, tp[i, 0], tp[i, 1], tp[i, 2], m)
+            s, qi = _choose_row(wi, tp[i, 0], tp[i, 1], tp[i, 2], m, mean_weights)
             psum[i] = s
             q[i] = qi
             if s > 0:
@@ -446,7 +453,7 @@ SURFACE_BLOCK = 512
 @kernel
 def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color, params,
                   table_alpha, tp, want_glossy, p, ng, ns, wo, front, mat, base, offset, bary,
-                  prm, sel, q, pw, psum, glossy, rows, wd, blur):
+                  prm, sel, q, pw, psum, glossy, rows, wd, blur, mean_weights):
     """hit_geometry, the shading normals turned to the ray's side (face_shading_normals,
     no row exempt), wo = -d and shade_lobes over N hits in one call, block by block
     (SURFACE_BLOCK hits: each block's surface data is still in cache when its lobes are
@@ -457,7 +464,8 @@ def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_colo
     rows, table_alpha (M,)); out: hit_geometry's p, ng, ns, front, mat, base, offset, bary,
     wo (N,3), and shade_lobes' prm, sel, q, pw (its p), psum, glossy, rows, wd with the
     same rows written (when some row of the batch is glossy, every block's unread rows
-    are filled in as shade_lobes fills them); blur (N,) or (0,) as shade_lobes'. Returns K, the number of shaded rows.
+    are filled in as shade_lobes fills them); blur (N,) or (0,) and mean_weights as
+    shade_lobes'. Returns K, the number of shaded rows.
     The same kernels on slices: the same bits (tests/test_fused_camera.py)."""
     n = prim.shape[0]
     none_exempt = np.zeros(SURFACE_BLOCK, np.bool_)
@@ -477,7 +485,7 @@ def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_colo
         kb = shade_lobes(ns[a:b], ng[a:b], wo[a:b], mat[a:b], params, False, base[a:b],
                          front[a:b], table_alpha, no_alpha, tp[a:b], want_glossy, prm[a:b],
                          sel[a:b], q[a:b], pw[a:b], psum[a:b], glossy[a:b], rows[k:], wd[k:],
-                         blur[a:b] if blur.shape[0] > 0 else blur)
+                         blur[a:b] if blur.shape[0] > 0 else blur, mean_weights)
         for j in range(k, k + kb):
             rows[j] += a
         k += kb
@@ -643,7 +651,7 @@ def choose_lobes(albedo, tp, sel, q, p, psum):
     k = albedo.shape[1] - 1
     m = np.empty(k)
     for i in range(albedo.shape[0]):
-        s, qi = _choose_row(albedo[i], tp[i, 0], tp[i, 1], tp[i, 2], m)
+        s, qi = _choose_row(albedo[i], tp[i, 0], tp[i, 1], tp[i, 2], m, False)
         psum[i] = s
         q[i] = qi
         sel[i, 0] = 0.0
@@ -653,9 +661,10 @@ def choose_lobes(albedo, tp, sel, q, p, psum):
 
 
 @kernel
-def _choose_row(w, t0, t1, t2, m):
+def _choose_row(w, t0, t1, t2, m, mean):
     """choose_lobes for one hit: w (N_LOBES, 3) its lobe albedos, (t0, t1, t2) its
-    throughput. Writes m (N_LOBES - 1,) the non-diffuse lobes' weights (max channel);
+    throughput. Writes m (N_LOBES - 1,) the non-diffuse lobes' weights (max channel, or
+    with mean the mean channel: Cycles' sample weights, shade_lobes' mean_weights);
     returns (their sum psum, the survival probability q)."""
     k = w.shape[0] - 1
     s = 0.0
@@ -664,7 +673,7 @@ def _choose_row(w, t0, t1, t2, m):
     wz = w[1, 2]
     for j in range(k):
         a0, a1, a2 = w[j + 1, 0], w[j + 1, 1], w[j + 1, 2]
-        mj = max(max(a0, a1), a2)
+        mj = (a0 + a1 + a2) / 3.0 if mean else max(max(a0, a1), a2)
         m[j] = mj
         s = s + mj if j > 0 else mj
         if j > 0:
@@ -1146,7 +1155,7 @@ def _warm_up():
                       off, np.empty((1, 2)), np.empty((1, pr.N_PACK)),
                       np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
                       np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
-                      np.empty((1, 3)), np.zeros(0))
+                      np.empty((1, 3)), np.zeros(0), False)
     for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
         hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
                      np.ones(1), hit_alpha, np.empty((1, pr.N_PACK)),
@@ -1157,7 +1166,7 @@ def _warm_up():
                         np.ones((1, 3)), True, np.empty((1, pr.N_PACK)),
                         np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
                         np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
-                        np.empty((1, 3)), np.zeros(0))
+                        np.empty((1, 3)), np.zeros(0), False)
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
                 np.empty((1, 3)))
     glossy_unguarded_rows(np.zeros(1, np.int64), np.zeros(1, np.int64), one, one, d, e1, e2,

@@ -2250,8 +2250,40 @@ def passes_past_limit(table, hit, over, d, tp, ray_cls):
             np.take(cls, rows), np.full(len(rows), np.inf))
 
 
+# The camera's first hits choose the lobe to continue as Cycles picks a closure
+# (studio56): by the lobes' albedos' mean channel (Cycles' sample weights;
+# camerakernels.shade_lobes' mean_weights) instead of the max channel that later bounces,
+# the photons and the Filter Glossy split's pdfs keep, and with a number stratified over
+# the pixel's samples (lobe_numbers). False: as before (kept to measure the difference:
+# docs/accuracy.md "studio56").
+FIRST_HIT_MEAN_WEIGHTS = True
+FIRST_HIT_LOBE_STRATIFIED = True
+
+
+def lobe_numbers(sampler, key, rng):
+    """One uniform number (N,) per path of sampler (StratifiedSampler) stratified over its
+    pixel's samples in one dimension: the 2-D dimension key's numbers (u1, u2) on its m x m
+    grid, whose cells each sample visits once, made 1-D as (floor(m u1) + u2) / m, so the
+    pixel's m^2 samples fall one in each interval [k / m^2, (k + 1) / m^2). The first hit's
+    lobe choice (continue_specular's lobe_u) takes them, as Cycles picks a closure with its
+    stratified sampler's third BSDF dimension (surface_shader_bsdf_pick with rand_bsdf.z):
+    a coat over a metal, picked with probability ~0.07, was then picked in 1 of 16 samples
+    or in 0-3 of them, by chance (studio56). rng: the jitter's generator."""
+    u1, u2 = sampler.uv(key, rng=rng)
+    m = sampler.m
+    if m < 2:
+        return u1
+    cx = np.minimum(np.floor(u1 * m), m - 1)
+    return np.minimum((cx + u2) / m, np.nextafter(1.0, 0.0))
+
+
+def _spawned_lobe_numbers(sampler, bsdf_rng):
+    """lobe_numbers for the camera pass' first hits, the jitter from a child of bsdf_rng."""
+    return lobe_numbers(sampler, ("lobe",), bsdf_rng.spawn(1)[0])
+
+
 def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
-                      uv=None, go_u=None, split=None, want_pass=False):
+                      uv=None, go_u=None, split=None, want_pass=False, lobe_u=None):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -2277,6 +2309,9 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     want_pass: one more last element, (K,) bool, the rays the transparent pass lobe made
     (a transparent bounce to Cycles; every other lobe's ray is a bounce of its kind, an
     IOR 1 refraction too, which goes on unbent).
+    lobe_u: a function returning stratified numbers (N,) (lobe_numbers) for the lobe
+    choice of hits with two or more lobes of weight > 0, instead of plain random ones
+    (called only when such a hit continues); None: random ones.
     The same uniform numbers are drawn either way."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit, ctx.geo)[1], tp))
@@ -2290,6 +2325,11 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
         out = out if split is None else out + (np.zeros(0, bool), np.zeros(0))
         return out + (np.zeros(0, bool),) if want_pass else out
     r = rng.random(m)
+    if lobe_u is not None:
+        # Stratified only where there is a choice: a hit of one lobe takes it whatever r.
+        several = np.count_nonzero(np.take(p, idx, axis=0) > 0.0, axis=1) >= 2
+        if several.any():
+            r = np.where(several, np.take(lobe_u(), idx), r)
     lobe = np.empty(m, np.int64)
     prob = np.empty(m)
     c = np.ascontiguousarray
@@ -3109,9 +3149,10 @@ def _camera_pass_dimensions(ctx) -> SampleDimensions:
         glossy = [("light-glossy", li, si) for li in glossy_only_lights(ctx)
                   for si in range(ctx.plan.light_samples.get(ctx.lights[li].name, 1))]
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
-                                 + [("bsdf",)] + lens + glossy)
+                                 + [("bsdf",)] + lens + glossy + [("lobe",)])
+    # The first hit's lobe choice (lobe_numbers) last: it moves no other dimension.
     return camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
-                                             for li in ctx.lights], [("bsdf",)] + lens)
+                                             for li in ctx.lights], [("bsdf",)] + lens + [("lobe",)])
 
 
 def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
@@ -3941,7 +3982,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         cam_fp = cam_dd if ortho else cam_dp0 + cam_dd * travelled
         if plain and unguarded is None:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs, material=cls_mat, blur=blur)
+                                        bufs, material=cls_mat, blur=blur,
+                                        mean_weights=FIRST_HIT_MEAN_WEIGHTS and bounce == 0)
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d, material=cls_mat,
                               unguarded=unguarded, footprint=cam_fp)
@@ -3951,7 +3993,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                              hit.base, hit.front, table_alpha,
                              _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64),
                              tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd,
-                             NO_BLUR if blur is None else blur)
+                             NO_BLUR if blur is None else blur,
+                             FIRST_HIT_MEAN_WEIGHTS and bounce == 0)
             hit.prm = prm
         w_diffuse = None
         if fgblur is not None:
@@ -4179,11 +4222,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # (Drawn only if a reflective lobe is sampled: bsdf_rng serves nothing else.)
         uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng)
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
+        # The lobe choice stratified too, its jitter from a child stream (bsdf_rng's left
+        # as it was; spawned only where some hit has a choice to make).
+        lobe_u = (functools.partial(_spawned_lobe_numbers, sampler, bsdf_rng)
+                  if uv is not None and FIRST_HIT_LOBE_STRATIFIED else None)
         d_in, pdf_in = d, pdf_b
         tp_in, cls_in = tp, ray_cls
         cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,
                                  uv=uv, split=None if may_split is None else may_split > 0,
-                                 want_pass=True)
+                                 want_pass=True, lobe_u=lobe_u)
         keep, o, d, tp, ray_cls, pdf_b = cont[:6]
         pass_lobe = cont[-1]  # (the transparent passes among them)
         share = None

@@ -123,7 +123,7 @@ def test_zero_blur_gives_the_same_bits_and_a_blurred_mirror_is_glossy(box_hits, 
                np.zeros(n, np.bool_), np.zeros(n, np.int64), np.full((n, 3), np.nan))
         k = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat, ctx.table.closure_params, False,
                         hit.base, hit.front, np.ascontiguousarray(ctx.table.alpha, np.float64),
-                        np.zeros(0), tp, want_glossy, *out, blur)
+                        np.zeros(0), tp, want_glossy, *out, blur, False)
         return out, k
 
     (a, ka), (b, kb) = fused(NO_BLUR), fused(np.zeros(n))

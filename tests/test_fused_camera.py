@@ -74,7 +74,7 @@ def _fused(table, hit, tp, want_glossy):
                     hit.params if per_hit else table.closure_params, per_hit, hit.base,
                     hit.front, np.ascontiguousarray(table.alpha, np.float64),
                     np.zeros(0) if hit.alpha is None else hit.alpha, tp, want_glossy, prm,
-                    sel, q, p, psum, glossy, rows, wd, np.zeros(0))
+                    sel, q, p, psum, glossy, rows, wd, np.zeros(0), False)
     return prm, sel, q, p, psum, glossy, rows[:k], wd[:k]
 
 
