@@ -65,11 +65,12 @@ Cycles reaches the light by BSDF sampling alone. Approximations: p_b is reverse_
 (the lobes' albedo maxima as their pick weights, the diffuse weight's mean); the lobe's
 own f cos / pdf stands for the material's f cos / p_b (exact for one lobe; a Transparent
 share or a second lobe makes it differ); p_l (light_pdfs) is our camera side's light
-pdf (integrator.mis_light_pdf) x the light tree's pick where the camera side picks
-(selection.selector_for; every light its own shadow rays up to SAMPLE_ALL_UP_TO lights,
-where Cycles' tree would pick among them), the world's with the hit's geometric normal
-for its shading normal; emissive meshes, and lights whose shadow rays do not see
-surfaces (no SHADOW visibility), keep c.
+pdf (integrator.mis_light_pdf) x the pick of a light tree over the lights Cycles
+samples (cycles_light_pick: our tree's pmf, whatever the camera side does, which gives
+each light its own shadow rays up to SAMPLE_ALL_UP_TO lights), the world's with the
+hit's geometric normal for its shading normal; emissive meshes, lights whose shadow
+rays do not see surfaces (no SHADOW visibility) and a world of constant colour without
+portals (Cycles switches its light samples off: cycles_samples_world) keep c.
 """
 from __future__ import annotations
 
@@ -205,12 +206,14 @@ def light_pdfs(ctx, light, x, wi, ng, slot=None) -> np.ndarray:
     """(M,) float64 p_l: the solid-angle pdf (1/sr) with which the camera side's shadow
     rays at points x (M,3) sample unit directions wi (M,3) towards `light` (the photons'
     light: a Light, a LightGroup, whose members take their slots in order, or a
-    RegionEmitter, its light's), times its pick probability there (the light tree's,
-    LightSelector.pmf with normals ng, where selector_for picks; else 1): Cycles' p_l of
-    the next-event strategy at a photon's first scatter (module docstring). ng (M,3):
-    the hits' normals (the world's cosine sampling and the tree's orientation bound).
-    0: a light not sampled that way (delta lights, emissive meshes, lights whose shadow
-    rays are off: Cycles' pair does not apply, c kept)."""
+    RegionEmitter, its light's), times the probability that Cycles' light tree picks it
+    there (cycles_light_pick's LightSelector.pmf with normals ng; 1 for a lone light):
+    Cycles' p_l of the next-event strategy at a photon's first scatter (module
+    docstring). ng (M,3): the hits' normals (the world's cosine sampling and the tree's
+    orientation bound). 0: a light not sampled that way (delta lights, emissive meshes,
+    lights whose shadow rays are off, a world of constant colour without portals, which
+    Cycles does not light-sample: cycles_samples_world; Cycles' pair does not apply, c
+    kept)."""
     x = np.asarray(x, np.float64).reshape(-1, 3)
     wi = np.asarray(wi, np.float64).reshape(-1, 3)
     ng = np.asarray(ng, np.float64).reshape(-1, 3)
@@ -229,7 +232,6 @@ def light_pdfs(ctx, light, x, wi, ng, slot=None) -> np.ndarray:
         light = light.light
     from .geometry import SHADOW
     from .integrator import mis_light_pdf
-    from .lights.selection import selector_for
     from .lights.world import WORLD
     from .scene import AREA, POINT, SPOT, SUN
     kind = getattr(light, "kind", None)
@@ -240,6 +242,8 @@ def light_pdfs(ctx, light, x, wi, ng, slot=None) -> np.ndarray:
             return np.zeros(m)
         pdf = np.full(m, 1.0 / light.solid_angle)
     elif kind == WORLD:
+        if not cycles_samples_world(light):
+            return np.zeros(m)
         pdf = light.pdf(wi, ng, x)
     elif kind in (POINT, SPOT):
         if not light.radius > 0:
@@ -255,11 +259,40 @@ def light_pdfs(ctx, light, x, wi, ng, slot=None) -> np.ndarray:
             np.isfinite(t), t, 1.0)), 0.0)
     else:
         return np.zeros(m)
-    chosen = selector_for(ctx) if ctx is not None else None
-    if chosen is not None:
+    pick = cycles_light_pick(ctx) if ctx is not None else None
+    if pick is not None:
         idx = [k for k, other in enumerate(ctx.lights) if other is light]
-        pdf = pdf * (chosen[0].pmf(x, ng, idx[0]) if idx else 1.0)
+        pdf = pdf * (pick.pmf(x, ng, idx[0]) if idx else 1.0)
     return np.where(np.isfinite(pdf) & (pdf > 0.0), pdf, 0.0)
+
+
+def cycles_samples_world(light) -> bool:
+    """Whether Cycles takes light samples of this world: only where it varies (an
+    environment map) or has light portals. A constant colour's background light is
+    switched off (scene/light.cpp test_enabled_lights, "Background MIS has been
+    disabled"), so BSDF rays alone reach it."""
+    return (getattr(light, "environment", None) is not None
+            or len(getattr(light, "portal_rects", ())) > 0)
+
+
+def cycles_light_pick(ctx):
+    """A LightSelector over the lights Cycles' light tree picks among for one light
+    sample (the lights shadow rays see, without a world Cycles does not sample:
+    cycles_samples_world), whether or not our camera side gives each its own shadow rays
+    (lights.selection.SAMPLE_ALL_UP_TO); None with one light or none (its pick is 1).
+    Built once per context."""
+    from .geometry import SHADOW
+    from .lights.selection import LightSelector
+    from .lights.world import WORLD
+    cache = ctx.light_selectors
+    if "cycles_pick" in cache:
+        return cache["cycles_pick"]
+    members = [li for li, light in enumerate(ctx.lights)
+               if light.ray_kinds & SHADOW and light.shadow_sampled
+               and not (light.kind == WORLD and not cycles_samples_world(light))]
+    pick = LightSelector(ctx.lights, members) if len(members) > 1 else None
+    cache["cycles_pick"] = pick
+    return pick
 
 
 def roulette_share(scale, chain) -> np.ndarray:

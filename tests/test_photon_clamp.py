@@ -236,8 +236,9 @@ def test_mis_clamped_share_is_cycles_clamped_pair_at_one_vertex():
 def test_light_pdfs_are_the_camera_sides_light_pdfs():
     """photonclamp.light_pdfs: a sun's 1 / Omega (its pick 1: one light), a sphere lamp's
     cone 1 / (2 pi (1 - cos a)), an area light's t^2 / (A cos) (a disk, t the distance
-    along wi to its plane); 0 for a sun without angle. Two lights (at most
-    SAMPLE_ALL_UP_TO: each its own shadow rays): no pick factor."""
+    along wi to its plane); 0 for a sun without angle. Two lights: each times the
+    probability that a light tree over both picks it (Cycles' light tree; our camera
+    side gives each its own shadow rays), the two picks summing to 1."""
     s = PaperScene(width=8, height=8)
     s.add_material(Material("floor", (0.5, 0.5, 0.5)))
     s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
@@ -261,16 +262,41 @@ def test_light_pdfs_are_the_camera_sides_light_pdfs():
     lamp = next(li for li in ctx.lights if li.kind != AREA)
     area = next(li for li in ctx.lights if li.kind == AREA)
     off = ctx.geo.offset
+    pick = photonclamp.cycles_light_pick(ctx)
+    il, ia = ctx.lights.index(lamp), ctx.lights.index(area)
     got = photonclamp.light_pdfs(ctx, lamp, x - off, up, up)
     d2 = np.array([4.0, 9.0])  # (squared distances to the lamp's centre)
     cone = 1.0 / (2.0 * math.pi * (1.0 - np.sqrt(1.0 - 0.25 / d2)))
-    assert np.allclose(got, cone, rtol=1e-9)
+    p_lamp = pick.pmf(x - off, up, il)
+    assert np.all((p_lamp > 0.0) & (p_lamp < 1.0))
+    assert np.allclose(p_lamp + pick.pmf(x - off, up, ia), 1.0, rtol=1e-9)
+    assert np.allclose(got, cone * p_lamp, rtol=1e-9)
     wi = np.array([[0.0, 0.0, 1.0], [-0.1, -0.2, 1.0]])
     wi /= np.linalg.norm(wi, axis=1)[:, None]
     x2 = np.array([[0.0, 0.0, 0.0], [0.3, 0.6, 0.0]])
     got = photonclamp.light_pdfs(ctx, area, x2 - off, wi, up)
     t = 3.0 / wi[:, 2]
-    assert np.allclose(got, t * t / (math.pi * 0.25 * wi[:, 2]), rtol=1e-9)
+    assert np.allclose(got, t * t / (math.pi * 0.25 * wi[:, 2]) * pick.pmf(x2 - off, up, ia),
+                       rtol=1e-9)
+
+
+def test_a_constant_world_takes_no_light_sample_in_cycles():
+    """Cycles switches a constant world's light samples off (no environment map, no
+    portals: "Background MIS has been disabled"): p_l 0, so a world-lit photon's first
+    scatter keeps its clamp ratio, and the world joins no light pick."""
+    s = PaperScene(width=8, height=8, background=(0.4, 0.5, 0.6))
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+    s.add_rect_area_light((0, 0, 3), size=1.0, power=100.0)
+    s.set_camera((0, -5, 3), (0, 0, 0))
+    ctx = prepare_context(s, RenderSettings(workers=1, clamp_indirect=1.0))
+    world = next(li for li in ctx.lights if li.kind == WORLD)
+    assert not photonclamp.cycles_samples_world(world)
+    x = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 0.0]])
+    up = np.tile([0.0, 0.0, 1.0], (2, 1))
+    assert not photonclamp.light_pdfs(ctx, world, x, up, up).any()
+    # (the area light alone is sampled: its pick 1, no selector)
+    assert photonclamp.cycles_light_pick(ctx) is None
 
 
 def test_emitted_radiance_is_each_light_kinds_own():
