@@ -461,7 +461,15 @@ def _past_passes(ctx, shadow, buf, M, t_hit, prim, scale, used):
     hit = prim >= 0
     rows = np.flatnonzero(hit & (t_hit < t_end))
     if len(rows):
-        rows = rows[mat_pass[np.take(ctx.geo.material, prim[rows])]]
+        # (the material a shadow ray meets there: Light Path's Is Shadow Ray variants,
+        # shared instances' own rows, as ShadowTransmittance reads them)
+        pr = prim[rows]
+        if shadow.shared:
+            hr, (tab,) = ctx.geo.hit_tables(pr, "material")
+            mats = np.take(raymaterials.remap_rows(ctx.table, SHADOW, tab), hr)
+        else:
+            mats = np.take(shadow.tri_material, pr)
+        rows = rows[mat_pass[mats]]
     if not len(rows):
         return t_hit, prim, None, 0
     o, d, te = buf.o[rows], buf.d[rows], t_end[rows]

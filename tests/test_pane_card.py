@@ -38,3 +38,16 @@ def test_a_card_under_a_pane_halves_its_direct_light(fg):
     k = 1.0 - bare["direct"] / bare["combined"]
     expect = 0.5 * bare["direct"] / (1.0 - k / 4.0)
     assert card["combined"] == pytest.approx(expect, rel=0.03), (card, bare, expect)
+
+
+def test_without_transparent_shadows_the_cards_light_rests_on_photons():
+    """Transparent bounces 0: no shadow ray crosses the card (ctx.shadow is None), so
+    the pane's light past it must come from the photons, caustic as before passages56
+    (photons.F_PANE_PLANE dropped); it was lost from both (0.0: review56 M2)."""
+    scene = _floor_under_window("plane", card_z=0.6)
+    r = render(scene, RenderSettings(photons=20_000, caustic_photons=20_000, spp=8, seed=1,
+                                     workers=1, transparent_max_bounces=0))
+    assert float(np.mean(r.direct)) == 0.0
+    with_shadows = render(scene, RenderSettings(photons=20_000, caustic_photons=20_000,
+                                                spp=8, seed=1, workers=1))
+    assert float(np.mean(r.caustic)) > 0.8 * float(np.mean(with_shadows.direct))
