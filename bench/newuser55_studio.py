@@ -63,7 +63,7 @@ from mathutils import Vector  # noqa: E402
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from newuser26_scenes import (assign, camera, cube, cylinder, principled,  # noqa: E402
                               world_colour)
-from newuser44_table import arguments, print_report, render  # noqa: E402
+from newuser44_table import arguments, finish, region_arguments  # noqa: E402
 
 TARGET = Vector((0.0, 0.0, 1.1))  # where the lights aim: Suzanne's head
 # name: (type, shape, size, size_y, location, watts)
@@ -218,31 +218,16 @@ def studio_masks(scene, w, h, path):
 def main():
     ap = arguments(__doc__)
     ap.add_argument("--cycles-seed", type=int, default=0, help="Cycles' seed (default 0)")
-    ap.add_argument("--bounces", type=int,
-                    help="Light Paths > Max Bounces (both engines; 0: direct light only)")
-    ap.add_argument("--border", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
-                    help="a Render Region (fractions; y from the bottom), not cropped")
     ap.add_argument("--only-light", choices=tuple(LIGHTS), help="keep one area light")
     ap.add_argument("--no-coat", action="store_true", help="the paint's Coat Weight 0")
     ap.add_argument("--spread", type=float, default=60.0, help="the key's Spread (degrees)")
     ap.add_argument("--puck-sheen", type=float, default=0.5, help="the rubber's Sheen Weight")
+    region_arguments(ap)
     a = ap.parse_args()
     import addon
     addon.register()
     scene = studio_scene(a.only_light, not a.no_coat, a.spread, a.puck_sheen)
-    if a.bounces is not None:
-        scene.cycles.max_bounces = a.bounces
-    if a.border:
-        r = scene.render
-        r.use_border, r.use_crop_to_border = True, False
-        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = a.border
-    if a.masks:
-        scene.render.resolution_x, scene.render.resolution_y = a.res
-        scene.render.resolution_percentage = 100
-        return studio_masks(scene, *a.res, a.masks)
-    render(scene, a)
-    if a.mode == "ours":
-        print_report()
+    finish(scene, a, studio_masks)
 
 
 if __name__ == "__main__":
