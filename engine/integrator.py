@@ -2149,18 +2149,28 @@ def probed_world(ctx, modes, clamping, medium, world_row, links, catchers):
     if WORLD_PROBES <= 0 or clamping or medium is not None \
             or world_row >= 0 or links is not None or catchers is not None:
         return None
+    world = constant_world(ctx)
+    if world is None or modes[world[0]] != MODE_CONTINUATION:
+        return None
+    return world[1]
+
+
+def constant_world(ctx):
+    """(li, radiance (3,) float64): the scene's one world light's index and its colour
+    where it is constant (no environment map, no light portals, no world volume) and
+    lights something; None otherwise (probed_world, world_gather)."""
     worlds = [li for li, light in enumerate(ctx.lights) if light.kind == WORLD]
-    if len(worlds) != 1 or modes[worlds[0]] != MODE_CONTINUATION:
+    if len(worlds) != 1:
         return None
     light = ctx.lights[worlds[0]]
-    if light.environment is not None or len(light.portal_rects):
+    if light.environment is not None or len(getattr(light, "portal_rects", ())):
         return None
     scene = ctx.scene
     if getattr(scene, "environment", None) is not None or worldmedium.active(scene):
         return None
     bg = np.asarray(worldmedium.background(scene, np.array([[0.0, 0.0, 1.0]])),
                     np.float64)[0]
-    return bg.copy() if np.all(np.isfinite(bg)) and np.any(bg > 0) else None
+    return (worlds[0], bg.copy()) if np.all(np.isfinite(bg)) and np.any(bg > 0) else None
 
 
 def probe_rows(p, psum, over=None):
@@ -2634,13 +2644,12 @@ def world_gather(ctx, clamping: bool):
     lim = s.bounce_limits
     if lim[0] < 1 or lim[1] < 1:
         return None  # (gather_indirect traces no ray at level 0)
-    worlds = [li for li, light in enumerate(ctx.lights) if light.kind == WORLD]
-    if len(worlds) != 1:
+    world = constant_world(ctx)
+    if world is None:
         return None
-    li = worlds[0]
+    li, bg = world
     light = ctx.lights[li]
-    if (light.environment is not None or len(getattr(light, "portal_rects", ())) or
-            not light.ray_kinds & SHADOW or not light.shadow_sampled or
+    if (not light.ray_kinds & SHADOW or not light.shadow_sampled or
             ctx.plan.light_samples.get(light.name, 0) <= 0):
         return None
     if (selector_for(ctx, False) is not None or getattr(ctx, "links", None) is not None
@@ -2650,13 +2659,6 @@ def world_gather(ctx, clamping: bool):
     if (media.absorption_table(ctx.table).shape[0] or worldmedium.medium_row(ctx) >= 0
             or getattr(ctx.accel, "has_invisible", False)
             or getattr(ctx.gather_map, "guide", None) is not None):
-        return None
-    scene = ctx.scene
-    if getattr(scene, "environment", None) is not None or worldmedium.active(scene):
-        return None
-    bg = np.asarray(worldmedium.background(scene, np.array([[0.0, 0.0, 1.0]])),
-                    np.float64)[0]
-    if not (np.all(np.isfinite(bg)) and np.any(bg > 0)):
         return None
     G = s.gather_rays
     n_s = ctx.plan.light_samples[light.name]
