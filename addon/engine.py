@@ -293,6 +293,9 @@ last_render: dict = {}
 # on Blender's main thread; a listener that raises is dropped from this render with a
 # printed traceback, never stops the render.
 status_listeners: list = []
+# A background render without a listener prints a progress line each time the bar
+# passes another tenth (RenderEngine._progress).
+PROGRESS_LINE_STEP = 0.1
 # The effect report last printed to the console: an animation's frames (Ctrl+F12) simulate
 # the same effects, printed once, not once a frame.
 _printed_effects: list = []
@@ -411,6 +414,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         self._bar_start = 0.0  # where the render's own work starts on the bar (compile)
         self._listeners = []
         self._viewport = None  # rendered viewport (addon/viewport.py)
+        self._text = ""  # the stats line's last text (the background progress lines)
+        self._next_line = PROGRESS_LINE_STEP
 
     def __del__(self):
         # Blender frees the engine when the view leaves Rendered shading (and on quit):
@@ -457,6 +462,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
     def _stats(self, text):
         self.update_stats("", text)
+        self._text = text
         self._emit("stats", text)
 
     def _throttled_stats(self, stage, fraction, text):
@@ -475,6 +481,14 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         if not raw:
             fraction = self._bar_start + (1.0 - self._bar_start) * fraction
         self.update_progress(fraction)
+        if (not self._listeners and bpy.app.background and fraction >= self._next_line
+                and fraction < 1.0):
+            # A script's bpy.ops.render.render() in the background shows no bar, and
+            # Blender 5 no longer prints the stats line: a line every tenth of the bar
+            # (the batch command's listener draws its own bar instead).
+            step = PROGRESS_LINE_STEP
+            self._next_line = (int(fraction / step) + 1) * step
+            print(f"Photon Mapping: {int(100 * fraction)}% {self._text}", flush=True)
         if stage is not None and stage != self._progress_stage:
             self._progress_stage = stage
             self._emit("stage", stage)  # before its first progress (the batch's Eta)
@@ -524,6 +538,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
     # --- render ---------------------------------------------------------------------
     def render(self, depsgraph):
         self._listeners = list(status_listeners)
+        self._next_line = PROGRESS_LINE_STEP
         last_render.clear()
         try:
             self._render(depsgraph)

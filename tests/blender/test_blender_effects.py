@@ -1,5 +1,7 @@
 """The add-on's report of a render: the effect report reaches last_render and the
 stats carry the real kernel-compile time (docs/design.md, Bounce limits; issue 14)."""
+import re
+
 import pytest
 
 from blender_helpers import cheap
@@ -135,7 +137,9 @@ def test_a_moving_animation_prints_its_effect_report_once(open_ground, capsys):
         ball.location = start
     report = engine.last_render["stats"]["effects"]
     assert report != first_report  # the numbers moved (else the s23 test covers it)
-    printed = [x for x in second.splitlines() if x.startswith("Photon Mapping: ")]
+    # (the report's lines, not the background progress lines "Photon Mapping: 24% ...")
+    printed = [x for x in second.splitlines() if x.startswith("Photon Mapping: ")
+               and not re.match(r"Photon Mapping: \d+% ", x)]
     assert printed[0].startswith("Photon Mapping: effects as the previous render"), second
     words = engine._NUMBER.sub
     same = [line for line, old in zip(report, first_report)
@@ -160,3 +164,18 @@ def test_a_changed_effect_line_is_printed_after_the_unchanged_ones():
     assert effect_lines_to_print(before[:1], before) == before[:1]
     other = ["caustics: on - 9 photons", "photon maps: off - no lights"]
     assert effect_lines_to_print(other, before) == other
+
+
+def test_a_background_render_prints_its_progress(open_ground, capsys):
+    """newuser56: a script's bpy.ops.render.render() sat silent for minutes (no bar in
+    the background, and Blender 5 prints no stats line): a line each tenth of the bar,
+    rising, with the stats text; none at the end (the report follows)."""
+    import bpy
+    # (enough pixels for several camera chunks: the bar moves in steps)
+    cheap(open_ground, width=64, height=48, spp=96, photons=2000, caustic_photons=500)
+    bpy.ops.render.render()
+    out = capsys.readouterr().out
+    shares = [int(m) for m in re.findall(r"^Photon Mapping: (\d+)% \S", out, re.M)]
+    assert len(shares) >= 3, out
+    assert shares == sorted(shares) and len(set(s // 10 for s in shares)) == len(shares)
+    assert 0 < shares[0] and shares[-1] < 100
