@@ -452,7 +452,7 @@ def flat_tables(geo, table):
 
 _NO_ANISO_TAN = np.zeros((0, 3, 3))
 _NO_MAY_DIFFUSE = np.zeros(0, np.bool_)
-NO_BLUR = np.zeros(0)  # scatter: no Filter Glossy state kept
+NO_BLUR_STATE = np.zeros(0)  # scatter: no Filter Glossy state kept
 NO_CLAMP = np.zeros(0)  # scatter: no Clamp Indirect radiance ratio kept
 NO_ROWS = np.zeros(0, np.int64)  # scatter: the continued rays' rows not written
 
@@ -461,9 +461,9 @@ _PLAIN_ARG = 31
 
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
-            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur=NO_BLUR,
+            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur=NO_BLUR_STATE,
             passage_blur=None, gather_blur=0.0, split_slots=0, clamp=NO_CLAMP,
-            nx_clamp=NO_CLAMP, nx_blur=NO_BLUR, nx_row=NO_ROWS, light_pdf=NO_CLAMP):
+            nx_clamp=NO_CLAMP, nx_blur=NO_BLUR_STATE, nx_row=NO_ROWS, light_pdf=NO_CLAMP):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -1281,7 +1281,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             # the Filter Glossy split blurs from the camera side), copy 1 off the lobes
             # raised to gather_alpha (F_BLURRED: only its other stores, read past the
             # camera's diffuse bounce, where Cycles blurs this hit) in slot
-            # slot + split_slots (its own random numbers and per-slot state).
+            # slot + split_slots (its own random numbers; its path state per ray, from
+            # its photon's row).
             n_cp = 1
             if (split_on and jc >= 0 and lobe != pr.L_DIFFUSE and lobe != pr.L_PASS
                     and (fl & (F_DIFFUSE | F_SPLIT)) == 0

@@ -490,7 +490,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     # Cycles' Filter Glossy on the maps' paths (engine/glossysplit.py): each ray's
     # reverse-pdf state (photonkernels._scatter's blur / nx_blur; -1: none yet).
     blur = (np.full(len(o), -1.0)
-            if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR)
+            if settings_filter_glossy(settings) > 0.0 else pk.NO_BLUR_STATE)
     # The scatter's nx_row and nx_blur, one set per buffer set (as nxt_sets); nx_row only
     # where some per-ray state is kept here.
     rows_on = pmed is not None or coincident is not None
@@ -626,7 +626,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 clamp_sets[k] = None
                 clamp_sets[k] = pool.take(_clamp_ratios, need)
             nx_clamp = clamp_sets[k][0]
-        nx_row, nx_blur = pk.NO_ROWS, pk.NO_BLUR
+        nx_row, nx_blur = pk.NO_ROWS, pk.NO_BLUR_STATE
         if rows_on or len(blur):
             if state_sets[k] is None or len(state_sets[k][0]) < need:
                 if state_sets[k] is not None:
