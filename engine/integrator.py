@@ -46,6 +46,7 @@ from .closures import principled as pr
 from .coincident import CoincidentSurfaces
 from .turnedlight import TurnedReflections
 from . import turnedglossy
+from .photonkernels import B_TOTAL
 from . import glossysplit
 from . import blurredpassage
 from .console import short_count
@@ -2548,8 +2549,11 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     pclamp = None
     if (clamp_tp is not None and getattr(pmap.photons, "radiance", None) is not None
             and np.isfinite(sampleclamp.limits(s)[1])):
+        # (each row's camera path bounce: Cycles' roulette spares the chain's hits up to
+        # Min Light Bounces + 1, photonclamp.roulette_share; no counts: the first hits)
         pclamp = (np.take(clamp_tp, sel, axis=0) * (np.pi * np.take(f, sel, axis=0)),
-                  sampleclamp.limits(s)[1])
+                  sampleclamp.limits(s)[1],
+                  None if counts is None else np.take(counts[:, B_TOTAL], sel))
     if PHOTON_VISIBILITY or blur is not None or pclamp is not None:
         # Only the photons each point can see (issue 14: a lamp shade piercing a wall);
         # one search a row for the estimate and its visibility rays.

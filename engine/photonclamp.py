@@ -92,6 +92,9 @@ NEE_FIRST_SCATTER = True
 # The limit x Cycles' Russian roulette share along the photon's path (roulette_share);
 # False: the whole limit (Cycles with Min Light Bounces past the path's length).
 ROULETTE = True
+# Cycles' Light Paths > Min Light Bounces (no roulette at path bounce <= it + 1:
+# roulette_share); the add-on does not read it, Blender's default.
+MIN_LIGHT_BOUNCES = 0
 
 
 def keeps_radiance(settings) -> bool:
@@ -295,38 +298,50 @@ def cycles_light_pick(ctx):
     return pick
 
 
-def roulette_share(scale, chain) -> np.ndarray:
+def roulette_share(scale, chain, bounce=0) -> np.ndarray:
     """(...) float64 Q: the share of the limit a Cycles path along a photon keeps on
-    average once its Russian roulette is counted. Cycles (kernel/integrator/path_state.h,
-    path_state_continuation_probability) continues a path at each hit past bounce
-    min_light_bounces (0) with q = min(1, sqrt(max throughput)) and divides the
-    throughput by q (shade_surface.h, integrate_surface) before the light further on is
-    clamped: the clamped value L' = min(L / Q, limit) survives with probability Q = prod
-    q, so on average min(L, Q x limit). After the camera's diffuse bounce the throughput
-    is t0 = max(scale) (the camera path's throughput x albedo); each of the photon's
-    `chain` (...) scatters back to the light is a hit, and along a white chain (smooth
-    clear glass: Cycles' Fresnel pick keeps the throughput) the i-th takes q_i =
-    t^(2^-i): Q = t0^(1 - 2^-chain), 1 where t0 >= 1 (docs/accuracy.md
-    "### roulette54": measured against Cycles with the roulette off). scale (..., 3)
-    broadcast against chain."""
+    average once its Russian roulette is counted. Cycles (kernel/integrator/
+    intersect_closest.h, integrator_intersect_terminate, and path_state.h,
+    path_state_continuation_probability) plays the roulette at each surface hit, before
+    that hit is shaded (so before its next-event estimation), with q = min(1, sqrt(max
+    throughput)), and divides the throughput by q (shade_surface.h, integrate_surface)
+    before any light further on is clamped: the clamped value L' = min(L / Q, limit)
+    survives with probability Q = prod q, so on average min(L, Q x limit). A hit that
+    meets a light or the background plays none (shade_light / shade_background), nor does
+    a hit at path bounce <= Min Light Bounces + 1 (scene/integrator.cpp stores
+    kintegrator->min_bounce = min_bounce + 1; the camera's first hit is bounce 0): with
+    Blender's default Min Light Bounces 0 the camera's first two hits play none. After the
+    camera's diffuse bounce at path bounce `bounce` (...) (the camera chain's bounces
+    before it, B_TOTAL: 0 at the camera's first hits) the throughput is t0 = max(scale)
+    (the camera path's throughput x albedo); the photon's `chain` (...) scatters back to
+    the light are the path's hits at bounces bounce + 1 .. bounce + chain, the first free
+    = max(0, MIN_LIGHT_BOUNCES + 1 - bounce) of them without roulette, and along a white
+    chain (smooth clear glass: Cycles' Fresnel pick keeps the throughput) the i-th played
+    takes q_i = t0^(2^-i): Q = t0^(1 - 2^-(chain - free)), 1 where t0 >= 1 or chain <=
+    free (docs/accuracy.md "### roulette54", "### roulette56"). The reading vertex's own
+    roulette and the camera side's before it are not counted (its throughput is the
+    camera path's; through clear glass ~1: q = 1). scale (..., 3) broadcast against chain
+    and bounce."""
     t0 = np.max(np.abs(np.asarray(scale, np.float64)), axis=-1)
-    k = np.asarray(chain, np.float64)
+    free = np.maximum(MIN_LIGHT_BOUNCES + 1 - np.asarray(bounce, np.float64), 0.0)
+    k = np.maximum(np.asarray(chain, np.float64) - free, 0.0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         q = np.where((t0 > 0.0) & (t0 < 1.0), t0 ** (1.0 - np.exp2(-k)), 1.0)
     return np.where(np.isfinite(q), q, 1.0)
 
 
-def photon_weights(radiance, power, scale, limit, chain=None) -> np.ndarray:
+def photon_weights(radiance, power, scale, limit, chain=None, bounce=0) -> np.ndarray:
     """(...) float64 w_p = min(1, Q x limit / |scale x L_p|_1) for photons with |L_p|_1
     `radiance` (...) and flux `power` (..., 3) (L_p of the flux's colour) at rows whose
     clamp throughput x albedo is `scale` (..., 3) (broadcast); limit: Clamp Indirect's
     (sampleclamp.limits); chain (...): each photon's scatters since the light (Q:
-    roulette_share; None: Q = 1). |L_p|_1 = 0 or no flux: 1."""
+    roulette_share, with the rows' camera path bounce `bounce`; None: Q = 1). |L_p|_1 = 0
+    or no flux: 1."""
     power = np.asarray(power, np.float64)
     flux = np.abs(power).sum(axis=-1)
     c = np.abs(np.asarray(scale, np.float64) * power).sum(axis=-1)
     if chain is not None and ROULETTE:
-        limit = limit * roulette_share(scale, chain)
+        limit = limit * roulette_share(scale, chain, bounce)
     with np.errstate(divide="ignore", invalid="ignore"):
         contrib = np.where(flux > 0, np.asarray(radiance, np.float64) * c / flux, 0.0)
         w = np.where(contrib > limit, limit / contrib, 1.0)

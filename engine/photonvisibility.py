@@ -313,7 +313,8 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     (PhotonMap.knn_irradiance) or None. reject: a callable (rows (H,) of p, map photons
     (H,)) -> (H,) bool, the read pairs to leave out of E as well (counted as hidden ones
     are, the same search and disc; not in the returned pairs), or None. accel None: no
-    pair is traced (reject's alone). clamp: (scale (M,3), limit) or None: with visible,
+    pair is traced (reject's alone). clamp: (scale (M,3), limit) or (scale, limit,
+    bounce (M,) int: the rows' camera path bounce, roulette_share's) or None: with visible,
     each photon of E weighed by Clamp Indirect's w_p (clamp_weights; scale the rows'
     clamp throughput x albedo), where the map keeps Photons.radiance: the rows
     where some photon is over the limit are summed again (_visible_sums, with their
@@ -321,6 +322,7 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     m = len(p)
     if clamp is not None and (not visible or pmap.photons.radiance is None):
         clamp = None
+    bounce = clamp[2] if clamp is not None and len(clamp) > 2 else None
     if surface is not None:
         surface = query_surfaces(surface, m)
     p = np.ascontiguousarray(p, dtype=np.float64)
@@ -360,7 +362,7 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
             # (Clamp Indirect per photon: each listed photon's weight, and the rows where
             # some photon is over the limit, summed again with the hidden ones)
             over = clamp_weights(pmap, (count, photons), listed, listed, clamp[0][a:b],
-                                 clamp[1])
+                                 clamp[1], None if bounce is None else bounce[a:b])
         if ((visible or reject is not None)
                 and (len(rows) or over is not None or dropped is not None)):
             _visible_sums(pmap, limits, counts_here, E[a:b], rows, rows, hid,
@@ -379,7 +381,8 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
                                           reject)
             if clamp is not None:
                 over = clamp_weights(pmap, wide_read[:2], wide, np.arange(len(wide)),
-                                     clamp[0][a:b], clamp[1])
+                                     clamp[0][a:b], clamp[1],
+                                     None if bounce is None else bounce[a:b])
             if ((visible or reject is not None)
                     and (len(rows) or over is not None or dropped is not None)):
                 # (each wide row's slot: its place in wide, which is ascending)
@@ -423,11 +426,13 @@ def _rejected_lists(qrows, slots, count, photons, a, reject):
     return np.asarray(qrows, np.int64)[some], slots[some], dropped
 
 
-def clamp_weights(pmap, read, qrows, slots, scale, limit):
+def clamp_weights(pmap, read, qrows, slots, scale, limit, bounce=None):
     """Clamp Indirect's photonclamp.photon_weights over an estimate's read lists, for
     _visible_sums: read = (count, photons) (_estimate_read's lists, (L,) and (L, W)),
     qrows (Q,) the rows of the block whose lists slots (Q,) are whole, scale (B,3) each
-    row's clamp throughput x albedo, limit Clamp Indirect's. Returns None where no listed
+    row's clamp throughput x albedo, limit Clamp Indirect's, bounce (B,) int or None
+    each row's camera path bounce (roulette_share's; None: 0, the camera's first hits).
+    Returns None where no listed
     photon is over the limit (every weight 1: the estimates keep their bits), else (rows
     (V,), slots (V,), clamp_w (L, W) float64): the rows with some photon over the limit,
     their lists, and each listed photon's w_p (1 past a list's count and for lists not in
@@ -449,7 +454,8 @@ def clamp_weights(pmap, read, qrows, slots, scale, limit):
     else:
         chains = np.arange(_longest_chain(pmap) + 1, dtype=np.float64)
         share = np.ascontiguousarray(photonclamp.roulette_share(
-            np.take(scale, qrows, axis=0)[:, None, :], chains[None, :]), dtype=np.float64)
+            np.take(scale, qrows, axis=0)[:, None, :], chains[None, :],
+            0 if bounce is None else np.take(bounce, qrows)[:, None]), dtype=np.float64)
     clamp_w = np.ones(photons.shape)
     over = np.zeros(len(qrows), bool)
     _clamp_list_weights(ph.power, ph.radiance, bounces, B_TOTAL, share,
@@ -539,7 +545,8 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     without a hidden photon keep the estimate's bits. accel None: the plain estimate.
     surface: the rows' (M,) object ids (PhotonMap.knn_irradiance) or None. reject:
     _estimate_hidden's (pairs left out as hidden ones are; accel None: those alone).
-    clamp: (scale (M,3), limit) or None: _estimate_hidden's (Clamp Indirect per photon)."""
+    clamp: (scale (M,3), limit[, bounce (M,)]) or None: _estimate_hidden's (Clamp Indirect
+    per photon)."""
     if pmap is None or len(pmap) == 0 or pmap.tree is None or len(p) == 0 or radius <= 0:
         return chaincounts.irradiance(pmap, limits, counts, p, n, radius, k, min_photons,
                                       estimator, r_floor=r_floor, surface=surface)

@@ -39,27 +39,48 @@ def test_photon_weight_is_the_limit_over_the_path_contribution():
 
 
 
-def test_roulette_share_is_cycles_continuation_along_a_white_chain():
-    """Cycles continues at each hit past bounce 0 with q = min(1, sqrt(max throughput))
-    and divides by it: along a white chain from t0 the throughputs are t0, t0^(1/2),
-    t0^(1/4), ..., so Q = prod q = t0^(1 - 2^-k) after k hits; 1 from t0 >= 1 or k = 0.
-    The weight's limit is Q x the limit."""
-    t = 0.8
-    q, prod = t, 1.0
-    for _ in range(4):           # the chain's hits, as Cycles walks them
-        step = min(1.0, math.sqrt(q))
+def _cycles_roulette(t0, hits, first_bounce, min_light_bounces=0):
+    """prod q along a white chain of `hits` surface hits after the camera's diffuse
+    bounce, the first at path bounce first_bounce, walked as Cycles walks it: at each hit
+    q = 1 where bounce <= min_light_bounces + 1 (kintegrator->min_bounce), else min(1,
+    sqrt(max throughput)); the throughput divided by q (path_state.h,
+    path_state_continuation_probability; shade_surface.h, integrate_surface)."""
+    t, prod = t0, 1.0
+    for bounce in range(first_bounce, first_bounce + hits):
+        step = 1.0 if bounce <= min_light_bounces + 1 else min(1.0, math.sqrt(t))
         prod *= step
-        q /= step
-    share = photonclamp.roulette_share(np.array([0.2, t, 0.5]), 4)
-    assert share == pytest.approx(prod, rel=1e-12)
-    assert share == pytest.approx(t ** (15 / 16), rel=1e-12)
+        t /= step
+    return prod
+
+
+def test_roulette_share_is_cycles_continuation_along_a_white_chain():
+    """Read at the camera's first hit (bounce 0), a photon's chain of k scatters is the
+    path's hits at bounces 1..k; Cycles plays no roulette at bounce <= Min Light Bounces
+    + 1 = 1, so the chain's first hit is free and Q = t0^(1 - 2^-(k - 1)); 1 from t0 >= 1,
+    k = 0 or k = 1 (a glow's single rough scatter, reached by next-event estimation or
+    by the BSDF ray: the roulette is played at the hit, before either). Read at bounce
+    b >= 1 no hit is free. The weight's limit is Q x the limit."""
+    t = 0.8
+    for k in range(6):
+        want = _cycles_roulette(t, k, first_bounce=1)
+        share = photonclamp.roulette_share(np.array([0.2, t, 0.5]), k)
+        assert share == pytest.approx(want, rel=1e-12)
+        # read deeper (past a camera-side mirror: the chain's first hit at bounce 2 or
+        # 3): none free
+        for bounce in (1, 2):
+            assert photonclamp.roulette_share(np.array([0.2, t, 0.5]), k, bounce) \
+                == pytest.approx(_cycles_roulette(t, k, first_bounce=bounce + 1),
+                                 rel=1e-12)
+    assert photonclamp.roulette_share(np.full(3, t), 4) == pytest.approx(t ** (7 / 8),
+                                                                         rel=1e-12)
+    assert photonclamp.roulette_share(np.full(3, 0.5), 1) == 1.0
     assert np.array_equal(photonclamp.roulette_share(
-        np.array([[1.5, 0.1, 0.1], [t, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.array([3, 0, 5])),
-        [1.0, 1.0, 1.0])
+        np.array([[1.5, 0.1, 0.1], [t, 0.0, 0.0], [0.0, 0.0, 0.0], [t, t, t]]),
+        np.array([3, 0, 5, 1])), [1.0, 1.0, 1.0, 1.0])
     power = np.array([[1.0, 1.0, 1.0]])
-    # |C|_1 = 0.8 x 60 = 48 over 30 x Q(0.8, 2 hits) = 30 x 0.8^0.75
+    # |C|_1 = 0.8 x 60 = 48 over 30 x Q(0.8, 3 hits, the first free) = 30 x 0.8^0.75
     w = photonclamp.photon_weights(np.array([60.0]), power, np.full(3, t), 30.0,
-                                   np.array([2]))
+                                   np.array([3]))
     assert w[0] == pytest.approx(30.0 * t ** 0.75 / 48.0, rel=1e-12)
     assert photonclamp.photon_weights(np.array([60.0]), power, np.full(3, t), 30.0)[0] \
         == pytest.approx(30.0 / 48.0, rel=1e-12)
@@ -474,7 +495,8 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums(focus):
     keeps the plain estimate's bits. focus: 300 more photons in a spot 1e-4 wide with
     rows on it, estimated by the radius estimator, so they read more than READ_WIDTH x
     k photons and are read again whole (_estimate_read's wide rows, summed by their own
-    pass)."""
+    pass). Each row at a camera path bounce of 0-2 (roulette_share's: the clamp tuple's
+    third element)."""
     rng = np.random.default_rng(7)
     n = 600
     pos = np.c_[rng.random((n, 2)), np.zeros(n)]
@@ -509,7 +531,10 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums(focus):
 
     args = (pmap, None, p, nrm, None, 0.15, 40, 8, estimator)
     plain = photonvisibility.visible_irradiance(*args, reject=reject)
-    got = photonvisibility.visible_irradiance(*args, reject=reject, clamp=(scale, 30.0))
+    # (each row's camera path bounce: 0 spares the chains' first hits the roulette)
+    bounce = rng.integers(0, 3, m)
+    got = photonvisibility.visible_irradiance(*args, reject=reject,
+                                              clamp=(scale, 30.0, bounce))
     _, count, lists, weight, factor, wide = photonvisibility._estimate_read(
         pmap, None, None, p, nrm, 0.15, 40, 8, estimator, None)
     count, lists, weight, factor = count.copy(), lists.copy(), weight.copy(), factor.copy()
@@ -530,7 +555,8 @@ def test_clamp_weights_in_the_visible_sums_are_the_numpy_sums(focus):
               else mp.power[js].astype(np.float64))  # (a compact map's RGBE)
         w = photonclamp.photon_weights(mp.radiance[js].astype(np.float64), pw,
                                        scale[i], 30.0,
-                                       None if mp.bounces is None else mp.bounces[js, 0])
+                                       None if mp.bounces is None else mp.bounces[js, 0],
+                                       bounce[i])
         over[i] = (w < 1).any()
         want[i] = (np.where(keep, wt * w, 0.0)[:, None] * pw).sum(axis=0) * fac
     assert 10 < over.sum() <= m - 10

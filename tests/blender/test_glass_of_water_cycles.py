@@ -281,7 +281,8 @@ def test_clamped_glass_of_water_is_cut_as_cycles_cuts_it(fresh_scene, bpy_addon,
     refracted out to the 30-degree sun: tp x albedo x Le = 0.8 x 57 W sr^-1 m^-2 summed
     over RGB, over the limit of 30), which ours clamps per caustic photon
     (engine/photonclamp.py) at the limit x the share Cycles' Russian roulette leaves it
-    (roulette_share: 0.8^(15/16) = 0.81 through the four faces of glass and water) and,
+    (roulette_share: 0.8^(15/16) = 0.81 through the four faces of glass and water, the
+    table read through the glass: past the camera's first hit no face is spared) and,
     in the smooth glass, per gather ray (integrator.CLAMP_PER_GATHER_RAY: its
     turned-normal chains' light). Cycles with its roulette off (Min Light Bounces 64)
     reads 0.6249 / 0.6796: the roulette is a fifth of its cut. Ours over seeds 0-5:
