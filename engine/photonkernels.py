@@ -463,7 +463,8 @@ _PLAIN_ARG = 31
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
             may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI, blur=NO_BLUR_STATE,
             passage_blur=None, gather_blur=0.0, split_slots=0, clamp=NO_CLAMP,
-            nx_clamp=NO_CLAMP, nx_blur=NO_BLUR_STATE, nx_row=NO_ROWS, light_pdf=NO_CLAMP):
+            nx_clamp=NO_CLAMP, nx_blur=NO_BLUR_STATE, nx_row=NO_ROWS, light_pdf=NO_CLAMP,
+            pane_passes=True):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -498,7 +499,9 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     state (media, coincident faces); empty (the default): not written. light_pdf (m,)
     float64: with clamp, each photon's light's solid-angle pdf towards the light at its
     hit (photonclamp.light_pdfs; <= 0: none), which its first non-delta scatter's
-    nx_clamp takes (_scatter); empty (the default): none."""
+    nx_clamp takes (_scatter); empty (the default): none. pane_passes: whether the
+    panes' shadow rays cross transparent passes (ctx.shadow exists): only then does a
+    pass after a pane keep its photon direct (F_PANE_PLANE), else it goes caustic."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
@@ -512,7 +515,7 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
                     GLASS_ADJOINT_MODE, bend_cos, blur, float(fg), ptab, pior,
                     float(gather_blur), int(split_slots), clamp, nx_clamp, nx_blur, nx_row,
-                    light_pdf)
+                    light_pdf, bool(pane_passes))
 
 
 _NO_PASSAGE_TAB, _NO_PASSAGE_IOR = np.ones((2, 2, 2)), np.array([1.0, 2.0])
@@ -907,7 +910,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              st_rad, nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri,
              adjoint_mode, bend_cos, blur, passage_fg, passage_tab, passage_ior,
-             gather_fg, split_slots, clamp, nx_clamp, nx_blur, nx_row, light_pdf):
+             gather_fg, split_slots, clamp, nx_clamp, nx_blur, nx_row, light_pdf,
+             pane_passes):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -1511,7 +1515,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                         # still direct (the pane's / the shade's shadow rays carry it;
                         # engine/panelight.py, engine/shadelight.py).
                         nf |= F_PANE
-                        if pane_tri[t] >= 0:
+                        if pane_tri[t] >= 0 and pane_passes:
                             nf |= F_PANE_PLANE
                     else:
                         pre = nf

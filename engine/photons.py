@@ -656,6 +656,10 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 split_slots=split_slots, clamp=clamp, nx_clamp=nx_clamp,
                                 nx_blur=nx_blur, nx_row=nx_row,
                                 light_pdf=light_pdf,
+                                # (no shadow ray crosses a transparent pass - Transparent
+                                # bounces 0, or none in the scene: a pass after a pane
+                                # makes its photon caustic, the pane's rays stop there)
+                                pane_passes=getattr(ctx, "shadow", None) is not None,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         if scattered is not None:
@@ -663,11 +667,6 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             n_nx = photonmedium.continue_scattered(nxt_sets[k], n_nx, scattered, flags, kinds,
                                                    bnc, slot, clamp, nx_clamp, nx_row, nx_blur)
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
-        if pane_tri is not None and getattr(ctx, "shadow", None) is None:
-            # No shadow ray crosses a transparent pass (Transparent bounces 0, or none in
-            # the scene): a pass after a pane makes the photon caustic, as before
-            # passages56, instead of leaving it to the pane's shadow rays, which stop there.
-            flags &= ~np.int64(pk.F_PANE_PLANE)
         if len(nx_clamp):
             clamp = nx_clamp[:n_nx]
         if len(blur):
